@@ -1,0 +1,221 @@
+//! Rust types for the ROS 2 messages of the rover graph.
+//!
+//! [`msg`] holds the `rover_msgs` interfaces, generated at build time from `msg/*.msg`.
+//! The other modules mirror the standard messages the graph uses, field for field in wire order;
+//! a test checks each of them against the `.msg` files of an installed ROS 2 distribution.
+//! Every type implements [`RosMessage`] (its DDS type name and field list) and
+//! [`ros2_client::Message`], so it can be published and subscribed with `ros2-client`.
+
+pub mod idl;
+#[macro_use]
+mod macros;
+mod fixed_array;
+
+pub use fixed_array::Covariance;
+
+/// A ROS 2 message type: its package, its name and its fields in wire order.
+pub trait RosMessage: ros2_client::Message + Clone + Send + Sync + 'static {
+    /// ROS package, e.g. `sensor_msgs`.
+    const PACKAGE: &'static str;
+    /// Message name within the package, e.g. `Image`.
+    const NAME: &'static str;
+    /// Field names and normalised ROS types, in wire order.
+    fn fields() -> Vec<(&'static str, String)>;
+    /// The name rclpy and the ROS tools show, e.g. `sensor_msgs/msg/Image`.
+    fn type_name() -> String {
+        format!("{}/msg/{}", Self::PACKAGE, Self::NAME)
+    }
+}
+
+/// The ROS type of a Rust field type, e.g. `float64[]` for `Vec<f64>`.
+pub trait RosFieldType {
+    /// Normalised ROS type name.
+    fn ros_type() -> String;
+}
+
+macro_rules! primitive_field_types {
+    ($($rust:ty => $ros:literal),* $(,)?) => {
+        $(impl RosFieldType for $rust { fn ros_type() -> String { $ros.to_string() } })*
+    };
+}
+
+primitive_field_types! {
+    bool => "bool", i8 => "int8", u8 => "uint8", i16 => "int16", u16 => "uint16",
+    i32 => "int32", u32 => "uint32", i64 => "int64", u64 => "uint64",
+    f32 => "float32", f64 => "float64", String => "string",
+}
+
+impl<T: RosFieldType> RosFieldType for Vec<T> {
+    fn ros_type() -> String {
+        format!("{}[]", T::ros_type())
+    }
+}
+
+impl<T: RosFieldType, const N: usize> RosFieldType for [T; N] {
+    fn ros_type() -> String {
+        format!("{}[{N}]", T::ros_type())
+    }
+}
+
+/// The `rover_msgs` interfaces, generated from `msg/*.msg`.
+pub mod msg {
+    include!(concat!(env!("OUT_DIR"), "/rover_msgs.rs"));
+}
+
+/// `builtin_interfaces` messages.
+pub mod builtin_interfaces {
+    ros_message! {
+        /// A point in time: seconds and nanoseconds since the Unix epoch.
+        "builtin_interfaces" / Time { sec: i32, nanosec: u32 }
+    }
+
+    impl Time {
+        /// The current wall-clock time.
+        pub fn now() -> Self {
+            let since_epoch = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .unwrap_or_default();
+            Time {
+                sec: since_epoch.as_secs() as i32,
+                nanosec: since_epoch.subsec_nanos(),
+            }
+        }
+    }
+}
+
+/// `std_msgs` messages.
+pub mod std_msgs {
+    ros_message! {
+        /// Time stamp and coordinate frame of a message.
+        "std_msgs" / Header { stamp: crate::builtin_interfaces::Time, frame_id: String }
+    }
+
+    impl Header {
+        /// A header stamped now in `frame_id`.
+        pub fn now(frame_id: &str) -> Self {
+            Header {
+                stamp: crate::builtin_interfaces::Time::now(),
+                frame_id: frame_id.to_string(),
+            }
+        }
+    }
+}
+
+/// `geometry_msgs` messages.
+pub mod geometry_msgs {
+    use crate::std_msgs::Header;
+
+    ros_message! { /// A position in space, metres.
+    "geometry_msgs" / Point { x: f64, y: f64, z: f64 } }
+    ros_message! { /// A vector in space.
+    "geometry_msgs" / Vector3 { x: f64, y: f64, z: f64 } }
+    ros_message! { /// An orientation as a unit quaternion.
+    "geometry_msgs" / Quaternion { x: f64, y: f64, z: f64, w: f64 } }
+    ros_message! { /// A position and an orientation.
+    "geometry_msgs" / Pose { position: Point, orientation: Quaternion } }
+    ros_message! { /// A set of poses in one frame.
+    "geometry_msgs" / PoseArray { header: Header, poses: Vec<Pose> } }
+    ros_message! { /// Linear (m/s) and angular (rad/s) velocity.
+    "geometry_msgs" / Twist { linear: Vector3, angular: Vector3 } }
+    ros_message! { /// A pose with its 6x6 covariance.
+    "geometry_msgs" / PoseWithCovariance { pose: Pose, covariance: crate::Covariance } }
+    ros_message! { /// A twist with its 6x6 covariance.
+    "geometry_msgs" / TwistWithCovariance { twist: Twist, covariance: crate::Covariance } }
+    ros_message! { /// A rigid transform.
+    "geometry_msgs" / Transform { translation: Vector3, rotation: Quaternion } }
+    ros_message! { /// A transform from `header.frame_id` to `child_frame_id`.
+    "geometry_msgs" / TransformStamped { header: Header, child_frame_id: String, transform: Transform } }
+
+    impl Quaternion {
+        /// The rotation by `yaw_rad` about z.
+        pub fn from_yaw(yaw_rad: f64) -> Self {
+            Self::from_rpy(0.0, 0.0, yaw_rad)
+        }
+
+        /// The rotation by roll, then pitch, then yaw (fixed axes x, y, z), all in radians.
+        pub fn from_rpy(roll_rad: f64, pitch_rad: f64, yaw_rad: f64) -> Self {
+            let (sr, cr) = (roll_rad / 2.0).sin_cos();
+            let (sp, cp) = (pitch_rad / 2.0).sin_cos();
+            let (sy, cy) = (yaw_rad / 2.0).sin_cos();
+            Quaternion {
+                x: sr * cp * cy - cr * sp * sy,
+                y: cr * sp * cy + sr * cp * sy,
+                z: cr * cp * sy - sr * sp * cy,
+                w: cr * cp * cy + sr * sp * sy,
+            }
+        }
+    }
+}
+
+/// `nav_msgs` messages.
+pub mod nav_msgs {
+    use crate::geometry_msgs::{Pose, PoseWithCovariance, TwistWithCovariance};
+    use crate::std_msgs::Header;
+
+    ros_message! { /// Pose and velocity estimate of `child_frame_id` in `header.frame_id`.
+    "nav_msgs" / Odometry {
+        header: Header, child_frame_id: String, pose: PoseWithCovariance, twist: TwistWithCovariance,
+    } }
+    ros_message! { /// Geometry of an occupancy grid.
+    "nav_msgs" / MapMetaData {
+        map_load_time: crate::builtin_interfaces::Time, resolution: f32, width: u32, height: u32, origin: Pose,
+    } }
+    ros_message! { /// A 2-D occupancy grid: 0 free, 100 occupied, -1 unknown, row-major from the origin.
+    "nav_msgs" / OccupancyGrid { header: Header, info: MapMetaData, data: Vec<i8> } }
+}
+
+/// `sensor_msgs` messages.
+pub mod sensor_msgs {
+    use crate::std_msgs::Header;
+
+    ros_message! { /// A compressed image (`format` is e.g. `jpeg`).
+    "sensor_msgs" / CompressedImage {
+        header: Header, format: String, #[serde(with = "serde_bytes")] data: Vec<u8>,
+    } }
+    ros_message! { /// An uncompressed image.
+    "sensor_msgs" / Image {
+        header: Header, height: u32, width: u32, encoding: String, is_bigendian: u8, step: u32,
+        #[serde(with = "serde_bytes")] data: Vec<u8>,
+    } }
+    ros_message! { /// A region of an image.
+    "sensor_msgs" / RegionOfInterest { x_offset: u32, y_offset: u32, height: u32, width: u32, do_rectify: bool } }
+    ros_message! { /// Calibration of a camera: intrinsics, distortion, rectification and projection.
+    "sensor_msgs" / CameraInfo {
+        header: Header, height: u32, width: u32, distortion_model: String, d: Vec<f64>,
+        k: [f64; 9], r: [f64; 9], p: [f64; 12], binning_x: u32, binning_y: u32, roi: RegionOfInterest,
+    } }
+}
+
+/// `tf2_msgs` messages.
+pub mod tf2_msgs {
+    ros_message! { /// A batch of transforms for `/tf`.
+    "tf2_msgs" / TFMessage { transforms: Vec<crate::geometry_msgs::TransformStamped> } }
+}
+
+/// `diagnostic_msgs` messages.
+pub mod diagnostic_msgs {
+    use crate::std_msgs::Header;
+
+    ros_message! { /// A key and a value.
+    "diagnostic_msgs" / KeyValue { key: String, value: String } }
+    ros_message! { /// State of one component.
+    "diagnostic_msgs" / DiagnosticStatus {
+        level: u8, name: String, message: String, hardware_id: String, values: Vec<KeyValue>,
+    } }
+    ros_message! { /// Diagnostics of several components.
+    "diagnostic_msgs" / DiagnosticArray { header: Header, status: Vec<DiagnosticStatus> } }
+
+    impl DiagnosticStatus {
+        /// Level: everything is fine.
+        pub const OK: u8 = 0;
+        /// Level: something needs attention.
+        pub const WARN: u8 = 1;
+        /// Level: something is wrong.
+        pub const ERROR: u8 = 2;
+        /// Level: no recent data.
+        pub const STALE: u8 = 3;
+    }
+}
+
+#[cfg(test)]
+mod tests;

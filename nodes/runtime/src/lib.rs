@@ -1,0 +1,20 @@
+//! The shared node runtime of the rover graph: ROS arguments, names and remaps, typed parameters,
+//! QoS profiles, the topic table, logging to the console and `/rosout`, and shutdown.
+//!
+//! A node binary creates a [`Runtime`] once per process, asks it for a [`RosNode`] with its
+//! parameter struct, and wires the node's [`topics`] to a plain library.
+
+pub mod logging;
+pub mod names;
+mod node;
+pub mod params;
+pub mod qos;
+pub mod ros_args;
+pub mod shutdown;
+pub mod topics;
+
+pub use node::{Params, RosNode, Runtime, domain_id_from_env, spawn_subscriber};
+pub use params::NodeParams;
+pub use ros_args::{RosArgs, split_ros_args};
+pub use ros2_client::{Publisher, Subscription};
+pub use shutdown::Shutdown;

@@ -1,0 +1,165 @@
+//! Logging through `tracing`: console output filtered by `RUST_LOG` (or `--log-level`), and every
+//! event of the project's own crates also published on `/rosout` by the node it belongs to.
+
+use std::sync::{Mutex, OnceLock};
+
+use ros2_client::log::LogLevel;
+use ros2_client::rosout::{NodeLoggingHandle, RosoutRaw};
+use tracing::field::{Field, Visit};
+use tracing::{Event, Subscriber};
+use tracing_subscriber::layer::{Context, SubscriberExt};
+use tracing_subscriber::registry::LookupSpan;
+use tracing_subscriber::util::SubscriberInitExt;
+use tracing_subscriber::{EnvFilter, Layer};
+
+/// Filter used when `RUST_LOG` is not set: our logs at info, the DDS stack's noise muted.
+pub const DEFAULT_FILTER: &str = "info,rustdds=warn,rustdds::network::udp_sender=error,rustdds::rtps=error,\
+ros2_client=warn,ros2_client::rosout=off,ros2_client::distributions=error,socketioxide=warn,engineioxide=warn";
+
+/// Name of the span that tags events with the node they belong to (field `name`).
+pub const NODE_SPAN: &str = "node";
+
+static ROSOUT_HANDLES: OnceLock<Mutex<Vec<(String, NodeLoggingHandle)>>> = OnceLock::new();
+
+fn handles() -> &'static Mutex<Vec<(String, NodeLoggingHandle)>> {
+    ROSOUT_HANDLES.get_or_init(|| Mutex::new(Vec::new()))
+}
+
+/// Installs the global subscriber. `log_level` (from `--ros-args --log-level`) overrides `RUST_LOG`.
+/// Calling it again is harmless.
+pub fn init(log_level: Option<&str>) {
+    let filter = match log_level {
+        Some(level) => EnvFilter::new(format!(
+            "{level},{}",
+            DEFAULT_FILTER.split_once(',').map_or("", |d| d.1)
+        )),
+        None => {
+            EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(DEFAULT_FILTER))
+        }
+    };
+    let _ = tracing_subscriber::registry()
+        .with(
+            tracing_subscriber::fmt::layer()
+                .with_writer(std::io::stderr)
+                .with_target(false),
+        )
+        .with(RosoutLayer)
+        .with(filter)
+        .try_init();
+}
+
+/// Registers the `/rosout` publisher of the node with fully qualified name `node`.
+pub(crate) fn register_rosout(node: &str, handle: NodeLoggingHandle) {
+    handles()
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push((node.to_string(), handle));
+}
+
+/// Removes the `/rosout` publisher of `node` (when the node is dropped).
+pub(crate) fn unregister_rosout(node: &str) {
+    handles()
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .retain(|(name, _)| name != node);
+}
+
+struct NodeName(String);
+
+struct RosoutLayer;
+
+impl<S: Subscriber + for<'a> LookupSpan<'a>> Layer<S> for RosoutLayer {
+    fn on_new_span(
+        &self,
+        attrs: &tracing::span::Attributes<'_>,
+        id: &tracing::span::Id,
+        ctx: Context<'_, S>,
+    ) {
+        if attrs.metadata().name() != NODE_SPAN {
+            return;
+        }
+        let mut visitor = MessageVisitor::default();
+        attrs.record(&mut visitor);
+        if let (Some(span), Some(name)) = (
+            ctx.span(id),
+            visitor.fields.into_iter().find(|(k, _)| k == "name"),
+        ) {
+            span.extensions_mut().insert(NodeName(name.1));
+        }
+    }
+
+    fn on_event(&self, event: &Event<'_>, ctx: Context<'_, S>) {
+        let metadata = event.metadata();
+        if !metadata.target().starts_with("rover") {
+            return;
+        }
+        let node = ctx.event_scope(event).and_then(|scope| {
+            scope
+                .from_root()
+                .find_map(|span| span.extensions().get::<NodeName>().map(|n| n.0.clone()))
+        });
+        let handles = handles().lock().unwrap_or_else(|e| e.into_inner());
+        let handle = match node {
+            Some(node) => handles.iter().find(|(name, _)| *name == node),
+            None if handles.len() == 1 => handles.first(),
+            None => None,
+        };
+        let Some((name, handle)) = handle else { return };
+        let mut visitor = MessageVisitor::default();
+        event.record(&mut visitor);
+        handle.rosout_raw(
+            ros2_client::builtin_interfaces::Time::now(),
+            rosout_level(metadata.level()),
+            name.trim_start_matches('/'),
+            &visitor.text(),
+            metadata.file().unwrap_or_default(),
+            metadata.target(),
+            metadata.line().unwrap_or_default(),
+        );
+    }
+}
+
+fn rosout_level(level: &tracing::Level) -> LogLevel {
+    match *level {
+        tracing::Level::ERROR => LogLevel::Error,
+        tracing::Level::WARN => LogLevel::Warn,
+        tracing::Level::INFO => LogLevel::Info,
+        _ => LogLevel::Debug,
+    }
+}
+
+#[derive(Default)]
+struct MessageVisitor {
+    message: String,
+    fields: Vec<(String, String)>,
+}
+
+impl MessageVisitor {
+    fn text(&self) -> String {
+        let mut text = self.message.clone();
+        for (key, value) in &self.fields {
+            text.push_str(&format!(" {key}={value}"));
+        }
+        text
+    }
+}
+
+impl Visit for MessageVisitor {
+    fn record_str(&mut self, field: &Field, value: &str) {
+        if field.name() == "message" {
+            self.message = value.to_string();
+        } else {
+            self.fields
+                .push((field.name().to_string(), value.to_string()));
+        }
+    }
+
+    fn record_debug(&mut self, field: &Field, value: &dyn std::fmt::Debug) {
+        if field.name() == "message" {
+            self.message = format!("{value:?}");
+        } else {
+            self.fields
+                .push((field.name().to_string(), format!("{value:?}")));
+        }
+    }
+}

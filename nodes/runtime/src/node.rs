@@ -1,0 +1,262 @@
+//! The process runtime (one DDS context per process) and ROS nodes built on it.
+
+use std::sync::{Arc, Mutex};
+
+use anyhow::Context as _;
+use futures::StreamExt;
+use ros2_client::{
+    Context, ContextOptions, MessageTypeName, Name, NodeName, NodeOptions, Publisher, Subscription,
+};
+use rover_msgs::RosMessage;
+use tokio::sync::watch;
+
+use crate::names::NodeIdentity;
+use crate::params::{self, Assignment, NodeParams, ParamValues};
+use crate::ros_args::RosArgs;
+use crate::shutdown::Shutdown;
+use crate::topics::Topic;
+
+/// Highest domain id for which the DDS port numbers stay valid.
+const MAX_DOMAIN_ID: u16 = 232;
+
+/// Reads `ROS_DOMAIN_ID` (default 0), with a clear error for a bad value.
+pub fn domain_id_from_env() -> anyhow::Result<u16> {
+    match std::env::var("ROS_DOMAIN_ID") {
+        Err(_) => Ok(0),
+        Ok(text) if text.trim().is_empty() => Ok(0),
+        Ok(text) => text
+            .trim()
+            .parse::<u16>()
+            .ok()
+            .filter(|&id| id <= MAX_DOMAIN_ID)
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "ROS_DOMAIN_ID={text:?} is not a whole number between 0 and {MAX_DOMAIN_ID}"
+                )
+            }),
+    }
+}
+
+/// What every node of a process shares: the DDS context, the ROS arguments and the shutdown flag.
+#[derive(Clone)]
+pub struct Runtime {
+    context: Context,
+    ros_args: Arc<RosArgs>,
+    shutdown: Shutdown,
+}
+
+impl Runtime {
+    /// Creates the DDS context on `ROS_DOMAIN_ID`. Must run inside a tokio runtime.
+    pub fn new(ros_args: RosArgs, shutdown: Shutdown) -> anyhow::Result<Self> {
+        let domain_id = domain_id_from_env()?;
+        let context = Context::with_options(ContextOptions::new().domain_id(domain_id))
+            .with_context(|| format!("cannot create the DDS participant on domain {domain_id}"))?;
+        tracing::debug!(domain_id, "DDS participant created");
+        Ok(Runtime {
+            context,
+            ros_args: Arc::new(ros_args),
+            shutdown,
+        })
+    }
+
+    /// The shutdown flag of the process.
+    pub fn shutdown(&self) -> Shutdown {
+        self.shutdown.clone()
+    }
+
+    /// The process's ROS arguments.
+    pub fn ros_args(&self) -> &RosArgs {
+        &self.ros_args
+    }
+
+    /// Creates the node whose default name is `default_name`, with its parameters `P` resolved from
+    /// the defaults, `--params-file` files and `-p` overrides, and its spinner running.
+    pub fn node<P: NodeParams>(&self, default_name: &str) -> anyhow::Result<(RosNode, Params<P>)> {
+        let identity = NodeIdentity::resolve(default_name, &self.ros_args)?;
+        let specs = P::specs();
+        let assignments = self.assignments(default_name, &identity)?;
+        let values = params::resolve_values(&identity.fully_qualified(), &specs, &assignments)?;
+        let (params, options) = Params::<P>::with_services(values, specs);
+        let node_name = NodeName::new(&identity.namespace, &identity.name)
+            .map_err(|e| anyhow::anyhow!("node name {}: {e}", identity.fully_qualified()))?;
+        let mut node = self
+            .context
+            .new_node(node_name, options)
+            .with_context(|| format!("cannot create node {}", identity.fully_qualified()))?;
+        let spinner = node.spinner().context("cannot start the node's spinner")?;
+        tokio::spawn(async move {
+            if let Err(e) = spinner.spin().await {
+                tracing::error!("node spinner stopped: {e:?}");
+            }
+        });
+        crate::logging::register_rosout(&identity.fully_qualified(), node.logging_handle());
+        Ok((RosNode { node, identity }, params))
+    }
+
+    fn assignments(
+        &self,
+        default_name: &str,
+        identity: &NodeIdentity,
+    ) -> anyhow::Result<Vec<Assignment>> {
+        let mut assignments = Vec::new();
+        for file in &self.ros_args.params_files {
+            assignments.extend(params::assignments_from_file(
+                file,
+                &identity.fully_qualified(),
+            )?);
+        }
+        for p in self.ros_args.params_for(default_name) {
+            let value = params::parse_override(&p.value)
+                .map_err(|reason| anyhow::anyhow!("-p {}:={}: {reason}", p.name, p.value))?;
+            assignments.push(Assignment {
+                name: p.name.clone(),
+                value,
+                source_name: format!("-p {}:={}", p.name, p.value),
+            });
+        }
+        Ok(assignments)
+    }
+}
+
+/// A ROS 2 node: creates publishers and subscriptions for the graph's [`Topic`]s, with the node's
+/// namespace and remaps applied and the topic's QoS.
+pub struct RosNode {
+    node: ros2_client::Node,
+    identity: NodeIdentity,
+}
+
+impl RosNode {
+    /// The node's resolved name and namespace.
+    pub fn identity(&self) -> &NodeIdentity {
+        &self.identity
+    }
+
+    /// A span that tags log events with this node, so they go to `/rosout` under its name.
+    pub fn span(&self) -> tracing::Span {
+        tracing::info_span!("node", name = %self.identity.fully_qualified())
+    }
+
+    /// The underlying `ros2-client` node.
+    pub fn inner(&self) -> &ros2_client::Node {
+        &self.node
+    }
+
+    /// Creates a publisher on `topic`.
+    pub fn publisher<M: RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<Publisher<M>> {
+        let dds_topic = self.dds_topic(topic)?;
+        self.node
+            .create_publisher(&dds_topic, None)
+            .with_context(|| format!("cannot create a publisher on {}", topic.name))
+    }
+
+    /// Creates a subscription on `topic`.
+    pub fn subscription<M: RosMessage>(
+        &mut self,
+        topic: &Topic<M>,
+    ) -> anyhow::Result<Subscription<M>> {
+        let dds_topic = self.dds_topic(topic)?;
+        self.node
+            .create_subscription(&dds_topic, None)
+            .with_context(|| format!("cannot create a subscription on {}", topic.name))
+    }
+
+    fn dds_topic<M: RosMessage>(
+        &self,
+        topic: &Topic<M>,
+    ) -> anyhow::Result<ros2_client::dds::rustdds::Topic> {
+        let resolved = self.identity.resolve_topic(topic.name)?;
+        let name = Name::parse(&resolved).map_err(|e| anyhow::anyhow!("topic {resolved}: {e}"))?;
+        self.node
+            .create_topic(&name, MessageTypeName::new(M::PACKAGE, M::NAME), &topic.qos)
+            .with_context(|| format!("cannot create topic {resolved}"))
+    }
+}
+
+impl Drop for RosNode {
+    fn drop(&mut self) {
+        crate::logging::unregister_rosout(&self.identity.fully_qualified());
+    }
+}
+
+/// Spawns a task that calls `handler` for every message of `subscription` until the stream ends.
+/// Messages that fail to deserialise are logged and skipped.
+pub fn spawn_subscriber<M, F>(
+    subscription: Subscription<M>,
+    span: tracing::Span,
+    mut handler: F,
+) -> tokio::task::JoinHandle<()>
+where
+    M: RosMessage,
+    F: FnMut(M) + Send + 'static,
+{
+    tokio::spawn(tracing::Instrument::instrument(
+        async move {
+            let mut stream = std::pin::pin!(subscription.async_stream());
+            while let Some(received) = stream.next().await {
+                match received {
+                    Ok((message, _info)) => handler(message),
+                    Err(e) => {
+                        tracing::warn!("dropped a malformed {} message: {e:?}", M::type_name())
+                    }
+                }
+            }
+        },
+        span,
+    ))
+}
+
+/// A node's current parameters; updated when a parameter is set through the ROS 2 parameter services.
+#[derive(Clone)]
+pub struct Params<P> {
+    current: watch::Receiver<P>,
+}
+
+impl<P: NodeParams> Params<P> {
+    /// A snapshot of the current values.
+    pub fn get(&self) -> P {
+        self.current.borrow().clone()
+    }
+
+    /// A receiver that is notified when a value changes.
+    pub fn watch(&self) -> watch::Receiver<P> {
+        self.current.clone()
+    }
+
+    fn with_services(values: ParamValues, specs: Vec<params::ParamSpec>) -> (Self, NodeOptions) {
+        let (sender, current) = watch::channel(P::from_values(&values));
+        let mut options = NodeOptions::new()
+            .enable_rosout(true)
+            .start_parameter_services(true);
+        for (name, value) in &values {
+            options = options.declare_parameter(name, value.clone());
+        }
+        let specs = Arc::new(specs);
+        let validator_specs = Arc::clone(&specs);
+        let state = Mutex::new(values);
+        options = options
+            .parameter_validator(Box::new(move |name, value| {
+                if name == "use_sim_time" {
+                    return Ok(());
+                }
+                let spec = validator_specs
+                    .iter()
+                    .find(|s| s.name == name)
+                    .ok_or_else(|| format!("unknown parameter `{name}`"))?;
+                params::check_value(spec, value).map(|_| ())
+            }))
+            .parameter_set_action(Box::new(move |name, value| {
+                let Some(spec) = specs.iter().find(|s| s.name == name) else {
+                    return Ok(());
+                };
+                let value = params::check_value(spec, value)?;
+                let mut values = state.lock().unwrap_or_else(|e| e.into_inner());
+                if values.get(name) != Some(&value) {
+                    tracing::info!("parameter {name} set to {}", params::describe_value(&value));
+                    values.insert(name.to_string(), value);
+                    sender.send_replace(P::from_values(&values));
+                }
+                Ok(())
+            }));
+        (Params { current }, options)
+    }
+}

@@ -1,0 +1,226 @@
+//! The ROS 2 command-line arguments: `--ros-args -r from:=to -p name:=value --params-file FILE`.
+//!
+//! Everything between `--ros-args` and a lone `--` (or the end) belongs to ROS; the rest is left for
+//! the program's own parser. A remap or parameter may be restricted to one node with a `node:` prefix,
+//! e.g. `-r bridge:__ns:=/rover1` or `-p mapping:range_m:=6.0`.
+
+use std::path::PathBuf;
+
+/// Errors in the ROS arguments, each naming the bad argument and what was expected.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum RosArgsError {
+    /// An option is missing its value.
+    #[error("`{0}` needs a value after it")]
+    MissingValue(String),
+    /// A remap or parameter is not of the form `name:=value`.
+    #[error("`{0}` is not of the form NAME:=VALUE")]
+    NotAnAssignment(String),
+    /// An argument inside `--ros-args` that ROS does not know.
+    #[error(
+        "unknown ROS argument `{0}` (expected -r/--remap, -p/--param, --params-file, --log-level or --)"
+    )]
+    Unknown(String),
+}
+
+/// One `from:=to` remap rule, optionally for a single node.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Remap {
+    /// Node the rule applies to, or `None` for every node of the process.
+    pub node: Option<String>,
+    /// Name to replace (`__ns` and `__node` are special).
+    pub from: String,
+    /// Replacement.
+    pub to: String,
+}
+
+/// One `-p name:=value` override, optionally for a single node.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamOverride {
+    /// Node the override applies to, or `None` for every node.
+    pub node: Option<String>,
+    /// Parameter name.
+    pub name: String,
+    /// Value as written (parsed as a YAML scalar or list later).
+    pub value: String,
+}
+
+/// The ROS arguments of one process.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RosArgs {
+    /// Remap rules in command-line order.
+    pub remaps: Vec<Remap>,
+    /// Parameter overrides in command-line order (later wins).
+    pub params: Vec<ParamOverride>,
+    /// Parameter YAML files in command-line order (later wins).
+    pub params_files: Vec<PathBuf>,
+    /// `--log-level` value, if given.
+    pub log_level: Option<String>,
+}
+
+/// Splits `argv` into the program's own arguments and the parsed ROS arguments.
+pub fn split_ros_args(argv: Vec<String>) -> Result<(Vec<String>, RosArgs), RosArgsError> {
+    let mut own = Vec::new();
+    let mut ros = RosArgs::default();
+    let mut args = argv.into_iter();
+    while let Some(arg) = args.next() {
+        if arg != "--ros-args" {
+            own.push(arg);
+            continue;
+        }
+        while let Some(arg) = args.next() {
+            match arg.as_str() {
+                "--" => break,
+                "--ros-args" => {}
+                "-r" | "--remap" => {
+                    let (node, from, to) = parse_assignment(&arg, args.next())?;
+                    ros.remaps.push(Remap { node, from, to });
+                }
+                "-p" | "--param" => {
+                    let (node, name, value) = parse_assignment(&arg, args.next())?;
+                    ros.params.push(ParamOverride { node, name, value });
+                }
+                "--params-file" => {
+                    let file = args
+                        .next()
+                        .ok_or_else(|| RosArgsError::MissingValue(arg.clone()))?;
+                    ros.params_files.push(PathBuf::from(file));
+                }
+                "--log-level" => {
+                    ros.log_level = Some(
+                        args.next()
+                            .ok_or_else(|| RosArgsError::MissingValue(arg.clone()))?,
+                    );
+                }
+                other if other.contains(":=") => {
+                    let (node, from, to) = parse_assignment("-r", Some(other.to_string()))?;
+                    ros.remaps.push(Remap { node, from, to });
+                }
+                other => return Err(RosArgsError::Unknown(other.to_string())),
+            }
+        }
+    }
+    Ok((own, ros))
+}
+
+fn parse_assignment(
+    option: &str,
+    value: Option<String>,
+) -> Result<(Option<String>, String, String), RosArgsError> {
+    let value = value.ok_or_else(|| RosArgsError::MissingValue(option.to_string()))?;
+    let (lhs, rhs) = value
+        .split_once(":=")
+        .ok_or_else(|| RosArgsError::NotAnAssignment(value.clone()))?;
+    let (node, name) = match lhs.split_once(':') {
+        Some((node, name)) => (Some(node.to_string()), name),
+        None => (None, lhs),
+    };
+    if name.is_empty() {
+        return Err(RosArgsError::NotAnAssignment(value.clone()));
+    }
+    Ok((node, name.to_string(), rhs.to_string()))
+}
+
+impl RosArgs {
+    /// Remap rules that apply to the node originally named `node`.
+    pub fn remaps_for<'a>(&'a self, node: &'a str) -> impl Iterator<Item = &'a Remap> + 'a {
+        self.remaps
+            .iter()
+            .filter(move |r| r.node.as_deref().is_none_or(|n| n == node))
+    }
+
+    /// Parameter overrides that apply to the node originally named `node`.
+    pub fn params_for<'a>(&'a self, node: &'a str) -> impl Iterator<Item = &'a ParamOverride> + 'a {
+        self.params
+            .iter()
+            .filter(move |p| p.node.as_deref().is_none_or(|n| n == node))
+    }
+
+    /// The `__special` remap for `node` (`__ns` or `__node`), the last one winning.
+    pub fn special_for(&self, node: &str, special: &str) -> Option<String> {
+        self.remaps_for(node)
+            .filter(|r| r.from == special)
+            .last()
+            .map(|r| r.to.clone())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn strings(args: &[&str]) -> Vec<String> {
+        args.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn separates_own_and_ros_arguments() {
+        let argv = strings(&[
+            "rover",
+            "bridge",
+            "--ros-args",
+            "-r",
+            "odom:=odometry",
+            "-p",
+            "port:=4568",
+            "--params-file",
+            "a.yaml",
+            "-r",
+            "__ns:=/r1",
+            "--",
+            "--verbose",
+        ]);
+        let (own, ros) = split_ros_args(argv).unwrap();
+        assert_eq!(own, strings(&["rover", "bridge", "--verbose"]));
+        assert_eq!(
+            ros.remaps[0],
+            Remap {
+                node: None,
+                from: "odom".into(),
+                to: "odometry".into()
+            }
+        );
+        assert_eq!(ros.params[0].name, "port");
+        assert_eq!(ros.params[0].value, "4568");
+        assert_eq!(ros.params_files, vec![PathBuf::from("a.yaml")]);
+        assert_eq!(ros.special_for("bridge", "__ns").as_deref(), Some("/r1"));
+    }
+
+    #[test]
+    fn node_prefixed_rules_apply_to_that_node_only() {
+        let argv = strings(&[
+            "rover",
+            "--ros-args",
+            "-r",
+            "bridge:__node:=b2",
+            "-p",
+            "mapping:range_m:=6.5",
+        ]);
+        let (_, ros) = split_ros_args(argv).unwrap();
+        assert_eq!(ros.special_for("bridge", "__node").as_deref(), Some("b2"));
+        assert_eq!(ros.special_for("mapping", "__node"), None);
+        assert_eq!(ros.params_for("mapping").count(), 1);
+        assert_eq!(ros.params_for("bridge").count(), 0);
+    }
+
+    #[test]
+    fn bare_assignment_is_a_remap() {
+        let (_, ros) = split_ros_args(strings(&["x", "--ros-args", "__ns:=/a"])).unwrap();
+        assert_eq!(ros.special_for("n", "__ns").as_deref(), Some("/a"));
+    }
+
+    #[test]
+    fn errors_name_the_bad_argument() {
+        assert_eq!(
+            split_ros_args(strings(&["x", "--ros-args", "-p", "port"])).unwrap_err(),
+            RosArgsError::NotAnAssignment("port".into())
+        );
+        assert_eq!(
+            split_ros_args(strings(&["x", "--ros-args", "-r"])).unwrap_err(),
+            RosArgsError::MissingValue("-r".into())
+        );
+        assert_eq!(
+            split_ros_args(strings(&["x", "--ros-args", "--bogus"])).unwrap_err(),
+            RosArgsError::Unknown("--bogus".into())
+        );
+    }
+}

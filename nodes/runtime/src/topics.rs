@@ -1,0 +1,74 @@
+//! Every topic of the graph: relative name, message type and QoS, in one table (DESIGN.md "Topics").
+
+use std::marker::PhantomData;
+
+use ros2_client::QosProfile;
+use rover_msgs::diagnostic_msgs::DiagnosticArray;
+use rover_msgs::geometry_msgs::{PoseArray, Twist};
+use rover_msgs::msg::{
+    DecisionState, DriveCommand, MapStats, PickupRequest, Telemetry, TerrainScan,
+};
+use rover_msgs::nav_msgs::{OccupancyGrid, Odometry};
+use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image};
+use rover_msgs::tf2_msgs::TFMessage;
+
+use crate::qos::{latched, reliable};
+
+/// A topic: its name (relative unless it starts with `/`), its message type `M` and its QoS.
+pub struct Topic<M> {
+    /// Topic name as the nodes use it before namespacing and remapping.
+    pub name: &'static str,
+    /// QoS of publishers and subscriptions.
+    pub qos: QosProfile,
+    message: PhantomData<fn() -> M>,
+}
+
+impl<M> Topic<M> {
+    const fn new(name: &'static str, qos: QosProfile) -> Self {
+        Topic {
+            name,
+            qos,
+            message: PhantomData,
+        }
+    }
+}
+
+/// The simulator's JPEG, untouched.
+pub const CAMERA_COMPRESSED: Topic<CompressedImage> =
+    Topic::new("camera/image_raw/compressed", reliable(5));
+/// The decoded camera image, rgb8 320x160 (optional).
+pub const CAMERA_RAW: Topic<Image> = Topic::new("camera/image_raw", reliable(1));
+/// The calibrated pinhole model of the camera.
+pub const CAMERA_INFO: Topic<CameraInfo> = Topic::new("camera/camera_info", reliable(5));
+/// Odometry of `base_link` in `odom`.
+pub const ODOM: Topic<Odometry> = Topic::new("odom", reliable(10));
+/// Transforms.
+pub const TF: Topic<TFMessage> = Topic::new("/tf", reliable(100));
+/// Static transforms (latched).
+pub const TF_STATIC: Topic<TFMessage> = Topic::new("/tf_static", latched());
+/// Parsed simulator telemetry, one per frame.
+pub const TELEMETRY: Topic<Telemetry> = Topic::new("rover/telemetry", reliable(10));
+/// True sample positions (scoring only, never for decisions).
+pub const SAMPLE_TRUTH: Topic<PoseArray> = Topic::new("sim/sample_truth", latched());
+/// Classified terrain per camera frame.
+pub const TERRAIN: Topic<TerrainScan> = Topic::new("rover/terrain", reliable(10));
+/// Classified bird's-eye view (becomes the simulator's `inset_image2`).
+pub const VISION: Topic<Image> = Topic::new("rover/vision", reliable(1));
+/// The world map (latched).
+pub const MAP: Topic<OccupancyGrid> = Topic::new("map", latched());
+/// Udacity-style world map image with statistics (becomes `inset_image1`).
+pub const MAP_IMAGE: Topic<Image> = Topic::new("map/image", reliable(1));
+/// Map quality statistics.
+pub const MAP_STATS: Topic<MapStats> = Topic::new("rover/map_stats", reliable(10));
+/// De-duplicated world positions of detected rock samples.
+pub const ROCKS: Topic<PoseArray> = Topic::new("rover/rocks", latched());
+/// Drive commands answering telemetry frames.
+pub const DRIVE_CMD: Topic<DriveCommand> = Topic::new("rover/drive_cmd", reliable(10));
+/// Pickup requests.
+pub const PICKUP: Topic<PickupRequest> = Topic::new("rover/pickup", reliable(10));
+/// State of the decision node.
+pub const MODE: Topic<DecisionState> = Topic::new("rover/mode", reliable(10));
+/// Teleoperation velocity (overrides the decision node while fresh).
+pub const CMD_VEL: Topic<Twist> = Topic::new("cmd_vel", reliable(10));
+/// Bridge health.
+pub const DIAGNOSTICS: Topic<DiagnosticArray> = Topic::new("/diagnostics", reliable(10));
