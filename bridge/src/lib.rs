@@ -1,1 +1,14 @@
+//! The Socket.IO bridge between the rover simulator and the ROS 2 graph.
+//!
+//! [`telemetry`] parses the simulator's dialect, [`lockstep`] answers every frame exactly once,
+//! [`server`] speaks Socket.IO to the simulator, [`convert`] builds the ROS messages and
+//! [`node`] wires it all to the topics.
 
+pub mod convert;
+pub mod lockstep;
+pub mod node;
+pub mod reply;
+pub mod server;
+pub mod stats;
+pub mod telemetry;
+pub mod teleop;

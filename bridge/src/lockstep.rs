@@ -1,0 +1,375 @@
+//! The lock-step core: every telemetry frame gets a number and exactly one reply, the drive command
+//! carrying that number if it arrives within the deadline, otherwise the last command, and a brake
+//! after a longer silence. Independent of sockets and DDS: frames leave through a [`FrameSink`].
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use rover_msgs::geometry_msgs::Twist;
+use tokio::sync::oneshot;
+
+use crate::reply::{CommandSource, DriveValues, LastCommand, Reply, ReplyPolicy};
+use crate::stats::BridgeStats;
+use crate::telemetry::{SimTelemetry, parse_telemetry};
+use crate::teleop::{TeleopGains, twist_to_drive};
+
+/// Receives every accepted telemetry frame (the bridge node publishes it on the ROS topics).
+pub trait FrameSink: Send + Sync + 'static {
+    /// Called once per accepted frame, before the bridge waits for its drive command.
+    fn publish_frame(&self, frame: u64, telemetry: &SimTelemetry);
+}
+
+/// Settings of the lock-step core.
+#[derive(Debug, Clone, Copy)]
+pub struct LockStepConfig {
+    /// Deadline, silence limit and brake value.
+    pub policy: ReplyPolicy,
+    /// Largest accepted telemetry payload, bytes.
+    pub max_payload_bytes: usize,
+    /// Expected camera image size (width, height).
+    pub image_size: (usize, usize),
+    /// How long a `cmd_vel` overrides the decision node.
+    pub teleop_timeout: Duration,
+    /// Teleoperation controller gains.
+    pub teleop_gains: TeleopGains,
+}
+
+/// The two inset images of the simulator's screen, as base64 JPEG.
+#[derive(Debug, Clone, Default)]
+pub struct Insets {
+    /// World map (`inset_image1`).
+    pub map: Arc<str>,
+    /// Vision (`inset_image2`).
+    pub vision: Arc<str>,
+}
+
+/// The bridge's lock-step state, shared by all simulator connections.
+pub struct LockStep<S> {
+    config: Mutex<LockStepConfig>,
+    sink: S,
+    stats: BridgeStats,
+    next_frame: AtomicU64,
+    waiting: Mutex<HashMap<u64, oneshot::Sender<DriveValues>>>,
+    last_command: Mutex<Option<LastCommand>>,
+    pickup_requested: AtomicBool,
+    braking_on_silence: AtomicBool,
+    teleop: Mutex<Option<(Twist, Instant)>>,
+    insets: Mutex<Insets>,
+}
+
+impl<S: FrameSink> LockStep<S> {
+    /// A core that publishes accepted frames to `sink`.
+    pub fn new(config: LockStepConfig, sink: S) -> Self {
+        LockStep {
+            config: Mutex::new(config),
+            sink,
+            stats: BridgeStats::default(),
+            next_frame: AtomicU64::new(0),
+            waiting: Mutex::new(HashMap::new()),
+            last_command: Mutex::new(None),
+            pickup_requested: AtomicBool::new(false),
+            braking_on_silence: AtomicBool::new(false),
+            teleop: Mutex::new(None),
+            insets: Mutex::new(Insets::default()),
+        }
+    }
+
+    /// The current settings.
+    pub fn config(&self) -> LockStepConfig {
+        *lock(&self.config)
+    }
+
+    /// Replaces the settings (when a parameter changes); frames in flight keep their deadline.
+    pub fn set_config(&self, config: LockStepConfig) {
+        *lock(&self.config) = config;
+    }
+
+    /// The health counters.
+    pub fn stats(&self) -> &BridgeStats {
+        &self.stats
+    }
+
+    /// The sink frames go to.
+    pub fn sink(&self) -> &S {
+        &self.sink
+    }
+
+    /// The current inset images.
+    pub fn insets(&self) -> Insets {
+        lock(&self.insets).clone()
+    }
+
+    /// Replaces the world map inset.
+    pub fn set_map_inset(&self, base64_jpeg: String) {
+        lock(&self.insets).map = base64_jpeg.into();
+    }
+
+    /// Replaces the vision inset.
+    pub fn set_vision_inset(&self, base64_jpeg: String) {
+        lock(&self.insets).vision = base64_jpeg.into();
+    }
+
+    /// Answers one telemetry payload (the JSON text of the event's argument, `None` if it had none).
+    pub async fn answer(&self, payload: Option<&str>) -> Reply {
+        let received_at = Instant::now();
+        let config = self.config();
+        self.stats.frame_received();
+        let reply = match payload.map(|p| parse_telemetry(p, config.max_payload_bytes)) {
+            None | Some(Ok(None)) => Reply::Manual,
+            Some(Err(e)) => self.reject(&config, e.kind(), &e.to_string()),
+            Some(Ok(Some(telemetry))) => {
+                let (width, height) = config.image_size;
+                match rover_imaging::check_jpeg(&telemetry.image_jpeg, width, height) {
+                    Err(e) => self.reject(
+                        &config,
+                        "bad_image",
+                        &format!("telemetry field `image`: {e}"),
+                    ),
+                    Ok(()) => self.answer_frame(&config, telemetry).await,
+                }
+            }
+        };
+        self.stats.replied(&reply, received_at.elapsed());
+        reply
+    }
+
+    fn reject(&self, config: &LockStepConfig, kind: &str, problem: &str) -> Reply {
+        tracing::warn!("rejected telemetry frame: {problem}; answering with a brake");
+        self.stats.problem(kind);
+        Reply::Data(
+            DriveValues::brake(config.policy.brake),
+            CommandSource::RejectedFrame,
+        )
+    }
+
+    async fn answer_frame(&self, config: &LockStepConfig, telemetry: SimTelemetry) -> Reply {
+        let frame = self.next_frame.fetch_add(1, Ordering::Relaxed) + 1;
+        let (sender, receiver) = oneshot::channel();
+        lock(&self.waiting).insert(frame, sender);
+        self.sink.publish_frame(frame, &telemetry);
+        let fresh = tokio::time::timeout(config.policy.deadline, receiver)
+            .await
+            .ok()
+            .and_then(Result::ok);
+        lock(&self.waiting).remove(&frame);
+        if self.pickup_requested.swap(false, Ordering::Relaxed) {
+            if telemetry.near_sample && !telemetry.picking_up {
+                return Reply::Pickup;
+            }
+            tracing::warn!(
+                frame,
+                "ignored a pickup request: no sample is within reach or a pickup is running"
+            );
+            self.stats.problem("pickup_without_sample");
+        }
+        if let Some(values) = self.teleop_values(config, telemetry.speed_mps) {
+            return Reply::Data(values, CommandSource::Teleop);
+        }
+        let last = *lock(&self.last_command);
+        let reply = config.policy.drive_reply(fresh, last, Instant::now());
+        let braking = matches!(reply, Reply::Data(_, CommandSource::SilenceBrake));
+        if self.braking_on_silence.swap(braking, Ordering::Relaxed) != braking {
+            if braking {
+                tracing::warn!(
+                    frame,
+                    "no drive command for {:?}: braking until one arrives",
+                    config.policy.silence_limit
+                );
+            } else {
+                tracing::info!(frame, "drive commands are back");
+            }
+        }
+        reply
+    }
+
+    fn teleop_values(&self, config: &LockStepConfig, speed_mps: f64) -> Option<DriveValues> {
+        let teleop = lock(&self.teleop);
+        let (twist, at) = teleop.as_ref()?;
+        (at.elapsed() < config.teleop_timeout)
+            .then(|| twist_to_drive(twist, speed_mps, config.teleop_gains))
+    }
+
+    /// Handles a drive command from the decision node for frame `frame`.
+    pub fn on_drive_command(&self, frame: u64, throttle: f32, brake: f32, steering_deg: f32) {
+        let values = match DriveValues::checked(throttle, brake, steering_deg) {
+            Ok(values) => values,
+            Err(problem) => {
+                tracing::warn!(frame, "rejected a drive command: {problem}");
+                self.stats.bad_command();
+                return;
+            }
+        };
+        *lock(&self.last_command) = Some(LastCommand {
+            values,
+            received_at: Instant::now(),
+        });
+        if let Some(waiter) = lock(&self.waiting).remove(&frame) {
+            let _ = waiter.send(values);
+        }
+    }
+
+    /// Handles a pickup request: the next reply becomes `pickup` if a sample is within reach.
+    pub fn on_pickup_request(&self) {
+        self.pickup_requested.store(true, Ordering::Relaxed);
+    }
+
+    /// Handles a `cmd_vel` twist from a teleoperation tool.
+    pub fn on_teleop(&self, twist: Twist) {
+        *lock(&self.teleop) = Some((twist, Instant::now()));
+    }
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::telemetry::tests::sample_payload;
+
+    struct ChannelSink(std::sync::mpsc::Sender<u64>);
+
+    impl FrameSink for ChannelSink {
+        fn publish_frame(&self, frame: u64, _telemetry: &SimTelemetry) {
+            self.0.send(frame).unwrap();
+        }
+    }
+
+    fn core() -> (Arc<LockStep<ChannelSink>>, std::sync::mpsc::Receiver<u64>) {
+        let (sender, receiver) = std::sync::mpsc::channel();
+        let config = LockStepConfig {
+            policy: ReplyPolicy {
+                deadline: Duration::from_millis(50),
+                silence_limit: Duration::from_millis(300),
+                brake: 10.0,
+            },
+            max_payload_bytes: 1 << 20,
+            image_size: (64, 32),
+            teleop_timeout: Duration::from_millis(200),
+            teleop_gains: TeleopGains {
+                throttle_per_mps: 0.5,
+                brake: 10.0,
+            },
+        };
+        (
+            Arc::new(LockStep::new(config, ChannelSink(sender))),
+            receiver,
+        )
+    }
+
+    fn payload(near_sample: bool) -> String {
+        use base64::Engine as _;
+        let jpeg = rover_imaging::encode_jpeg(&rover_imaging::RgbImage::new(64, 32), 75).unwrap();
+        let mut fields = sample_payload();
+        fields.insert(
+            "image".into(),
+            base64::engine::general_purpose::STANDARD
+                .encode(jpeg)
+                .into(),
+        );
+        fields.insert(
+            "near_sample".into(),
+            if near_sample { "1" } else { "0" }.into(),
+        );
+        fields.insert("picking_up".into(), "0".into());
+        serde_json::to_string(&fields).unwrap()
+    }
+
+    #[tokio::test]
+    async fn the_command_for_the_frame_is_the_reply() {
+        let (core, frames) = core();
+        let answering = {
+            let core = core.clone();
+            tokio::spawn(async move { core.answer(Some(&payload(false))).await })
+        };
+        let frame = tokio::task::spawn_blocking(move || frames.recv().unwrap())
+            .await
+            .unwrap();
+        core.on_drive_command(frame + 1, 1.0, 0.0, 0.0);
+        core.on_drive_command(frame, 0.3, 0.0, 5.0);
+        let reply = answering.await.unwrap();
+        assert_eq!(
+            reply,
+            Reply::Data(
+                DriveValues {
+                    throttle: 0.3,
+                    brake: 0.0,
+                    steering_deg: 5.0
+                },
+                CommandSource::Fresh
+            )
+        );
+    }
+
+    #[tokio::test]
+    async fn silence_holds_then_brakes() {
+        let (core, _frames) = core();
+        core.on_drive_command(0, 0.4, 0.0, 0.0);
+        let held = core.answer(Some(&payload(false))).await;
+        assert!(
+            matches!(held, Reply::Data(v, CommandSource::Held) if v.throttle == 0.4),
+            "{held:?}"
+        );
+        tokio::time::sleep(Duration::from_millis(350)).await;
+        let braked = core.answer(Some(&payload(false))).await;
+        assert_eq!(
+            braked,
+            Reply::Data(DriveValues::brake(10.0), CommandSource::SilenceBrake)
+        );
+        assert_eq!(core.stats().deadline_misses(), 2);
+    }
+
+    #[tokio::test]
+    async fn bad_frames_and_empty_payloads() {
+        let (core, _frames) = core();
+        assert_eq!(core.answer(None).await, Reply::Manual);
+        assert_eq!(core.answer(Some("{}")).await, Reply::Manual);
+        let rejected = core.answer(Some("{\"speed\":1}")).await;
+        assert_eq!(
+            rejected,
+            Reply::Data(DriveValues::brake(10.0), CommandSource::RejectedFrame)
+        );
+        assert_eq!(core.stats().problem_count("missing_field"), 1);
+        let mut corrupt: serde_json::Value = serde_json::from_str(&payload(false)).unwrap();
+        corrupt["image"] = "/9j/AAAA".into();
+        core.answer(Some(&corrupt.to_string())).await;
+        assert_eq!(core.stats().problem_count("bad_image"), 1);
+    }
+
+    #[tokio::test]
+    async fn pickup_only_when_a_sample_is_near() {
+        let (core, _frames) = core();
+        core.on_pickup_request();
+        assert!(matches!(
+            core.answer(Some(&payload(false))).await,
+            Reply::Data(..)
+        ));
+        assert_eq!(core.stats().problem_count("pickup_without_sample"), 1);
+        core.on_pickup_request();
+        assert_eq!(core.answer(Some(&payload(true))).await, Reply::Pickup);
+    }
+
+    #[tokio::test]
+    async fn teleop_overrides_while_fresh_and_nan_commands_are_rejected() {
+        let (core, _frames) = core();
+        core.on_drive_command(0, f32::NAN, 0.0, 0.0);
+        assert_eq!(core.stats().deadline_misses(), 0);
+        let mut twist = Twist::default();
+        twist.linear.x = 2.0;
+        core.on_teleop(twist);
+        let reply = core.answer(Some(&payload(false))).await;
+        assert!(
+            matches!(reply, Reply::Data(_, CommandSource::Teleop)),
+            "{reply:?}"
+        );
+        tokio::time::sleep(Duration::from_millis(250)).await;
+        let reply = core.answer(Some(&payload(false))).await;
+        assert!(
+            matches!(reply, Reply::Data(_, CommandSource::SilenceBrake)),
+            "{reply:?}"
+        );
+    }
+}

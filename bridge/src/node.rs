@@ -1,0 +1,337 @@
+//! The bridge node (`rover bridge`): wires the lock-step core and the Socket.IO server to the topics.
+
+use std::net::{IpAddr, SocketAddr};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use anyhow::Context as _;
+use base64::Engine as _;
+use rover_imaging::RgbImage;
+use rover_msgs::geometry_msgs::PoseArray;
+use rover_msgs::msg::Telemetry;
+use rover_msgs::nav_msgs::Odometry;
+use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image};
+use rover_msgs::std_msgs::Header;
+use rover_msgs::tf2_msgs::TFMessage;
+use rover_node::{Publisher, RosNode, Runtime, spawn_subscriber, topics};
+use tracing::Instrument as _;
+
+use crate::convert::{self, CAMERA_FRAME, ODOM_FRAME, PinholeCamera};
+use crate::lockstep::{FrameSink, LockStep, LockStepConfig};
+use crate::reply::ReplyPolicy;
+use crate::server::{self, ServerConfig};
+use crate::telemetry::SimTelemetry;
+use crate::teleop::TeleopGains;
+
+rover_node::node_params! {
+    /// Parameters of the bridge node.
+    pub struct BridgeParams {
+        /// Address the Socket.IO server listens on.
+        host: String = "127.0.0.1",
+        /// TCP port the Socket.IO server listens on (the Unity simulator always uses 4567).
+        port: i64 [1, 65535] = 4567,
+        /// How long to wait for the drive command of a frame before answering with the last one, ms.
+        reply_deadline_ms: f64 [0.0, 10000.0] = 50.0,
+        /// After this long without any drive command the rover is told to brake, ms.
+        silence_limit_ms: f64 [0.0, 600000.0] = 1000.0,
+        /// Brake value sent when braking on silence or on a rejected frame.
+        brake: f64 [0.0, 100.0] = 10.0,
+        /// Largest accepted telemetry payload, bytes; larger frames are rejected with a brake.
+        max_payload_bytes: i64 [1024, 16777216] = 1048576,
+        /// Width of the simulator's camera image, pixels.
+        image_width: i64 [1, 4096] = 320,
+        /// Height of the simulator's camera image, pixels.
+        image_height: i64 [1, 4096] = 160,
+        /// Also publish the decoded camera image on camera/image_raw (rgb8).
+        publish_raw_image: bool = false,
+        /// How long a cmd_vel twist overrides the decision node, ms.
+        teleop_timeout_ms: f64 [0.0, 10000.0] = 500.0,
+        /// Teleoperation throttle per m/s of speed error.
+        teleop_throttle_per_mps: f64 [0.0, 10.0] = 0.5,
+        /// Period of the /diagnostics message, ms.
+        diagnostics_period_ms: f64 [10.0, 60000.0] = 1000.0,
+        /// JPEG quality of the inset images sent to the simulator.
+        inset_jpeg_quality: i64 [1, 100] = 60,
+    }
+}
+
+impl BridgeParams {
+    fn lockstep_config(&self) -> LockStepConfig {
+        LockStepConfig {
+            policy: ReplyPolicy {
+                deadline: Duration::from_secs_f64(self.reply_deadline_ms / 1000.0),
+                silence_limit: Duration::from_secs_f64(self.silence_limit_ms / 1000.0),
+                brake: self.brake as f32,
+            },
+            max_payload_bytes: self.max_payload_bytes as usize,
+            image_size: (self.image_width as usize, self.image_height as usize),
+            teleop_timeout: Duration::from_secs_f64(self.teleop_timeout_ms / 1000.0),
+            teleop_gains: TeleopGains {
+                throttle_per_mps: self.teleop_throttle_per_mps,
+                brake: self.brake,
+            },
+        }
+    }
+
+    fn server_config(&self) -> anyhow::Result<ServerConfig> {
+        let ip: IpAddr = self
+            .host
+            .parse()
+            .with_context(|| format!("parameter host = {:?} is not an IP address", self.host))?;
+        Ok(ServerConfig {
+            address: SocketAddr::new(ip, self.port as u16),
+            max_message_bytes: self.max_payload_bytes as usize * 4,
+        })
+    }
+}
+
+/// Publishes the topics of each accepted telemetry frame.
+struct DdsSink {
+    telemetry: Publisher<Telemetry>,
+    compressed: Publisher<CompressedImage>,
+    camera_info: Publisher<CameraInfo>,
+    odom: Publisher<Odometry>,
+    tf: Publisher<TFMessage>,
+    sample_truth: Publisher<PoseArray>,
+    raw: Option<Publisher<Image>>,
+    camera: PinholeCamera,
+    last_samples: Mutex<Option<Vec<(f64, f64)>>>,
+}
+
+impl DdsSink {
+    fn new(node: &mut RosNode, params: &BridgeParams) -> anyhow::Result<Self> {
+        let camera = PinholeCamera {
+            width: params.image_width as u32,
+            height: params.image_height as u32,
+            focal_px: (params.image_height as f64 / 2.0) / 35f64.to_radians().tan(),
+        };
+        Ok(DdsSink {
+            telemetry: node.publisher(&topics::TELEMETRY)?,
+            compressed: node.publisher(&topics::CAMERA_COMPRESSED)?,
+            camera_info: node.publisher(&topics::CAMERA_INFO)?,
+            odom: node.publisher(&topics::ODOM)?,
+            tf: node.publisher(&topics::TF)?,
+            sample_truth: node.publisher(&topics::SAMPLE_TRUTH)?,
+            raw: if params.publish_raw_image {
+                Some(node.publisher(&topics::CAMERA_RAW)?)
+            } else {
+                None
+            },
+            camera,
+            last_samples: Mutex::new(None),
+        })
+    }
+
+    fn publish_raw(&self, publisher: &Publisher<Image>, jpeg: &[u8], header: Header) {
+        match rover_imaging::decode_jpeg(jpeg) {
+            Ok(image) => log_publish(
+                "camera/image_raw",
+                publisher.publish(rgb8_message(image, header)),
+            ),
+            Err(e) => tracing::warn!("camera/image_raw not published: {e}"),
+        }
+    }
+
+    fn publish_sample_truth(&self, telemetry: &SimTelemetry, header: Header) {
+        let mut last = self.last_samples.lock().unwrap_or_else(|e| e.into_inner());
+        if last.as_ref() != Some(&telemetry.samples) {
+            *last = Some(telemetry.samples.clone());
+            let message = convert::sample_truth_message(
+                telemetry,
+                Header {
+                    frame_id: "map".into(),
+                    ..header
+                },
+            );
+            log_publish("sim/sample_truth", self.sample_truth.publish(message));
+        }
+    }
+}
+
+impl FrameSink for DdsSink {
+    fn publish_frame(&self, frame: u64, telemetry: &SimTelemetry) {
+        let odom_header = Header::now(ODOM_FRAME);
+        let camera_header = Header {
+            frame_id: CAMERA_FRAME.to_string(),
+            ..odom_header.clone()
+        };
+        log_publish(
+            "rover/telemetry",
+            self.telemetry.publish(convert::telemetry_message(
+                telemetry,
+                frame,
+                odom_header.clone(),
+            )),
+        );
+        log_publish(
+            "camera/image_raw/compressed",
+            self.compressed.publish(convert::compressed_image_message(
+                telemetry,
+                camera_header.clone(),
+            )),
+        );
+        log_publish(
+            "camera/camera_info",
+            self.camera_info
+                .publish(self.camera.camera_info(camera_header.clone())),
+        );
+        log_publish(
+            "odom",
+            self.odom
+                .publish(convert::odometry_message(telemetry, odom_header.clone())),
+        );
+        log_publish(
+            "/tf",
+            self.tf
+                .publish(convert::transform_message(telemetry, odom_header.clone())),
+        );
+        if let Some(raw) = &self.raw {
+            self.publish_raw(raw, &telemetry.image_jpeg, camera_header);
+        }
+        self.publish_sample_truth(telemetry, odom_header);
+    }
+}
+
+fn log_publish<E: std::fmt::Debug>(topic: &str, result: Result<(), E>) {
+    if let Err(e) = result {
+        tracing::warn!("cannot publish on {topic}: {e:?}");
+    }
+}
+
+fn rgb8_message(image: RgbImage, header: Header) -> Image {
+    Image {
+        header,
+        height: image.height as u32,
+        width: image.width as u32,
+        encoding: "rgb8".to_string(),
+        is_bigendian: 0,
+        step: image.width as u32 * 3,
+        data: image.data,
+    }
+}
+
+/// Converts an rgb8 `Image` message into an image, or says why it cannot.
+pub fn rgb_image_from_message(message: Image) -> Result<RgbImage, String> {
+    let (width, height) = (message.width as usize, message.height as usize);
+    if message.encoding != "rgb8" {
+        return Err(format!(
+            "encoding {:?}, expected \"rgb8\"",
+            message.encoding
+        ));
+    }
+    if message.step as usize != width * 3 || message.data.len() != width * height * 3 {
+        return Err(format!(
+            "{} bytes with step {} for {width}x{height} rgb8",
+            message.data.len(),
+            message.step
+        ));
+    }
+    Ok(RgbImage {
+        width,
+        height,
+        data: message.data,
+    })
+}
+
+fn inset_base64(message: Image, quality: u8) -> Result<String, String> {
+    let image = rgb_image_from_message(message)?;
+    let jpeg = rover_imaging::encode_jpeg(&image, quality).map_err(|e| e.to_string())?;
+    Ok(base64::engine::general_purpose::STANDARD.encode(jpeg))
+}
+
+/// Runs the bridge node until shutdown.
+pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
+    let (mut node, params) = runtime.node::<BridgeParams>("bridge")?;
+    let span = node.span();
+    let initial = params.get();
+    let core = Arc::new(LockStep::new(
+        initial.lockstep_config(),
+        DdsSink::new(&mut node, &initial)?,
+    ));
+    subscribe_commands(&mut node, &core, &span)?;
+    subscribe_insets(&mut node, &core, &span, initial.inset_jpeg_quality as u8)?;
+    let diagnostics = node.publisher(&topics::DIAGNOSTICS)?;
+    let name = node.identity().fully_qualified();
+    let period = Duration::from_secs_f64(initial.diagnostics_period_ms / 1000.0);
+    let diagnostics_core = core.clone();
+    tokio::spawn(
+        async move {
+            let mut ticks = tokio::time::interval(period);
+            loop {
+                ticks.tick().await;
+                let message = diagnostics_core.stats().diagnostics(&name, Header::now(""));
+                log_publish("/diagnostics", diagnostics.publish(message));
+            }
+        }
+        .instrument(span.clone()),
+    );
+    let mut changes = params.watch();
+    let config_core = core.clone();
+    tokio::spawn(async move {
+        while changes.changed().await.is_ok() {
+            let updated = changes.borrow_and_update().lockstep_config();
+            config_core.set_config(updated);
+        }
+    });
+    let shutdown = runtime.shutdown();
+    server::serve(core, initial.server_config()?, async move {
+        shutdown.wait().await
+    })
+    .instrument(span)
+    .await
+}
+
+fn subscribe_commands(
+    node: &mut RosNode,
+    core: &Arc<LockStep<DdsSink>>,
+    span: &tracing::Span,
+) -> anyhow::Result<()> {
+    let drive = core.clone();
+    spawn_subscriber(
+        node.subscription(&topics::DRIVE_CMD)?,
+        span.clone(),
+        move |cmd| {
+            drive.on_drive_command(cmd.frame, cmd.throttle, cmd.brake, cmd.steering_angle_deg)
+        },
+    );
+    let pickup = core.clone();
+    spawn_subscriber(
+        node.subscription(&topics::PICKUP)?,
+        span.clone(),
+        move |_| pickup.on_pickup_request(),
+    );
+    let teleop = core.clone();
+    spawn_subscriber(
+        node.subscription(&topics::CMD_VEL)?,
+        span.clone(),
+        move |twist| teleop.on_teleop(twist),
+    );
+    Ok(())
+}
+
+fn subscribe_insets(
+    node: &mut RosNode,
+    core: &Arc<LockStep<DdsSink>>,
+    span: &tracing::Span,
+    quality: u8,
+) -> anyhow::Result<()> {
+    let map = core.clone();
+    spawn_subscriber(
+        node.subscription(&topics::MAP_IMAGE)?,
+        span.clone(),
+        move |image| match inset_base64(image, quality) {
+            Ok(inset) => map.set_map_inset(inset),
+            Err(e) => tracing::warn!("ignored a map/image message: {e}"),
+        },
+    );
+    let vision = core.clone();
+    spawn_subscriber(
+        node.subscription(&topics::VISION)?,
+        span.clone(),
+        move |image| match inset_base64(image, quality) {
+            Ok(inset) => vision.set_vision_inset(inset),
+            Err(e) => tracing::warn!("ignored a rover/vision message: {e}"),
+        },
+    );
+    Ok(())
+}

@@ -1,0 +1,312 @@
+//! Bridge health counters and their `/diagnostics` message.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use rover_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
+use rover_msgs::std_msgs::Header;
+
+use crate::reply::{CommandSource, Reply};
+
+/// Number of recent reply latencies kept for the percentiles.
+const LATENCY_WINDOW: usize = 2000;
+
+/// Counters of the bridge, shared by the socket handlers and the diagnostics publisher.
+#[derive(Debug)]
+pub struct BridgeStats {
+    started: Instant,
+    frames: AtomicU64,
+    connected: AtomicU64,
+    connections: AtomicU64,
+    replies_fresh: AtomicU64,
+    replies_held: AtomicU64,
+    replies_silence_brake: AtomicU64,
+    replies_teleop: AtomicU64,
+    replies_rejected: AtomicU64,
+    replies_pickup: AtomicU64,
+    replies_manual: AtomicU64,
+    bad_commands: AtomicU64,
+    problems: Mutex<BTreeMap<String, u64>>,
+    latencies_ms: Mutex<VecDeque<f64>>,
+    last_rate: Mutex<(Instant, u64)>,
+}
+
+impl Default for BridgeStats {
+    fn default() -> Self {
+        let now = Instant::now();
+        BridgeStats {
+            started: now,
+            frames: AtomicU64::new(0),
+            connected: AtomicU64::new(0),
+            connections: AtomicU64::new(0),
+            replies_fresh: AtomicU64::new(0),
+            replies_held: AtomicU64::new(0),
+            replies_silence_brake: AtomicU64::new(0),
+            replies_teleop: AtomicU64::new(0),
+            replies_rejected: AtomicU64::new(0),
+            replies_pickup: AtomicU64::new(0),
+            replies_manual: AtomicU64::new(0),
+            bad_commands: AtomicU64::new(0),
+            problems: Mutex::new(BTreeMap::new()),
+            latencies_ms: Mutex::new(VecDeque::with_capacity(LATENCY_WINDOW)),
+            last_rate: Mutex::new((now, 0)),
+        }
+    }
+}
+
+/// Percentiles of recent reply latencies, milliseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LatencySummary {
+    /// Median.
+    pub p50_ms: f64,
+    /// 99th percentile.
+    pub p99_ms: f64,
+    /// Samples in the window.
+    pub samples: usize,
+}
+
+impl BridgeStats {
+    /// Counts a telemetry frame received.
+    pub fn frame_received(&self) {
+        self.frames.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Counts a simulator connection.
+    pub fn client_connected(&self) {
+        self.connected.fetch_add(1, Ordering::Relaxed);
+        self.connections.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Counts a simulator disconnection and its reason.
+    pub fn client_disconnected(&self, reason: &str) {
+        self.connected.fetch_sub(1, Ordering::Relaxed);
+        self.problem(&format!("disconnect_{reason}"));
+    }
+
+    /// Counts a problem of kind `kind` (a rejected frame, a disconnect, a bad command...).
+    pub fn problem(&self, kind: &str) {
+        *self
+            .problems
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .entry(kind.to_string())
+            .or_default() += 1;
+    }
+
+    /// Counts a drive command that was rejected (NaN...).
+    pub fn bad_command(&self) {
+        self.bad_commands.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Counts one reply and records how long the frame took from arrival to reply.
+    pub fn replied(&self, reply: &Reply, latency: Duration) {
+        let counter = match reply {
+            Reply::Data(_, CommandSource::Fresh) => &self.replies_fresh,
+            Reply::Data(_, CommandSource::Held) => &self.replies_held,
+            Reply::Data(_, CommandSource::SilenceBrake) => &self.replies_silence_brake,
+            Reply::Data(_, CommandSource::Teleop) => &self.replies_teleop,
+            Reply::Data(_, CommandSource::RejectedFrame) => &self.replies_rejected,
+            Reply::Pickup => &self.replies_pickup,
+            Reply::Manual => &self.replies_manual,
+        };
+        counter.fetch_add(1, Ordering::Relaxed);
+        let mut latencies = self.latencies_ms.lock().unwrap_or_else(|e| e.into_inner());
+        if latencies.len() == LATENCY_WINDOW {
+            latencies.pop_front();
+        }
+        latencies.push_back(latency.as_secs_f64() * 1000.0);
+    }
+
+    /// Frames received so far.
+    pub fn frames(&self) -> u64 {
+        self.frames.load(Ordering::Relaxed)
+    }
+
+    /// Replies sent with the fresh command of their frame.
+    pub fn fresh_replies(&self) -> u64 {
+        self.replies_fresh.load(Ordering::Relaxed)
+    }
+
+    /// Replies without a fresh command: held last command or silence brake (deadline misses).
+    pub fn deadline_misses(&self) -> u64 {
+        self.replies_held.load(Ordering::Relaxed)
+            + self.replies_silence_brake.load(Ordering::Relaxed)
+    }
+
+    /// Count of problems of kind `kind`.
+    pub fn problem_count(&self, kind: &str) -> u64 {
+        self.problems
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(kind)
+            .copied()
+            .unwrap_or(0)
+    }
+
+    /// Percentiles of the recent reply latencies.
+    pub fn latency(&self) -> LatencySummary {
+        let mut values: Vec<f64> = self
+            .latencies_ms
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .iter()
+            .copied()
+            .collect();
+        if values.is_empty() {
+            return LatencySummary::default();
+        }
+        values.sort_by(f64::total_cmp);
+        let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
+        LatencySummary {
+            p50_ms: at(0.5),
+            p99_ms: at(0.99),
+            samples: values.len(),
+        }
+    }
+
+    /// Telemetry frames per second since the previous call.
+    fn rate_hz(&self) -> f64 {
+        let now = Instant::now();
+        let frames = self.frames();
+        let mut last = self.last_rate.lock().unwrap_or_else(|e| e.into_inner());
+        let elapsed = now.duration_since(last.0).as_secs_f64();
+        let rate = if elapsed > 0.0 {
+            (frames - last.1) as f64 / elapsed
+        } else {
+            0.0
+        };
+        *last = (now, frames);
+        rate
+    }
+
+    /// The `/diagnostics` message of the bridge named `name`.
+    pub fn diagnostics(&self, name: &str, header: Header) -> DiagnosticArray {
+        let connected = self.connected.load(Ordering::Relaxed);
+        let latency = self.latency();
+        let rate = self.rate_hz();
+        let silence = self.replies_silence_brake.load(Ordering::Relaxed);
+        let (level, message) = if connected == 0 {
+            (DiagnosticStatus::WARN, "no simulator connected".to_string())
+        } else if rate > 0.0 && silence > 0 && self.fresh_replies() == 0 {
+            (
+                DiagnosticStatus::WARN,
+                "no drive commands: braking".to_string(),
+            )
+        } else {
+            (
+                DiagnosticStatus::OK,
+                format!("simulator connected, {rate:.1} frames/s"),
+            )
+        };
+        let mut values = vec![
+            key_value("link_up", (connected > 0).to_string()),
+            key_value(
+                "uptime_s",
+                format!("{:.1}", self.started.elapsed().as_secs_f64()),
+            ),
+            key_value("telemetry_rate_hz", format!("{rate:.1}")),
+            key_value("frames", self.frames().to_string()),
+            key_value(
+                "connections",
+                self.connections.load(Ordering::Relaxed).to_string(),
+            ),
+            key_value("reply_latency_p50_ms", format!("{:.3}", latency.p50_ms)),
+            key_value("reply_latency_p99_ms", format!("{:.3}", latency.p99_ms)),
+            key_value("replies_fresh", self.fresh_replies().to_string()),
+            key_value("deadline_misses", self.deadline_misses().to_string()),
+            key_value(
+                "replies_held",
+                self.replies_held.load(Ordering::Relaxed).to_string(),
+            ),
+            key_value("replies_silence_brake", silence.to_string()),
+            key_value(
+                "replies_teleop",
+                self.replies_teleop.load(Ordering::Relaxed).to_string(),
+            ),
+            key_value(
+                "replies_rejected_frame",
+                self.replies_rejected.load(Ordering::Relaxed).to_string(),
+            ),
+            key_value(
+                "replies_pickup",
+                self.replies_pickup.load(Ordering::Relaxed).to_string(),
+            ),
+            key_value(
+                "replies_manual",
+                self.replies_manual.load(Ordering::Relaxed).to_string(),
+            ),
+            key_value(
+                "bad_drive_commands",
+                self.bad_commands.load(Ordering::Relaxed).to_string(),
+            ),
+        ];
+        for (kind, count) in self
+            .problems
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .iter()
+        {
+            values.push(key_value(&format!("problem_{kind}"), count.to_string()));
+        }
+        DiagnosticArray {
+            header,
+            status: vec![DiagnosticStatus {
+                level,
+                name: format!("{name}: simulator link"),
+                message,
+                hardware_id: "rover_simulator".to_string(),
+                values,
+            }],
+        }
+    }
+}
+
+fn key_value(key: &str, value: String) -> KeyValue {
+    KeyValue {
+        key: key.to_string(),
+        value,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reply::DriveValues;
+
+    #[test]
+    fn counts_replies_problems_and_latency() {
+        let stats = BridgeStats::default();
+        stats.client_connected();
+        for ms in 1..=100 {
+            stats.frame_received();
+            stats.replied(
+                &Reply::Data(DriveValues::brake(0.0), CommandSource::Fresh),
+                Duration::from_millis(ms),
+            );
+        }
+        stats.replied(
+            &Reply::Data(DriveValues::brake(1.0), CommandSource::Held),
+            Duration::from_millis(50),
+        );
+        stats.problem("not_a_number");
+        stats.problem("not_a_number");
+        let latency = stats.latency();
+        assert_eq!(latency.samples, 101);
+        assert!((49.0..=51.0).contains(&latency.p50_ms), "{latency:?}");
+        assert!(latency.p99_ms >= 99.0, "{latency:?}");
+        let diagnostics = stats.diagnostics("/bridge", Header::default());
+        let values = &diagnostics.status[0].values;
+        let value = |key: &str| {
+            values
+                .iter()
+                .find(|kv| kv.key == key)
+                .map(|kv| kv.value.clone())
+        };
+        assert_eq!(value("frames").as_deref(), Some("100"));
+        assert_eq!(value("deadline_misses").as_deref(), Some("1"));
+        assert_eq!(value("problem_not_a_number").as_deref(), Some("2"));
+        assert_eq!(value("link_up").as_deref(), Some("true"));
+    }
+}

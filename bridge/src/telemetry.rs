@@ -1,0 +1,402 @@
+//! Parsing of the simulator's telemetry event: every value is a JSON string, numbers are .NET "N4"
+//! text with either decimal separator, `position` is `x;y` and the sample lists are `;`-separated.
+
+use base64::Engine as _;
+use serde_json::{Map, Value};
+
+/// One parsed telemetry frame, in the simulator's own units (degrees, Unity angle ranges).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimTelemetry {
+    /// Steering angle the simulator applied, degrees, positive left.
+    pub steering_angle_deg: f64,
+    /// Throttle the simulator applied.
+    pub throttle: f64,
+    /// Brake the simulator applied.
+    pub brake: f64,
+    /// Signed speed, m/s.
+    pub speed_mps: f64,
+    /// Position x, metres.
+    pub x_m: f64,
+    /// Position y (Unity z), metres.
+    pub y_m: f64,
+    /// Pitch, degrees in [0, 360), positive nose down.
+    pub pitch_deg: f64,
+    /// Yaw, degrees counter-clockwise from +x.
+    pub yaw_deg: f64,
+    /// Roll, degrees in [0, 360).
+    pub roll_deg: f64,
+    /// A sample is within reach.
+    pub near_sample: bool,
+    /// The arm is picking up a sample.
+    pub picking_up: bool,
+    /// Samples still on the ground.
+    pub sample_count: u32,
+    /// Positions (x, y) of the samples still on the ground.
+    pub samples: Vec<(f64, f64)>,
+    /// The camera JPEG.
+    pub image_jpeg: Vec<u8>,
+}
+
+/// Why a telemetry frame was rejected. The message names the field and what was expected.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TelemetryError {
+    /// The payload exceeds the size limit.
+    #[error("telemetry payload of {bytes} bytes exceeds the limit of {limit} bytes")]
+    TooLarge {
+        /// Payload size.
+        bytes: usize,
+        /// Configured limit.
+        limit: usize,
+    },
+    /// The payload is not valid JSON.
+    #[error("telemetry payload is not valid JSON: {0}")]
+    InvalidJson(String),
+    /// The payload is JSON but not an object.
+    #[error("telemetry payload is {0}, expected a JSON object")]
+    NotAnObject(&'static str),
+    /// A required field is absent.
+    #[error("telemetry field `{0}` is missing")]
+    MissingField(&'static str),
+    /// A field is not a JSON string.
+    #[error("telemetry field `{field}` is {found}, expected a string")]
+    NotAString {
+        /// Field name.
+        field: &'static str,
+        /// JSON kind found.
+        found: &'static str,
+    },
+    /// A field's text is not a number.
+    #[error("telemetry field `{field}` = {text:?} is not a number")]
+    NotANumber {
+        /// Field name.
+        field: &'static str,
+        /// The text.
+        text: String,
+    },
+    /// A field's number is NaN or infinite.
+    #[error("telemetry field `{field}` = {text:?} is not finite")]
+    NotFinite {
+        /// Field name.
+        field: &'static str,
+        /// The text.
+        text: String,
+    },
+    /// `position` is not `x;y`.
+    #[error("telemetry field `position` = {0:?} is not of the form \"x;y\"")]
+    BadPosition(String),
+    /// `samples_x` and `samples_y` have different lengths.
+    #[error(
+        "telemetry fields `samples_x` ({x}) and `samples_y` ({y}) list different numbers of samples"
+    )]
+    SampleListsDiffer {
+        /// Entries in `samples_x`.
+        x: usize,
+        /// Entries in `samples_y`.
+        y: usize,
+    },
+    /// `image` is not valid base64.
+    #[error("telemetry field `image` is not valid base64: {0}")]
+    BadBase64(String),
+}
+
+impl TelemetryError {
+    /// A short stable name for counting rejections by kind in `/diagnostics`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            TelemetryError::TooLarge { .. } => "too_large",
+            TelemetryError::InvalidJson(_) => "invalid_json",
+            TelemetryError::NotAnObject(_) => "not_an_object",
+            TelemetryError::MissingField(_) => "missing_field",
+            TelemetryError::NotAString { .. } => "not_a_string",
+            TelemetryError::NotANumber { .. } => "not_a_number",
+            TelemetryError::NotFinite { .. } => "not_finite",
+            TelemetryError::BadPosition(_) => "bad_position",
+            TelemetryError::SampleListsDiffer { .. } => "sample_lists_differ",
+            TelemetryError::BadBase64(_) => "bad_base64",
+        }
+    }
+}
+
+/// Parses the JSON payload of a `telemetry` event. `Ok(None)` means an empty payload, which the
+/// simulator's own client answers with `manual`.
+pub fn parse_telemetry(
+    payload: &str,
+    max_bytes: usize,
+) -> Result<Option<SimTelemetry>, TelemetryError> {
+    if payload.len() > max_bytes {
+        return Err(TelemetryError::TooLarge {
+            bytes: payload.len(),
+            limit: max_bytes,
+        });
+    }
+    let value: Value =
+        serde_json::from_str(payload).map_err(|e| TelemetryError::InvalidJson(e.to_string()))?;
+    let fields = match value {
+        Value::Null => return Ok(None),
+        Value::Object(fields) if fields.is_empty() => return Ok(None),
+        Value::Object(fields) => fields,
+        other => return Err(TelemetryError::NotAnObject(json_kind(&other))),
+    };
+    parse_fields(&fields).map(Some)
+}
+
+fn parse_fields(fields: &Map<String, Value>) -> Result<SimTelemetry, TelemetryError> {
+    let number = |name| parse_number(name, text(fields, name)?);
+    let (x_m, y_m) = parse_position(text(fields, "position")?)?;
+    let samples_x = parse_list("samples_x", text(fields, "samples_x")?)?;
+    let samples_y = parse_list("samples_y", text(fields, "samples_y")?)?;
+    if samples_x.len() != samples_y.len() {
+        return Err(TelemetryError::SampleListsDiffer {
+            x: samples_x.len(),
+            y: samples_y.len(),
+        });
+    }
+    Ok(SimTelemetry {
+        steering_angle_deg: number("steering_angle")?,
+        throttle: number("throttle")?,
+        brake: number("brake")?,
+        speed_mps: number("speed")?,
+        x_m,
+        y_m,
+        pitch_deg: number("pitch")?,
+        yaw_deg: number("yaw")?,
+        roll_deg: number("roll")?,
+        near_sample: number("near_sample")? != 0.0,
+        picking_up: number("picking_up")? != 0.0,
+        sample_count: number("sample_count")?.max(0.0) as u32,
+        samples: samples_x.into_iter().zip(samples_y).collect(),
+        image_jpeg: decode_image(text(fields, "image")?)?,
+    })
+}
+
+fn text<'a>(fields: &'a Map<String, Value>, name: &'static str) -> Result<&'a str, TelemetryError> {
+    match fields.get(name) {
+        None => Err(TelemetryError::MissingField(name)),
+        Some(Value::String(s)) => Ok(s),
+        Some(other) => Err(TelemetryError::NotAString {
+            field: name,
+            found: json_kind(other),
+        }),
+    }
+}
+
+/// Parses a .NET "N4"-style number with `.` or `,` as the decimal separator and optional group separators.
+pub fn parse_number(field: &'static str, text: &str) -> Result<f64, TelemetryError> {
+    let normalized = normalize_decimal(text.trim());
+    let value: f64 = normalized.parse().map_err(|_| TelemetryError::NotANumber {
+        field,
+        text: text.to_string(),
+    })?;
+    if !value.is_finite() {
+        return Err(TelemetryError::NotFinite {
+            field,
+            text: text.to_string(),
+        });
+    }
+    Ok(value)
+}
+
+/// Rewrites `1,234.5678` / `1.234,5678` / `0,5` to `1234.5678` / `1234.5678` / `0.5`.
+fn normalize_decimal(text: &str) -> String {
+    let last_dot = text.rfind('.');
+    let last_comma = text.rfind(',');
+    let decimal = match (last_dot, last_comma) {
+        (Some(dot), Some(comma)) => Some(dot.max(comma)),
+        (Some(at), None) | (None, Some(at)) => Some(at),
+        (None, None) => None,
+    };
+    text.char_indices()
+        .filter_map(|(at, c)| match c {
+            '.' | ',' if Some(at) == decimal => Some('.'),
+            '.' | ',' | '\u{a0}' | ' ' => None,
+            other => Some(other),
+        })
+        .collect()
+}
+
+fn parse_position(text: &str) -> Result<(f64, f64), TelemetryError> {
+    let (x, y) = text
+        .split_once(';')
+        .ok_or_else(|| TelemetryError::BadPosition(text.to_string()))?;
+    let x =
+        parse_number("position", x).map_err(|_| TelemetryError::BadPosition(text.to_string()))?;
+    let y =
+        parse_number("position", y).map_err(|_| TelemetryError::BadPosition(text.to_string()))?;
+    Ok((x, y))
+}
+
+fn parse_list(field: &'static str, text: &str) -> Result<Vec<f64>, TelemetryError> {
+    if text.trim().is_empty() {
+        return Ok(Vec::new());
+    }
+    text.split(';')
+        .map(|item| parse_number(field, item))
+        .collect()
+}
+
+fn decode_image(text: &str) -> Result<Vec<u8>, TelemetryError> {
+    base64::engine::general_purpose::STANDARD
+        .decode(text)
+        .map_err(|e| TelemetryError::BadBase64(e.to_string()))
+}
+
+fn json_kind(value: &Value) -> &'static str {
+    match value {
+        Value::Null => "null",
+        Value::Bool(_) => "a boolean",
+        Value::Number(_) => "a number",
+        Value::String(_) => "a string",
+        Value::Array(_) => "an array",
+        Value::Object(_) => "an object",
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    pub(crate) fn sample_payload() -> Map<String, Value> {
+        let json = serde_json::json!({
+            "steering_angle": "-4.3722", "throttle": "0.2000", "brake": "0.0000", "speed": "1.2345",
+            "position": "99.6700;85.5890", "pitch": "359.5000", "yaw": "56.8255", "roll": "0.0000",
+            "near_sample": "0", "picking_up": "1", "sample_count": "6",
+            "samples_x": "97.44;122.28", "samples_y": "74.65;51.66", "image": "/9j/2Q==",
+        });
+        json.as_object().unwrap().clone()
+    }
+
+    fn parse(fields: &Map<String, Value>) -> Result<Option<SimTelemetry>, TelemetryError> {
+        parse_telemetry(&serde_json::to_string(fields).unwrap(), 1 << 20)
+    }
+
+    #[test]
+    fn parses_every_field() {
+        let t = parse(&sample_payload()).unwrap().unwrap();
+        assert_eq!(t.steering_angle_deg, -4.3722);
+        assert_eq!((t.x_m, t.y_m), (99.67, 85.589));
+        assert_eq!(t.pitch_deg, 359.5);
+        assert!(!t.near_sample && t.picking_up);
+        assert_eq!(t.sample_count, 6);
+        assert_eq!(t.samples, vec![(97.44, 74.65), (122.28, 51.66)]);
+        assert_eq!(t.image_jpeg, vec![0xFF, 0xD8, 0xFF, 0xD9]);
+    }
+
+    #[test]
+    fn comma_decimals_and_group_separators() {
+        assert_eq!(parse_number("speed", "0,5000").unwrap(), 0.5);
+        assert_eq!(parse_number("speed", "-1,234.5678").unwrap(), -1234.5678);
+        assert_eq!(parse_number("speed", "1.234,5678").unwrap(), 1234.5678);
+        let mut fields = sample_payload();
+        fields.insert("position".into(), "99,6700;85,5890".into());
+        fields.insert("samples_x".into(), "97,44;122,28".into());
+        let t = parse(&fields).unwrap().unwrap();
+        assert_eq!((t.x_m, t.y_m), (99.67, 85.589));
+        assert_eq!(t.samples[1].0, 122.28);
+    }
+
+    #[test]
+    fn empty_payload_means_manual() {
+        assert_eq!(parse_telemetry("{}", 100).unwrap(), None);
+        assert_eq!(parse_telemetry("null", 100).unwrap(), None);
+    }
+
+    #[test]
+    fn rejections_name_the_field() {
+        let mut missing = sample_payload();
+        missing.remove("yaw");
+        assert_eq!(
+            parse(&missing).unwrap_err(),
+            TelemetryError::MissingField("yaw")
+        );
+
+        let mut number = sample_payload();
+        number.insert("speed".into(), serde_json::json!(1.5));
+        assert_eq!(
+            parse(&number).unwrap_err(),
+            TelemetryError::NotAString {
+                field: "speed",
+                found: "a number"
+            }
+        );
+
+        let mut text = sample_payload();
+        text.insert("throttle".into(), "fast".into());
+        assert_eq!(parse(&text).unwrap_err().kind(), "not_a_number");
+
+        let mut nan = sample_payload();
+        nan.insert("pitch".into(), "nan".into());
+        assert_eq!(
+            parse(&nan).unwrap_err(),
+            TelemetryError::NotFinite {
+                field: "pitch",
+                text: "nan".into()
+            }
+        );
+
+        let mut position = sample_payload();
+        position.insert("position".into(), "99.67".into());
+        assert_eq!(parse(&position).unwrap_err().kind(), "bad_position");
+
+        let mut lists = sample_payload();
+        lists.insert("samples_y".into(), "1.0".into());
+        assert_eq!(
+            parse(&lists).unwrap_err(),
+            TelemetryError::SampleListsDiffer { x: 2, y: 1 }
+        );
+
+        let mut image = sample_payload();
+        image.insert("image".into(), "not base64!".into());
+        assert_eq!(parse(&image).unwrap_err().kind(), "bad_base64");
+
+        assert_eq!(
+            parse_telemetry("[1]", 100).unwrap_err(),
+            TelemetryError::NotAnObject("an array")
+        );
+        assert_eq!(
+            parse_telemetry("{", 100).unwrap_err().kind(),
+            "invalid_json"
+        );
+        assert_eq!(
+            parse_telemetry("{}", 1).unwrap_err(),
+            TelemetryError::TooLarge { bytes: 2, limit: 1 }
+        );
+    }
+
+    #[test]
+    fn empty_sample_lists_are_no_samples() {
+        let mut fields = sample_payload();
+        fields.insert("samples_x".into(), "".into());
+        fields.insert("samples_y".into(), "".into());
+        assert!(parse(&fields).unwrap().unwrap().samples.is_empty());
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(20_000))]
+
+        #[test]
+        fn never_panics_on_arbitrary_payloads(payload in ".{0,300}") {
+            let _ = parse_telemetry(&payload, 1 << 20);
+        }
+
+        #[test]
+        fn never_panics_on_arbitrary_field_values(
+            field in proptest::sample::select(vec!["speed", "position", "pitch", "samples_x", "image", "sample_count", "near_sample"]),
+            value in proptest::prelude::any::<String>(),
+        ) {
+            let mut fields = sample_payload();
+            fields.insert(field.to_string(), Value::String(value));
+            let result = parse(&fields);
+            if let Ok(Some(t)) = result {
+                proptest::prop_assert!(t.speed_mps.is_finite() && t.x_m.is_finite() && t.pitch_deg.is_finite());
+            }
+        }
+
+        #[test]
+        fn n4_numbers_round_trip(value in -99_999.0f64..99_999.0, comma in proptest::prelude::any::<bool>()) {
+            let text = format!("{value:.4}");
+            let text = if comma { text.replace('.', ",") } else { text };
+            let parsed = parse_number("speed", &text).unwrap();
+            proptest::prop_assert!((parsed - value).abs() < 1e-4);
+        }
+    }
+}

@@ -1,0 +1,96 @@
+//! Teleoperation: a `cmd_vel` twist turned into the simulator's throttle, brake and steering.
+
+use rover_msgs::geometry_msgs::Twist;
+
+use crate::reply::{DriveValues, MAX_STEERING_DEG};
+
+/// Distance between the front and rear axles of the rover, metres (unity-sim-spec 3.1).
+const WHEELBASE_M: f64 = 0.722;
+/// Yaw rate of a turn in place at full steering, degrees per second (unity-sim-spec 3.3).
+const TURN_IN_PLACE_DEG_PER_S: f64 = 45.0;
+/// Below this speed the rover turns in place rather than steering.
+const TURN_IN_PLACE_BELOW_MPS: f64 = 0.3;
+
+/// Gains of the teleoperation speed controller.
+#[derive(Debug, Clone, Copy)]
+pub struct TeleopGains {
+    /// Throttle per m/s of speed error.
+    pub throttle_per_mps: f64,
+    /// Brake applied when asked to stop while moving.
+    pub brake: f64,
+}
+
+/// Converts a twist (linear.x m/s, angular.z rad/s, REP-103) into drive values at the current speed.
+pub fn twist_to_drive(twist: &Twist, speed_mps: f64, gains: TeleopGains) -> DriveValues {
+    let target_mps = twist.linear.x;
+    let yaw_rate_dps = twist.angular.z.to_degrees();
+    let stopping = target_mps.abs() < 0.05;
+    if stopping && speed_mps.abs() < TURN_IN_PLACE_BELOW_MPS {
+        let steering = (yaw_rate_dps / TURN_IN_PLACE_DEG_PER_S) * MAX_STEERING_DEG as f64;
+        return clamp(0.0, 0.0, steering);
+    }
+    if stopping {
+        return clamp(0.0, gains.brake, 0.0);
+    }
+    let throttle = gains.throttle_per_mps * (target_mps - speed_mps);
+    let steering = (twist.angular.z * WHEELBASE_M / target_mps.abs().max(0.1))
+        .atan()
+        .to_degrees();
+    clamp(throttle, 0.0, steering)
+}
+
+fn clamp(throttle: f64, brake: f64, steering_deg: f64) -> DriveValues {
+    DriveValues::checked(throttle as f32, brake as f32, steering_deg as f32)
+        .unwrap_or(DriveValues::brake(brake as f32))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rover_msgs::geometry_msgs::Vector3;
+
+    const GAINS: TeleopGains = TeleopGains {
+        throttle_per_mps: 0.5,
+        brake: 10.0,
+    };
+
+    fn twist(linear: f64, angular: f64) -> Twist {
+        Twist {
+            linear: Vector3 {
+                x: linear,
+                ..Default::default()
+            },
+            angular: Vector3 {
+                z: angular,
+                ..Default::default()
+            },
+        }
+    }
+
+    #[test]
+    fn forward_left_turn() {
+        let drive = twist_to_drive(&twist(2.0, 0.5), 1.0, GAINS);
+        assert!((drive.throttle - 0.5).abs() < 1e-6);
+        assert!(drive.steering_deg > 0.0 && drive.steering_deg <= 15.0);
+        assert_eq!(drive.brake, 0.0);
+    }
+
+    #[test]
+    fn stop_brakes_then_turns_in_place() {
+        assert_eq!(
+            twist_to_drive(&twist(0.0, 0.0), 2.0, GAINS),
+            DriveValues::brake(10.0)
+        );
+        let spin = twist_to_drive(&twist(0.0, -std::f64::consts::FRAC_PI_4), 0.0, GAINS);
+        assert!((spin.steering_deg + 15.0).abs() < 1e-4, "{spin:?}");
+        assert_eq!(spin.throttle, 0.0);
+    }
+
+    #[test]
+    fn nan_twists_brake() {
+        assert_eq!(
+            twist_to_drive(&twist(f64::NAN, 0.0), 1.0, GAINS).throttle,
+            0.0
+        );
+    }
+}
