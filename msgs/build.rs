@@ -19,13 +19,9 @@ fn main() {
     names.sort();
     let mut code = String::new();
     for path in &names {
-        let name = path
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .expect("utf-8 file name");
+        let name = path.file_stem().and_then(|s| s.to_str()).expect("utf-8 file name");
         let text = std::fs::read_to_string(path).expect("readable .msg file");
-        let spec =
-            idl::parse_msg(PACKAGE, &text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let spec = idl::parse_msg(PACKAGE, &text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         write_message(&mut code, name, &spec);
     }
     let out = Path::new(&std::env::var("OUT_DIR").expect("OUT_DIR")).join("rover_msgs.rs");
@@ -45,36 +41,20 @@ fn write_message(code: &mut String, name: &str, spec: &idl::MessageSpec) {
         if field.ros_type == "uint8[]" {
             let _ = writeln!(code, "        #[serde(with = \"serde_bytes\")]");
         }
-        let _ = writeln!(
-            code,
-            "        {}: {},",
-            rust_field_name(&field.name),
-            rust_type(&field.ros_type)
-        );
+        let _ = writeln!(code, "        {}: {},", rust_field_name(&field.name), rust_type(&field.ros_type));
     }
     let _ = writeln!(code, "    }}");
     let _ = writeln!(code, "}}");
     if !spec.constants.is_empty() {
         let _ = writeln!(code, "impl {name} {{");
         for constant in &spec.constants {
-            let _ = writeln!(
-                code,
-                "    #[doc = \"Constant `{}` of `{name}.msg`.\"]",
-                constant.name
-            );
+            let _ = writeln!(code, "    #[doc = \"Constant `{}` of `{name}.msg`.\"]", constant.name);
             let value = if constant.ros_type == "string" {
-                format!(
-                    "{:?}",
-                    constant.value.trim_matches(|c| c == '"' || c == '\'')
-                )
+                format!("{:?}", constant.value.trim_matches(|c| c == '"' || c == '\''))
             } else {
                 constant.value.clone()
             };
-            let ty = if constant.ros_type == "string" {
-                "&str".to_string()
-            } else {
-                rust_type(&constant.ros_type)
-            };
+            let ty = if constant.ros_type == "string" { "&str".to_string() } else { rust_type(&constant.ros_type) };
             let _ = writeln!(code, "    pub const {}: {ty} = {value};", constant.name);
         }
         let _ = writeln!(code, "}}");

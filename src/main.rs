@@ -1,1 +1,73 @@
-fn main() {}
+//! `rover`: the autonomy stack of the Udacity rover as a ROS 2 node graph, one subcommand per role.
+
+use std::process::ExitCode;
+
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
+use rover_node::params::{NodeParams, help_table};
+use rover_node::{Runtime, Shutdown, logging, split_ros_args};
+
+const ROS_ARGS_HELP: &str = "ROS arguments (after the subcommand's own options):
+  --ros-args [-r FROM:=TO]... [-p NAME:=VALUE]... [--params-file FILE]... [--log-level LEVEL] [--]
+  -r __ns:=/NAMESPACE and -r __node:=NAME rename a node; prefix a rule with NODE: to aim it at one node.
+Environment: ROS_DOMAIN_ID (default 0) selects the DDS domain; RUST_LOG filters the log.";
+
+/// The rover autonomy stack: Socket.IO bridge to the simulator and ROS 2 nodes over DDS.
+#[derive(Parser)]
+#[command(name = "rover", version, after_help = ROS_ARGS_HELP)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the bridge node: Socket.IO server for the simulator, telemetry and camera topics out,
+    /// drive and pickup commands back.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Bridge,
+}
+
+fn cli_command() -> clap::Command {
+    Cli::command().mut_subcommand("bridge", |c| c.after_long_help(node_help::<rover_bridge::node::BridgeParams>()))
+}
+
+fn node_help<P: NodeParams>() -> String {
+    format!("{}\n{ROS_ARGS_HELP}", help_table(&P::specs()))
+}
+
+fn main() -> ExitCode {
+    let (own_args, ros_args) = match split_ros_args(std::env::args().collect()) {
+        Ok(split) => split,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let matches = cli_command().get_matches_from(own_args);
+    let cli = match Cli::from_arg_matches(&matches) {
+        Ok(cli) => cli,
+        Err(e) => e.exit(),
+    };
+    logging::init(ros_args.log_level.as_deref());
+    let runtime = match tokio::runtime::Builder::new_multi_thread().enable_all().build() {
+        Ok(runtime) => runtime,
+        Err(e) => {
+            eprintln!("error: cannot start the async runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match runtime.block_on(run(cli.command, ros_args)) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            tracing::error!("{e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+async fn run(command: Command, ros_args: rover_node::RosArgs) -> anyhow::Result<()> {
+    let shutdown = Shutdown::on_signals();
+    match command {
+        Command::Bridge => rover_bridge::node::run(&Runtime::new(ros_args, shutdown)?).await,
+    }
+}

@@ -1,8 +1,8 @@
 //! Conversion of a parsed telemetry frame into the ROS messages the bridge publishes.
 
 use rover_msgs::geometry_msgs::{
-    Point, Pose, PoseArray, PoseWithCovariance, Quaternion, Transform, TransformStamped, Twist,
-    TwistWithCovariance, Vector3,
+    Point, Pose, PoseArray, PoseWithCovariance, Quaternion, Transform, TransformStamped, Twist, TwistWithCovariance,
+    Vector3,
 };
 use rover_msgs::msg::Telemetry;
 use rover_msgs::nav_msgs::Odometry;
@@ -33,20 +33,12 @@ pub struct PinholeCamera {
 impl PinholeCamera {
     /// The Unity rover camera (unity-sim-spec 4.1): f = 80 / tan(35 deg) = 114.25 px.
     pub fn rover() -> Self {
-        PinholeCamera {
-            width: 320,
-            height: 160,
-            focal_px: 80.0 / 35f64.to_radians().tan(),
-        }
+        PinholeCamera { width: 320, height: 160, focal_px: 80.0 / 35f64.to_radians().tan() }
     }
 
     /// The `CameraInfo` message of this camera.
     pub fn camera_info(&self, header: Header) -> CameraInfo {
-        let (f, cx, cy) = (
-            self.focal_px,
-            (self.width as f64 - 1.0) / 2.0,
-            (self.height as f64 - 1.0) / 2.0,
-        );
+        let (f, cx, cy) = (self.focal_px, (self.width as f64 - 1.0) / 2.0, (self.height as f64 - 1.0) / 2.0);
         CameraInfo {
             header,
             height: self.height,
@@ -92,16 +84,8 @@ pub fn telemetry_message(t: &SimTelemetry, frame: u64, header: Header) -> Teleme
 
 fn body_pose(t: &SimTelemetry) -> Pose {
     Pose {
-        position: Point {
-            x: t.x_m,
-            y: t.y_m,
-            z: 0.0,
-        },
-        orientation: Quaternion::from_rpy(
-            wrapped_rad(t.roll_deg),
-            wrapped_rad(t.pitch_deg),
-            wrapped_rad(t.yaw_deg),
-        ),
+        position: Point { x: t.x_m, y: t.y_m, z: 0.0 },
+        orientation: Quaternion::from_rpy(wrapped_rad(t.roll_deg), wrapped_rad(t.pitch_deg), wrapped_rad(t.yaw_deg)),
     }
 }
 
@@ -110,19 +94,9 @@ pub fn odometry_message(t: &SimTelemetry, header: Header) -> Odometry {
     Odometry {
         header,
         child_frame_id: BASE_FRAME.to_string(),
-        pose: PoseWithCovariance {
-            pose: body_pose(t),
-            covariance: Default::default(),
-        },
+        pose: PoseWithCovariance { pose: body_pose(t), covariance: Default::default() },
         twist: TwistWithCovariance {
-            twist: Twist {
-                linear: Vector3 {
-                    x: t.speed_mps,
-                    y: 0.0,
-                    z: 0.0,
-                },
-                angular: Vector3::default(),
-            },
+            twist: Twist { linear: Vector3 { x: t.speed_mps, y: 0.0, z: 0.0 }, angular: Vector3::default() },
             covariance: Default::default(),
         },
     }
@@ -136,11 +110,7 @@ pub fn transform_message(t: &SimTelemetry, header: Header) -> TFMessage {
             header,
             child_frame_id: BASE_FRAME.to_string(),
             transform: Transform {
-                translation: Vector3 {
-                    x: pose.position.x,
-                    y: pose.position.y,
-                    z: 0.0,
-                },
+                translation: Vector3 { x: pose.position.x, y: pose.position.y, z: 0.0 },
                 rotation: pose.orientation,
             },
         }],
@@ -149,11 +119,7 @@ pub fn transform_message(t: &SimTelemetry, header: Header) -> TFMessage {
 
 /// The `camera/image_raw/compressed` message, with the simulator's JPEG untouched.
 pub fn compressed_image_message(t: &SimTelemetry, header: Header) -> CompressedImage {
-    CompressedImage {
-        header,
-        format: "jpeg".to_string(),
-        data: t.image_jpeg.clone(),
-    }
+    CompressedImage { header, format: "jpeg".to_string(), data: t.image_jpeg.clone() }
 }
 
 /// The `sim/sample_truth` message: true positions of the samples on the ground.
@@ -163,10 +129,7 @@ pub fn sample_truth_message(t: &SimTelemetry, header: Header) -> PoseArray {
         poses: t
             .samples
             .iter()
-            .map(|&(x, y)| Pose {
-                position: Point { x, y, z: 0.0 },
-                orientation: Quaternion::from_yaw(0.0),
-            })
+            .map(|&(x, y)| Pose { position: Point { x, y, z: 0.0 }, orientation: Quaternion::from_yaw(0.0) })
             .collect(),
     }
 }

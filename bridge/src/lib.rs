@@ -9,6 +9,7 @@ pub mod lockstep;
 pub mod node;
 pub mod reply;
 pub mod server;
+pub mod sio;
 pub mod stats;
 pub mod telemetry;
 pub mod teleop;

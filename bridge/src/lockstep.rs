@@ -12,7 +12,7 @@ use tokio::sync::oneshot;
 
 use crate::reply::{CommandSource, DriveValues, LastCommand, Reply, ReplyPolicy};
 use crate::stats::BridgeStats;
-use crate::telemetry::{SimTelemetry, parse_telemetry};
+use crate::telemetry::{SimTelemetry, parse_telemetry_value};
 use crate::teleop::{TeleopGains, twist_to_drive};
 
 /// Receives every accepted telemetry frame (the bridge node publishes it on the ROS topics).
@@ -34,6 +34,25 @@ pub struct LockStepConfig {
     pub teleop_timeout: Duration,
     /// Teleoperation controller gains.
     pub teleop_gains: TeleopGains,
+}
+
+/// A telemetry frame between its arrival and its reply.
+pub struct InFlight {
+    received_at: Instant,
+    state: FrameState,
+}
+
+enum FrameState {
+    Decided(Reply),
+    Waiting(Waiting),
+}
+
+struct Waiting {
+    frame: u64,
+    receiver: oneshot::Receiver<DriveValues>,
+    near_sample: bool,
+    picking_up: bool,
+    speed_mps: f64,
 }
 
 /// The two inset images of the simulator's screen, as base64 JPEG.
@@ -111,60 +130,80 @@ impl<S: FrameSink> LockStep<S> {
         lock(&self.insets).vision = base64_jpeg.into();
     }
 
-    /// Answers one telemetry payload (the JSON text of the event's argument, `None` if it had none).
-    pub async fn answer(&self, payload: Option<&str>) -> Reply {
+    /// Takes in one telemetry event given its argument (`None` if it had none): parses it, numbers
+    /// it, publishes it and registers the wait for its drive command. Call in arrival order;
+    /// [`LockStep::reply`] then produces the one reply.
+    pub fn receive(&self, payload: Option<&serde_json::Value>) -> InFlight {
         let received_at = Instant::now();
         let config = self.config();
         self.stats.frame_received();
-        let reply = match payload.map(|p| parse_telemetry(p, config.max_payload_bytes)) {
-            None | Some(Ok(None)) => Reply::Manual,
-            Some(Err(e)) => self.reject(&config, e.kind(), &e.to_string()),
+        let state = match payload.map(|p| parse_telemetry_value(p, config.max_payload_bytes)) {
+            None | Some(Ok(None)) => FrameState::Decided(Reply::Manual),
+            Some(Err(e)) => FrameState::Decided(self.reject(&config, e.kind(), &e.to_string())),
             Some(Ok(Some(telemetry))) => {
                 let (width, height) = config.image_size;
                 match rover_imaging::check_jpeg(&telemetry.image_jpeg, width, height) {
-                    Err(e) => self.reject(
-                        &config,
-                        "bad_image",
-                        &format!("telemetry field `image`: {e}"),
-                    ),
-                    Ok(()) => self.answer_frame(&config, telemetry).await,
+                    Err(e) => {
+                        FrameState::Decided(self.reject(&config, "bad_image", &format!("telemetry field `image`: {e}")))
+                    }
+                    Ok(()) => self.publish(telemetry),
                 }
             }
         };
-        self.stats.replied(&reply, received_at.elapsed());
+        InFlight { received_at, state }
+    }
+
+    /// Takes in a message from the simulator that is not a telemetry event but should have been
+    /// (unparseable packet, binary frame): it is answered with a brake, so the loop goes on.
+    pub fn receive_garbage(&self, kind: &str, problem: &str) -> InFlight {
+        let config = self.config();
+        self.stats.frame_received();
+        InFlight { received_at: Instant::now(), state: FrameState::Decided(self.reject(&config, kind, problem)) }
+    }
+
+    /// Waits for the drive command of a frame (up to the deadline) and decides the reply.
+    pub async fn reply(&self, in_flight: InFlight) -> Reply {
+        let reply = match in_flight.state {
+            FrameState::Decided(reply) => reply,
+            FrameState::Waiting(waiting) => self.decide(waiting).await,
+        };
+        self.stats.replied(&reply, in_flight.received_at.elapsed());
         reply
     }
 
     fn reject(&self, config: &LockStepConfig, kind: &str, problem: &str) -> Reply {
         tracing::warn!("rejected telemetry frame: {problem}; answering with a brake");
         self.stats.problem(kind);
-        Reply::Data(
-            DriveValues::brake(config.policy.brake),
-            CommandSource::RejectedFrame,
-        )
+        Reply::Data(DriveValues::brake(config.policy.brake), CommandSource::RejectedFrame)
     }
 
-    async fn answer_frame(&self, config: &LockStepConfig, telemetry: SimTelemetry) -> Reply {
+    fn publish(&self, telemetry: SimTelemetry) -> FrameState {
         let frame = self.next_frame.fetch_add(1, Ordering::Relaxed) + 1;
         let (sender, receiver) = oneshot::channel();
         lock(&self.waiting).insert(frame, sender);
         self.sink.publish_frame(frame, &telemetry);
-        let fresh = tokio::time::timeout(config.policy.deadline, receiver)
-            .await
-            .ok()
-            .and_then(Result::ok);
+        FrameState::Waiting(Waiting {
+            frame,
+            receiver,
+            near_sample: telemetry.near_sample,
+            picking_up: telemetry.picking_up,
+            speed_mps: telemetry.speed_mps,
+        })
+    }
+
+    async fn decide(&self, waiting: Waiting) -> Reply {
+        let config = self.config();
+        let Waiting { frame, receiver, near_sample, picking_up, speed_mps } = waiting;
+        let fresh = tokio::time::timeout(config.policy.deadline, receiver).await.ok().and_then(Result::ok);
         lock(&self.waiting).remove(&frame);
         if self.pickup_requested.swap(false, Ordering::Relaxed) {
-            if telemetry.near_sample && !telemetry.picking_up {
+            if near_sample && !picking_up {
                 return Reply::Pickup;
             }
-            tracing::warn!(
-                frame,
-                "ignored a pickup request: no sample is within reach or a pickup is running"
-            );
+            tracing::warn!(frame, "ignored a pickup request: no sample is within reach or a pickup is running");
             self.stats.problem("pickup_without_sample");
         }
-        if let Some(values) = self.teleop_values(config, telemetry.speed_mps) {
+        if let Some(values) = self.teleop_values(&config, speed_mps) {
             return Reply::Data(values, CommandSource::Teleop);
         }
         let last = *lock(&self.last_command);
@@ -187,8 +226,7 @@ impl<S: FrameSink> LockStep<S> {
     fn teleop_values(&self, config: &LockStepConfig, speed_mps: f64) -> Option<DriveValues> {
         let teleop = lock(&self.teleop);
         let (twist, at) = teleop.as_ref()?;
-        (at.elapsed() < config.teleop_timeout)
-            .then(|| twist_to_drive(twist, speed_mps, config.teleop_gains))
+        (at.elapsed() < config.teleop_timeout).then(|| twist_to_drive(twist, speed_mps, config.teleop_gains))
     }
 
     /// Handles a drive command from the decision node for frame `frame`.
@@ -201,10 +239,7 @@ impl<S: FrameSink> LockStep<S> {
                 return;
             }
         };
-        *lock(&self.last_command) = Some(LastCommand {
-            values,
-            received_at: Instant::now(),
-        });
+        *lock(&self.last_command) = Some(LastCommand { values, received_at: Instant::now() });
         if let Some(waiter) = lock(&self.waiting).remove(&frame) {
             let _ = waiter.send(values);
         }
@@ -249,33 +284,19 @@ mod tests {
             max_payload_bytes: 1 << 20,
             image_size: (64, 32),
             teleop_timeout: Duration::from_millis(200),
-            teleop_gains: TeleopGains {
-                throttle_per_mps: 0.5,
-                brake: 10.0,
-            },
+            teleop_gains: TeleopGains { throttle_per_mps: 0.5, brake: 10.0 },
         };
-        (
-            Arc::new(LockStep::new(config, ChannelSink(sender))),
-            receiver,
-        )
+        (Arc::new(LockStep::new(config, ChannelSink(sender))), receiver)
     }
 
-    fn payload(near_sample: bool) -> String {
+    fn payload(near_sample: bool) -> serde_json::Value {
         use base64::Engine as _;
         let jpeg = rover_imaging::encode_jpeg(&rover_imaging::RgbImage::new(64, 32), 75).unwrap();
         let mut fields = sample_payload();
-        fields.insert(
-            "image".into(),
-            base64::engine::general_purpose::STANDARD
-                .encode(jpeg)
-                .into(),
-        );
-        fields.insert(
-            "near_sample".into(),
-            if near_sample { "1" } else { "0" }.into(),
-        );
+        fields.insert("image".into(), base64::engine::general_purpose::STANDARD.encode(jpeg).into());
+        fields.insert("near_sample".into(), if near_sample { "1" } else { "0" }.into());
         fields.insert("picking_up".into(), "0".into());
-        serde_json::to_string(&fields).unwrap()
+        serde_json::Value::Object(fields)
     }
 
     #[tokio::test]
@@ -283,24 +304,15 @@ mod tests {
         let (core, frames) = core();
         let answering = {
             let core = core.clone();
-            tokio::spawn(async move { core.answer(Some(&payload(false))).await })
+            tokio::spawn(async move { core.reply(core.receive(Some(&payload(false)))).await })
         };
-        let frame = tokio::task::spawn_blocking(move || frames.recv().unwrap())
-            .await
-            .unwrap();
+        let frame = tokio::task::spawn_blocking(move || frames.recv().unwrap()).await.unwrap();
         core.on_drive_command(frame + 1, 1.0, 0.0, 0.0);
         core.on_drive_command(frame, 0.3, 0.0, 5.0);
         let reply = answering.await.unwrap();
         assert_eq!(
             reply,
-            Reply::Data(
-                DriveValues {
-                    throttle: 0.3,
-                    brake: 0.0,
-                    steering_deg: 5.0
-                },
-                CommandSource::Fresh
-            )
+            Reply::Data(DriveValues { throttle: 0.3, brake: 0.0, steering_deg: 5.0 }, CommandSource::Fresh)
         );
     }
 
@@ -308,34 +320,25 @@ mod tests {
     async fn silence_holds_then_brakes() {
         let (core, _frames) = core();
         core.on_drive_command(0, 0.4, 0.0, 0.0);
-        let held = core.answer(Some(&payload(false))).await;
-        assert!(
-            matches!(held, Reply::Data(v, CommandSource::Held) if v.throttle == 0.4),
-            "{held:?}"
-        );
+        let held = core.reply(core.receive(Some(&payload(false)))).await;
+        assert!(matches!(held, Reply::Data(v, CommandSource::Held) if v.throttle == 0.4), "{held:?}");
         tokio::time::sleep(Duration::from_millis(350)).await;
-        let braked = core.answer(Some(&payload(false))).await;
-        assert_eq!(
-            braked,
-            Reply::Data(DriveValues::brake(10.0), CommandSource::SilenceBrake)
-        );
+        let braked = core.reply(core.receive(Some(&payload(false)))).await;
+        assert_eq!(braked, Reply::Data(DriveValues::brake(10.0), CommandSource::SilenceBrake));
         assert_eq!(core.stats().deadline_misses(), 2);
     }
 
     #[tokio::test]
     async fn bad_frames_and_empty_payloads() {
         let (core, _frames) = core();
-        assert_eq!(core.answer(None).await, Reply::Manual);
-        assert_eq!(core.answer(Some("{}")).await, Reply::Manual);
-        let rejected = core.answer(Some("{\"speed\":1}")).await;
-        assert_eq!(
-            rejected,
-            Reply::Data(DriveValues::brake(10.0), CommandSource::RejectedFrame)
-        );
+        assert_eq!(core.reply(core.receive(None)).await, Reply::Manual);
+        assert_eq!(core.reply(core.receive(Some(&serde_json::json!({})))).await, Reply::Manual);
+        let rejected = core.reply(core.receive(Some(&serde_json::json!({"speed": 1})))).await;
+        assert_eq!(rejected, Reply::Data(DriveValues::brake(10.0), CommandSource::RejectedFrame));
         assert_eq!(core.stats().problem_count("missing_field"), 1);
-        let mut corrupt: serde_json::Value = serde_json::from_str(&payload(false)).unwrap();
+        let mut corrupt = payload(false);
         corrupt["image"] = "/9j/AAAA".into();
-        core.answer(Some(&corrupt.to_string())).await;
+        core.reply(core.receive(Some(&corrupt))).await;
         assert_eq!(core.stats().problem_count("bad_image"), 1);
     }
 
@@ -343,13 +346,10 @@ mod tests {
     async fn pickup_only_when_a_sample_is_near() {
         let (core, _frames) = core();
         core.on_pickup_request();
-        assert!(matches!(
-            core.answer(Some(&payload(false))).await,
-            Reply::Data(..)
-        ));
+        assert!(matches!(core.reply(core.receive(Some(&payload(false)))).await, Reply::Data(..)));
         assert_eq!(core.stats().problem_count("pickup_without_sample"), 1);
         core.on_pickup_request();
-        assert_eq!(core.answer(Some(&payload(true))).await, Reply::Pickup);
+        assert_eq!(core.reply(core.receive(Some(&payload(true)))).await, Reply::Pickup);
     }
 
     #[tokio::test]
@@ -360,16 +360,10 @@ mod tests {
         let mut twist = Twist::default();
         twist.linear.x = 2.0;
         core.on_teleop(twist);
-        let reply = core.answer(Some(&payload(false))).await;
-        assert!(
-            matches!(reply, Reply::Data(_, CommandSource::Teleop)),
-            "{reply:?}"
-        );
+        let reply = core.reply(core.receive(Some(&payload(false)))).await;
+        assert!(matches!(reply, Reply::Data(_, CommandSource::Teleop)), "{reply:?}");
         tokio::time::sleep(Duration::from_millis(250)).await;
-        let reply = core.answer(Some(&payload(false))).await;
-        assert!(
-            matches!(reply, Reply::Data(_, CommandSource::SilenceBrake)),
-            "{reply:?}"
-        );
+        let reply = core.reply(core.receive(Some(&payload(false)))).await;
+        assert!(matches!(reply, Reply::Data(_, CommandSource::SilenceBrake)), "{reply:?}");
     }
 }

@@ -66,18 +66,13 @@ impl BridgeParams {
             max_payload_bytes: self.max_payload_bytes as usize,
             image_size: (self.image_width as usize, self.image_height as usize),
             teleop_timeout: Duration::from_secs_f64(self.teleop_timeout_ms / 1000.0),
-            teleop_gains: TeleopGains {
-                throttle_per_mps: self.teleop_throttle_per_mps,
-                brake: self.brake,
-            },
+            teleop_gains: TeleopGains { throttle_per_mps: self.teleop_throttle_per_mps, brake: self.brake },
         }
     }
 
     fn server_config(&self) -> anyhow::Result<ServerConfig> {
-        let ip: IpAddr = self
-            .host
-            .parse()
-            .with_context(|| format!("parameter host = {:?} is not an IP address", self.host))?;
+        let ip: IpAddr =
+            self.host.parse().with_context(|| format!("parameter host = {:?} is not an IP address", self.host))?;
         Ok(ServerConfig {
             address: SocketAddr::new(ip, self.port as u16),
             max_message_bytes: self.max_payload_bytes as usize * 4,
@@ -112,11 +107,7 @@ impl DdsSink {
             odom: node.publisher(&topics::ODOM)?,
             tf: node.publisher(&topics::TF)?,
             sample_truth: node.publisher(&topics::SAMPLE_TRUTH)?,
-            raw: if params.publish_raw_image {
-                Some(node.publisher(&topics::CAMERA_RAW)?)
-            } else {
-                None
-            },
+            raw: if params.publish_raw_image { Some(node.publisher(&topics::CAMERA_RAW)?) } else { None },
             camera,
             last_samples: Mutex::new(None),
         })
@@ -124,10 +115,7 @@ impl DdsSink {
 
     fn publish_raw(&self, publisher: &Publisher<Image>, jpeg: &[u8], header: Header) {
         match rover_imaging::decode_jpeg(jpeg) {
-            Ok(image) => log_publish(
-                "camera/image_raw",
-                publisher.publish(rgb8_message(image, header)),
-            ),
+            Ok(image) => log_publish("camera/image_raw", publisher.publish(rgb8_message(image, header))),
             Err(e) => tracing::warn!("camera/image_raw not published: {e}"),
         }
     }
@@ -136,13 +124,7 @@ impl DdsSink {
         let mut last = self.last_samples.lock().unwrap_or_else(|e| e.into_inner());
         if last.as_ref() != Some(&telemetry.samples) {
             *last = Some(telemetry.samples.clone());
-            let message = convert::sample_truth_message(
-                telemetry,
-                Header {
-                    frame_id: "map".into(),
-                    ..header
-                },
-            );
+            let message = convert::sample_truth_message(telemetry, Header { frame_id: "map".into(), ..header });
             log_publish("sim/sample_truth", self.sample_truth.publish(message));
         }
     }
@@ -151,40 +133,18 @@ impl DdsSink {
 impl FrameSink for DdsSink {
     fn publish_frame(&self, frame: u64, telemetry: &SimTelemetry) {
         let odom_header = Header::now(ODOM_FRAME);
-        let camera_header = Header {
-            frame_id: CAMERA_FRAME.to_string(),
-            ..odom_header.clone()
-        };
+        let camera_header = Header { frame_id: CAMERA_FRAME.to_string(), ..odom_header.clone() };
         log_publish(
             "rover/telemetry",
-            self.telemetry.publish(convert::telemetry_message(
-                telemetry,
-                frame,
-                odom_header.clone(),
-            )),
+            self.telemetry.publish(convert::telemetry_message(telemetry, frame, odom_header.clone())),
         );
         log_publish(
             "camera/image_raw/compressed",
-            self.compressed.publish(convert::compressed_image_message(
-                telemetry,
-                camera_header.clone(),
-            )),
+            self.compressed.publish(convert::compressed_image_message(telemetry, camera_header.clone())),
         );
-        log_publish(
-            "camera/camera_info",
-            self.camera_info
-                .publish(self.camera.camera_info(camera_header.clone())),
-        );
-        log_publish(
-            "odom",
-            self.odom
-                .publish(convert::odometry_message(telemetry, odom_header.clone())),
-        );
-        log_publish(
-            "/tf",
-            self.tf
-                .publish(convert::transform_message(telemetry, odom_header.clone())),
-        );
+        log_publish("camera/camera_info", self.camera_info.publish(self.camera.camera_info(camera_header.clone())));
+        log_publish("odom", self.odom.publish(convert::odometry_message(telemetry, odom_header.clone())));
+        log_publish("/tf", self.tf.publish(convert::transform_message(telemetry, odom_header.clone())));
         if let Some(raw) = &self.raw {
             self.publish_raw(raw, &telemetry.image_jpeg, camera_header);
         }
@@ -214,23 +174,12 @@ fn rgb8_message(image: RgbImage, header: Header) -> Image {
 pub fn rgb_image_from_message(message: Image) -> Result<RgbImage, String> {
     let (width, height) = (message.width as usize, message.height as usize);
     if message.encoding != "rgb8" {
-        return Err(format!(
-            "encoding {:?}, expected \"rgb8\"",
-            message.encoding
-        ));
+        return Err(format!("encoding {:?}, expected \"rgb8\"", message.encoding));
     }
     if message.step as usize != width * 3 || message.data.len() != width * height * 3 {
-        return Err(format!(
-            "{} bytes with step {} for {width}x{height} rgb8",
-            message.data.len(),
-            message.step
-        ));
+        return Err(format!("{} bytes with step {} for {width}x{height} rgb8", message.data.len(), message.step));
     }
-    Ok(RgbImage {
-        width,
-        height,
-        data: message.data,
-    })
+    Ok(RgbImage { width, height, data: message.data })
 }
 
 fn inset_base64(message: Image, quality: u8) -> Result<String, String> {
@@ -244,10 +193,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let (mut node, params) = runtime.node::<BridgeParams>("bridge")?;
     let span = node.span();
     let initial = params.get();
-    let core = Arc::new(LockStep::new(
-        initial.lockstep_config(),
-        DdsSink::new(&mut node, &initial)?,
-    ));
+    let core = Arc::new(LockStep::new(initial.lockstep_config(), DdsSink::new(&mut node, &initial)?));
     subscribe_commands(&mut node, &core, &span)?;
     subscribe_insets(&mut node, &core, &span, initial.inset_jpeg_quality as u8)?;
     let diagnostics = node.publisher(&topics::DIAGNOSTICS)?;
@@ -274,38 +220,18 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         }
     });
     let shutdown = runtime.shutdown();
-    server::serve(core, initial.server_config()?, async move {
-        shutdown.wait().await
-    })
-    .instrument(span)
-    .await
+    server::serve(core, initial.server_config()?, async move { shutdown.wait().await }).instrument(span).await
 }
 
-fn subscribe_commands(
-    node: &mut RosNode,
-    core: &Arc<LockStep<DdsSink>>,
-    span: &tracing::Span,
-) -> anyhow::Result<()> {
+fn subscribe_commands(node: &mut RosNode, core: &Arc<LockStep<DdsSink>>, span: &tracing::Span) -> anyhow::Result<()> {
     let drive = core.clone();
-    spawn_subscriber(
-        node.subscription(&topics::DRIVE_CMD)?,
-        span.clone(),
-        move |cmd| {
-            drive.on_drive_command(cmd.frame, cmd.throttle, cmd.brake, cmd.steering_angle_deg)
-        },
-    );
+    spawn_subscriber(node.subscription(&topics::DRIVE_CMD)?, span.clone(), move |cmd| {
+        drive.on_drive_command(cmd.frame, cmd.throttle, cmd.brake, cmd.steering_angle_deg)
+    });
     let pickup = core.clone();
-    spawn_subscriber(
-        node.subscription(&topics::PICKUP)?,
-        span.clone(),
-        move |_| pickup.on_pickup_request(),
-    );
+    spawn_subscriber(node.subscription(&topics::PICKUP)?, span.clone(), move |_| pickup.on_pickup_request());
     let teleop = core.clone();
-    spawn_subscriber(
-        node.subscription(&topics::CMD_VEL)?,
-        span.clone(),
-        move |twist| teleop.on_teleop(twist),
-    );
+    spawn_subscriber(node.subscription(&topics::CMD_VEL)?, span.clone(), move |twist| teleop.on_teleop(twist));
     Ok(())
 }
 
@@ -316,22 +242,18 @@ fn subscribe_insets(
     quality: u8,
 ) -> anyhow::Result<()> {
     let map = core.clone();
-    spawn_subscriber(
-        node.subscription(&topics::MAP_IMAGE)?,
-        span.clone(),
-        move |image| match inset_base64(image, quality) {
+    spawn_subscriber(node.subscription(&topics::MAP_IMAGE)?, span.clone(), move |image| {
+        match inset_base64(image, quality) {
             Ok(inset) => map.set_map_inset(inset),
             Err(e) => tracing::warn!("ignored a map/image message: {e}"),
-        },
-    );
+        }
+    });
     let vision = core.clone();
-    spawn_subscriber(
-        node.subscription(&topics::VISION)?,
-        span.clone(),
-        move |image| match inset_base64(image, quality) {
+    spawn_subscriber(node.subscription(&topics::VISION)?, span.clone(), move |image| {
+        match inset_base64(image, quality) {
             Ok(inset) => vision.set_vision_inset(inset),
             Err(e) => tracing::warn!("ignored a rover/vision message: {e}"),
-        },
-    );
+        }
+    });
     Ok(())
 }

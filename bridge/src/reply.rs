@@ -21,11 +21,7 @@ pub struct DriveValues {
 impl DriveValues {
     /// A command that holds the rover still.
     pub fn brake(brake: f32) -> Self {
-        DriveValues {
-            throttle: 0.0,
-            brake,
-            steering_deg: 0.0,
-        }
+        DriveValues { throttle: 0.0, brake, steering_deg: 0.0 }
     }
 
     /// Checks a command from a node: rejects NaN and infinities, clamps to the simulator's ranges.
@@ -92,12 +88,7 @@ pub struct LastCommand {
 impl ReplyPolicy {
     /// Chooses the `data` values for a frame: the fresh command if one came, else the last one while
     /// it is younger than the silence limit, else a brake.
-    pub fn drive_reply(
-        &self,
-        fresh: Option<DriveValues>,
-        last: Option<LastCommand>,
-        now: Instant,
-    ) -> Reply {
+    pub fn drive_reply(&self, fresh: Option<DriveValues>, last: Option<LastCommand>, now: Instant) -> Reply {
         match (fresh, last) {
             (Some(values), _) => Reply::Data(values, CommandSource::Fresh),
             (None, Some(last)) if now.duration_since(last.received_at) < self.silence_limit => {
@@ -140,33 +131,17 @@ impl<'a> DataEvent<'a> {
 mod tests {
     use super::*;
 
-    const POLICY: ReplyPolicy = ReplyPolicy {
-        deadline: Duration::from_millis(50),
-        silence_limit: Duration::from_secs(1),
-        brake: 10.0,
-    };
+    const POLICY: ReplyPolicy =
+        ReplyPolicy { deadline: Duration::from_millis(50), silence_limit: Duration::from_secs(1), brake: 10.0 };
 
     #[test]
     fn fresh_then_held_then_brake() {
         let start = Instant::now();
-        let go = DriveValues {
-            throttle: 0.2,
-            brake: 0.0,
-            steering_deg: 3.0,
-        };
-        assert_eq!(
-            POLICY.drive_reply(Some(go), None, start),
-            Reply::Data(go, CommandSource::Fresh)
-        );
-        let last = Some(LastCommand {
-            values: go,
-            received_at: start,
-        });
+        let go = DriveValues { throttle: 0.2, brake: 0.0, steering_deg: 3.0 };
+        assert_eq!(POLICY.drive_reply(Some(go), None, start), Reply::Data(go, CommandSource::Fresh));
+        let last = Some(LastCommand { values: go, received_at: start });
         let soon = start + Duration::from_millis(300);
-        assert_eq!(
-            POLICY.drive_reply(None, last, soon),
-            Reply::Data(go, CommandSource::Held)
-        );
+        assert_eq!(POLICY.drive_reply(None, last, soon), Reply::Data(go, CommandSource::Held));
         let late = start + Duration::from_millis(1500);
         assert_eq!(
             POLICY.drive_reply(None, last, late),
@@ -183,27 +158,12 @@ mod tests {
         assert!(DriveValues::checked(f32::NAN, 0.0, 0.0).is_err());
         assert!(DriveValues::checked(0.0, f32::INFINITY, 0.0).is_err());
         let clamped = DriveValues::checked(3.0, -1.0, -40.0).unwrap();
-        assert_eq!(
-            clamped,
-            DriveValues {
-                throttle: 1.0,
-                brake: 0.0,
-                steering_deg: -15.0
-            }
-        );
+        assert_eq!(clamped, DriveValues { throttle: 1.0, brake: 0.0, steering_deg: -15.0 });
     }
 
     #[test]
     fn data_event_values_are_strings() {
-        let event = DataEvent::new(
-            DriveValues {
-                throttle: 0.2,
-                brake: 0.0,
-                steering_deg: -4.5,
-            },
-            "",
-            "abc",
-        );
+        let event = DataEvent::new(DriveValues { throttle: 0.2, brake: 0.0, steering_deg: -4.5 }, "", "abc");
         let json = serde_json::to_value(&event).unwrap();
         for (key, value) in json.as_object().unwrap() {
             assert!(value.is_string(), "{key} is not a string");

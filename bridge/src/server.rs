@@ -1,6 +1,8 @@
-//! The Socket.IO server the simulator connects to, built on `socketioxide` with the protocol-v4
-//! (Engine.IO 3) layer. The Unity client asks for `EIO=4` yet speaks Engine.IO 3 and never sends
-//! the namespace CONNECT, so the query is rewritten to `EIO=3` before `socketioxide` sees it.
+//! The Socket.IO server the simulator connects to. The Unity client asks for `EIO=4` yet speaks
+//! Engine.IO 3 and Socket.IO protocol 4 without ever sending the namespace CONNECT, and it sends
+//! its first telemetry the moment the websocket opens. The server is therefore `engineioxide` with
+//! its `v3` feature behind an `EIO=4` -> `EIO=3` rewrite, plus the small protocol-v4 layer of
+//! [`crate::sio`]: every message is handled in arrival order from the first byte on.
 
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -8,14 +10,16 @@ use std::time::Duration;
 
 use anyhow::Context as _;
 use axum::http::{Request, Uri};
-use serde_json::value::RawValue;
-use socketioxide::SocketIo;
-use socketioxide::extract::{SocketRef, TryData};
-use socketioxide::socket::DisconnectReason;
+use bytes::Bytes;
+use engineioxide::handler::EngineIoHandler;
+use engineioxide::socket::{DisconnectReason, Socket};
+use engineioxide::{Str, config::EngineIoConfig, layer::EngineIoLayer};
 use tower::util::MapRequestLayer;
 
-use crate::lockstep::{FrameSink, LockStep};
+use crate::lockstep::{FrameSink, InFlight, LockStep};
 use crate::reply::{DataEvent, Reply};
+use crate::sio::{self, Packet};
+use crate::stats::BridgeStats;
 
 /// Settings of the Socket.IO server.
 #[derive(Debug, Clone, Copy)]
@@ -30,10 +34,7 @@ pub struct ServerConfig {
 pub fn rewrite_engine_io_version<B>(mut request: Request<B>) -> Request<B> {
     let uri = request.uri();
     if let Some(query) = uri.query().filter(|q| q.split('&').any(|p| p == "EIO=4")) {
-        let query: Vec<&str> = query
-            .split('&')
-            .map(|p| if p == "EIO=4" { "EIO=3" } else { p })
-            .collect();
+        let query: Vec<&str> = query.split('&').map(|p| if p == "EIO=4" { "EIO=3" } else { p }).collect();
         let path_and_query = format!("{}?{}", uri.path(), query.join("&"));
         let mut parts = uri.clone().into_parts();
         if let Ok(path_and_query) = path_and_query.parse() {
@@ -52,77 +53,94 @@ pub async fn serve<S: FrameSink>(
     config: ServerConfig,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> anyhow::Result<()> {
-    let (layer, io) = SocketIo::builder()
+    let engine_config = EngineIoConfig::builder()
+        .req_path("/socket.io")
         .ping_interval(Duration::from_secs(25))
         .ping_timeout(Duration::from_secs(60))
         .max_payload(config.max_message_bytes as u64)
         .ws_max_message_size(config.max_message_bytes)
         .ws_max_frame_size(config.max_message_bytes)
         .max_buffer_size(1024)
-        .build_layer();
-    io.ns("/", move |socket: SocketRef| {
-        let core = core.clone();
-        async move { on_connect(socket, core) }
-    });
+        .build();
+    let handler = Arc::new(SimulatorLink { core });
     let app = axum::Router::new()
-        .layer(layer)
+        .layer(EngineIoLayer::from_config(handler, engine_config))
         .layer(MapRequestLayer::new(rewrite_engine_io_version));
     let listener = tokio::net::TcpListener::bind(config.address)
         .await
-        .with_context(|| {
-            format!(
-                "cannot listen on {} (is another bridge running?)",
-                config.address
-            )
-        })?;
-    tracing::info!(
-        "waiting for the simulator on ws://{}/socket.io/",
-        config.address
-    );
-    axum::serve(listener, app)
-        .with_graceful_shutdown(shutdown)
-        .await
-        .context("Socket.IO server failed")
+        .with_context(|| format!("cannot listen on {} (is another bridge running?)", config.address))?;
+    tracing::info!("waiting for the simulator on ws://{}/socket.io/", config.address);
+    axum::serve(listener, app).with_graceful_shutdown(shutdown).await.context("Socket.IO server failed")
 }
 
-fn on_connect<S: FrameSink>(socket: SocketRef, core: Arc<LockStep<S>>) {
-    tracing::info!(sid = %socket.id, "simulator connected");
-    core.stats().client_connected();
-    let on_telemetry = core.clone();
-    socket.on(
-        "telemetry",
-        move |socket: SocketRef, TryData(payload): TryData<Box<RawValue>>| {
-            let core = on_telemetry.clone();
-            async move {
-                let payload = payload.ok();
-                let reply = core.answer(payload.as_deref().map(RawValue::get)).await;
-                send_reply(&socket, &core, &reply);
+/// The Engine.IO handler: one per server, shared by all simulator connections.
+struct SimulatorLink<S> {
+    core: Arc<LockStep<S>>,
+}
+
+impl<S> Clone for SimulatorLink<S> {
+    fn clone(&self) -> Self {
+        SimulatorLink { core: self.core.clone() }
+    }
+}
+
+impl<S> std::fmt::Debug for SimulatorLink<S> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("SimulatorLink")
+    }
+}
+
+impl<S: FrameSink> EngineIoHandler for SimulatorLink<S> {
+    type Data = ();
+
+    fn on_connect(self: Arc<Self>, socket: Arc<Socket<()>>) {
+        tracing::info!(sid = %socket.id, "simulator connected");
+        self.core.stats().client_connected();
+        if socket.emit(sio::CONNECT).is_err() {
+            tracing::warn!(sid = %socket.id, "cannot send the namespace CONNECT");
+        }
+    }
+
+    fn on_disconnect(&self, socket: Arc<Socket<()>>, reason: DisconnectReason) {
+        log_disconnect(&socket, &reason, self.core.stats());
+    }
+
+    fn on_message(self: &Arc<Self>, message: Str, socket: Arc<Socket<()>>) {
+        let in_flight = match sio::decode(&message) {
+            Ok(Packet::Event { name, args }) if name == "telemetry" => self.core.receive(args.first()),
+            Ok(Packet::Event { name, .. }) => {
+                tracing::debug!(sid = %socket.id, "ignored event {name:?}");
+                return;
             }
-        },
-    );
-    socket.on_fallback(|socket: SocketRef| async move {
-        tracing::debug!(sid = %socket.id, "ignored an unknown event");
-    });
-    let on_disconnect = core.clone();
-    socket.on_disconnect(move |socket: SocketRef, reason: DisconnectReason| {
-        let on_disconnect = on_disconnect.clone();
-        async move { log_disconnect(&socket, &reason, on_disconnect.stats()) }
-    });
+            Ok(_) => return,
+            Err(e) => self.core.receive_garbage("unparseable_packet", &format!("unparseable Socket.IO packet: {e}")),
+        };
+        self.spawn_reply(in_flight, socket);
+    }
+
+    fn on_binary(self: &Arc<Self>, data: Bytes, socket: Arc<Socket<()>>) {
+        let problem = format!("binary websocket message of {} bytes (the simulator only sends text)", data.len());
+        let in_flight = self.core.receive_garbage("binary_message", &problem);
+        self.spawn_reply(in_flight, socket);
+    }
 }
 
-fn log_disconnect(
-    socket: &SocketRef,
-    reason: &DisconnectReason,
-    stats: &crate::stats::BridgeStats,
-) {
+impl<S: FrameSink> SimulatorLink<S> {
+    fn spawn_reply(&self, in_flight: InFlight, socket: Arc<Socket<()>>) {
+        let core = self.core.clone();
+        tokio::spawn(async move {
+            let reply = core.reply(in_flight).await;
+            send_reply(&socket, &core, &reply);
+        });
+    }
+}
+
+fn log_disconnect(socket: &Socket<()>, reason: &DisconnectReason, stats: &BridgeStats) {
     let kind = disconnect_kind(reason);
-    if matches!(
-        reason,
-        DisconnectReason::TransportClose | DisconnectReason::ClosingServer
-    ) {
-        tracing::info!(sid = %socket.id, "simulator disconnected: {reason}");
+    if matches!(reason, DisconnectReason::TransportClose | DisconnectReason::ClosingServer) {
+        tracing::info!(sid = %socket.id, "simulator disconnected ({kind})");
     } else {
-        tracing::warn!(sid = %socket.id, "simulator connection lost ({kind}): {reason}; waiting for it to reconnect");
+        tracing::warn!(sid = %socket.id, "simulator connection lost ({kind}): {reason:?}; waiting for it to reconnect");
     }
     stats.client_disconnected(kind);
 }
@@ -134,24 +152,23 @@ fn disconnect_kind(reason: &DisconnectReason) -> &'static str {
         DisconnectReason::PacketParsingError => "unparseable_packet",
         DisconnectReason::TransportError => "transport_error",
         DisconnectReason::HeartbeatTimeout => "heartbeat_timeout",
-        DisconnectReason::ClientNSDisconnect => "client_disconnect",
-        DisconnectReason::ServerNSDisconnect => "server_disconnect",
         DisconnectReason::ClosingServer => "server_closing",
     }
 }
 
-fn send_reply<S: FrameSink>(socket: &SocketRef, core: &LockStep<S>, reply: &Reply) {
+fn send_reply<S: FrameSink>(socket: &Socket<()>, core: &LockStep<S>, reply: &Reply) {
     let empty = serde_json::Map::new();
-    let sent = match reply {
+    let encoded = match reply {
         Reply::Data(values, _) => {
             let insets = core.insets();
-            socket.emit(
-                "data",
-                &DataEvent::new(*values, &insets.map, &insets.vision),
-            )
+            sio::encode_event("data", &DataEvent::new(*values, &insets.map, &insets.vision))
         }
-        Reply::Pickup => socket.emit("pickup", &empty),
-        Reply::Manual => socket.emit("manual", &empty),
+        Reply::Pickup => sio::encode_event("pickup", &empty),
+        Reply::Manual => sio::encode_event("manual", &empty),
+    };
+    let sent = match encoded {
+        Ok(text) => socket.emit(text).map_err(|e| e.to_string()),
+        Err(e) => Err(e.to_string()),
     };
     if let Err(e) = sent {
         tracing::warn!(sid = %socket.id, "cannot send the reply: {e}");
@@ -165,24 +182,11 @@ mod tests {
 
     #[test]
     fn only_eio_4_is_rewritten() {
-        let request = Request::get("/socket.io/?EIO=4&transport=websocket")
-            .body(())
-            .unwrap();
-        assert_eq!(
-            rewrite_engine_io_version(request).uri(),
-            "/socket.io/?EIO=3&transport=websocket"
-        );
-        let request = Request::get("/socket.io/?transport=websocket&EIO=3")
-            .body(())
-            .unwrap();
-        assert_eq!(
-            rewrite_engine_io_version(request).uri(),
-            "/socket.io/?transport=websocket&EIO=3"
-        );
+        let request = Request::get("/socket.io/?EIO=4&transport=websocket").body(()).unwrap();
+        assert_eq!(rewrite_engine_io_version(request).uri(), "/socket.io/?EIO=3&transport=websocket");
+        let request = Request::get("/socket.io/?transport=websocket&EIO=3").body(()).unwrap();
+        assert_eq!(rewrite_engine_io_version(request).uri(), "/socket.io/?transport=websocket&EIO=3");
         let request = Request::get("/socket.io/?EIO=40").body(()).unwrap();
-        assert_eq!(
-            rewrite_engine_io_version(request).uri(),
-            "/socket.io/?EIO=40"
-        );
+        assert_eq!(rewrite_engine_io_version(request).uri(), "/socket.io/?EIO=40");
     }
 }

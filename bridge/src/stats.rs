@@ -87,12 +87,7 @@ impl BridgeStats {
 
     /// Counts a problem of kind `kind` (a rejected frame, a disconnect, a bad command...).
     pub fn problem(&self, kind: &str) {
-        *self
-            .problems
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .entry(kind.to_string())
-            .or_default() += 1;
+        *self.problems.lock().unwrap_or_else(|e| e.into_inner()).entry(kind.to_string()).or_default() += 1;
     }
 
     /// Counts a drive command that was rejected (NaN...).
@@ -131,39 +126,24 @@ impl BridgeStats {
 
     /// Replies without a fresh command: held last command or silence brake (deadline misses).
     pub fn deadline_misses(&self) -> u64 {
-        self.replies_held.load(Ordering::Relaxed)
-            + self.replies_silence_brake.load(Ordering::Relaxed)
+        self.replies_held.load(Ordering::Relaxed) + self.replies_silence_brake.load(Ordering::Relaxed)
     }
 
     /// Count of problems of kind `kind`.
     pub fn problem_count(&self, kind: &str) -> u64 {
-        self.problems
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .get(kind)
-            .copied()
-            .unwrap_or(0)
+        self.problems.lock().unwrap_or_else(|e| e.into_inner()).get(kind).copied().unwrap_or(0)
     }
 
     /// Percentiles of the recent reply latencies.
     pub fn latency(&self) -> LatencySummary {
-        let mut values: Vec<f64> = self
-            .latencies_ms
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .iter()
-            .copied()
-            .collect();
+        let mut values: Vec<f64> =
+            self.latencies_ms.lock().unwrap_or_else(|e| e.into_inner()).iter().copied().collect();
         if values.is_empty() {
             return LatencySummary::default();
         }
         values.sort_by(f64::total_cmp);
         let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
-        LatencySummary {
-            p50_ms: at(0.5),
-            p99_ms: at(0.99),
-            samples: values.len(),
-        }
+        LatencySummary { p50_ms: at(0.5), p99_ms: at(0.99), samples: values.len() }
     }
 
     /// Telemetry frames per second since the previous call.
@@ -172,11 +152,7 @@ impl BridgeStats {
         let frames = self.frames();
         let mut last = self.last_rate.lock().unwrap_or_else(|e| e.into_inner());
         let elapsed = now.duration_since(last.0).as_secs_f64();
-        let rate = if elapsed > 0.0 {
-            (frames - last.1) as f64 / elapsed
-        } else {
-            0.0
-        };
+        let rate = if elapsed > 0.0 { (frames - last.1) as f64 / elapsed } else { 0.0 };
         *last = (now, frames);
         rate
     }
@@ -190,64 +166,29 @@ impl BridgeStats {
         let (level, message) = if connected == 0 {
             (DiagnosticStatus::WARN, "no simulator connected".to_string())
         } else if rate > 0.0 && silence > 0 && self.fresh_replies() == 0 {
-            (
-                DiagnosticStatus::WARN,
-                "no drive commands: braking".to_string(),
-            )
+            (DiagnosticStatus::WARN, "no drive commands: braking".to_string())
         } else {
-            (
-                DiagnosticStatus::OK,
-                format!("simulator connected, {rate:.1} frames/s"),
-            )
+            (DiagnosticStatus::OK, format!("simulator connected, {rate:.1} frames/s"))
         };
         let mut values = vec![
             key_value("link_up", (connected > 0).to_string()),
-            key_value(
-                "uptime_s",
-                format!("{:.1}", self.started.elapsed().as_secs_f64()),
-            ),
+            key_value("uptime_s", format!("{:.1}", self.started.elapsed().as_secs_f64())),
             key_value("telemetry_rate_hz", format!("{rate:.1}")),
             key_value("frames", self.frames().to_string()),
-            key_value(
-                "connections",
-                self.connections.load(Ordering::Relaxed).to_string(),
-            ),
+            key_value("connections", self.connections.load(Ordering::Relaxed).to_string()),
             key_value("reply_latency_p50_ms", format!("{:.3}", latency.p50_ms)),
             key_value("reply_latency_p99_ms", format!("{:.3}", latency.p99_ms)),
             key_value("replies_fresh", self.fresh_replies().to_string()),
             key_value("deadline_misses", self.deadline_misses().to_string()),
-            key_value(
-                "replies_held",
-                self.replies_held.load(Ordering::Relaxed).to_string(),
-            ),
+            key_value("replies_held", self.replies_held.load(Ordering::Relaxed).to_string()),
             key_value("replies_silence_brake", silence.to_string()),
-            key_value(
-                "replies_teleop",
-                self.replies_teleop.load(Ordering::Relaxed).to_string(),
-            ),
-            key_value(
-                "replies_rejected_frame",
-                self.replies_rejected.load(Ordering::Relaxed).to_string(),
-            ),
-            key_value(
-                "replies_pickup",
-                self.replies_pickup.load(Ordering::Relaxed).to_string(),
-            ),
-            key_value(
-                "replies_manual",
-                self.replies_manual.load(Ordering::Relaxed).to_string(),
-            ),
-            key_value(
-                "bad_drive_commands",
-                self.bad_commands.load(Ordering::Relaxed).to_string(),
-            ),
+            key_value("replies_teleop", self.replies_teleop.load(Ordering::Relaxed).to_string()),
+            key_value("replies_rejected_frame", self.replies_rejected.load(Ordering::Relaxed).to_string()),
+            key_value("replies_pickup", self.replies_pickup.load(Ordering::Relaxed).to_string()),
+            key_value("replies_manual", self.replies_manual.load(Ordering::Relaxed).to_string()),
+            key_value("bad_drive_commands", self.bad_commands.load(Ordering::Relaxed).to_string()),
         ];
-        for (kind, count) in self
-            .problems
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .iter()
-        {
+        for (kind, count) in self.problems.lock().unwrap_or_else(|e| e.into_inner()).iter() {
             values.push(key_value(&format!("problem_{kind}"), count.to_string()));
         }
         DiagnosticArray {
@@ -264,10 +205,7 @@ impl BridgeStats {
 }
 
 fn key_value(key: &str, value: String) -> KeyValue {
-    KeyValue {
-        key: key.to_string(),
-        value,
-    }
+    KeyValue { key: key.to_string(), value }
 }
 
 #[cfg(test)]
@@ -281,15 +219,9 @@ mod tests {
         stats.client_connected();
         for ms in 1..=100 {
             stats.frame_received();
-            stats.replied(
-                &Reply::Data(DriveValues::brake(0.0), CommandSource::Fresh),
-                Duration::from_millis(ms),
-            );
+            stats.replied(&Reply::Data(DriveValues::brake(0.0), CommandSource::Fresh), Duration::from_millis(ms));
         }
-        stats.replied(
-            &Reply::Data(DriveValues::brake(1.0), CommandSource::Held),
-            Duration::from_millis(50),
-        );
+        stats.replied(&Reply::Data(DriveValues::brake(1.0), CommandSource::Held), Duration::from_millis(50));
         stats.problem("not_a_number");
         stats.problem("not_a_number");
         let latency = stats.latency();
@@ -298,12 +230,7 @@ mod tests {
         assert!(latency.p99_ms >= 99.0, "{latency:?}");
         let diagnostics = stats.diagnostics("/bridge", Header::default());
         let values = &diagnostics.status[0].values;
-        let value = |key: &str| {
-            values
-                .iter()
-                .find(|kv| kv.key == key)
-                .map(|kv| kv.value.clone())
-        };
+        let value = |key: &str| values.iter().find(|kv| kv.key == key).map(|kv| kv.value.clone());
         assert_eq!(value("frames").as_deref(), Some("100"));
         assert_eq!(value("deadline_misses").as_deref(), Some("1"));
         assert_eq!(value("problem_not_a_number").as_deref(), Some("2"));

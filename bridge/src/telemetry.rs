@@ -85,9 +85,7 @@ pub enum TelemetryError {
     #[error("telemetry field `position` = {0:?} is not of the form \"x;y\"")]
     BadPosition(String),
     /// `samples_x` and `samples_y` have different lengths.
-    #[error(
-        "telemetry fields `samples_x` ({x}) and `samples_y` ({y}) list different numbers of samples"
-    )]
+    #[error("telemetry fields `samples_x` ({x}) and `samples_y` ({y}) list different numbers of samples")]
     SampleListsDiffer {
         /// Entries in `samples_x`.
         x: usize,
@@ -117,27 +115,46 @@ impl TelemetryError {
     }
 }
 
-/// Parses the JSON payload of a `telemetry` event. `Ok(None)` means an empty payload, which the
-/// simulator's own client answers with `manual`.
-pub fn parse_telemetry(
-    payload: &str,
-    max_bytes: usize,
-) -> Result<Option<SimTelemetry>, TelemetryError> {
+/// Parses the JSON text of a `telemetry` event's argument. `Ok(None)` means an empty payload,
+/// which the simulator's own client answers with `manual`.
+pub fn parse_telemetry(payload: &str, max_bytes: usize) -> Result<Option<SimTelemetry>, TelemetryError> {
     if payload.len() > max_bytes {
-        return Err(TelemetryError::TooLarge {
-            bytes: payload.len(),
-            limit: max_bytes,
-        });
+        return Err(TelemetryError::TooLarge { bytes: payload.len(), limit: max_bytes });
     }
-    let value: Value =
-        serde_json::from_str(payload).map_err(|e| TelemetryError::InvalidJson(e.to_string()))?;
+    let value: Value = serde_json::from_str(payload).map_err(|e| TelemetryError::InvalidJson(e.to_string()))?;
+    parse_telemetry_value(&value, max_bytes)
+}
+
+/// Like [`parse_telemetry`], on an already parsed argument.
+pub fn parse_telemetry_value(value: &Value, max_bytes: usize) -> Result<Option<SimTelemetry>, TelemetryError> {
+    let bytes = json_len(value);
+    if bytes > max_bytes {
+        return Err(TelemetryError::TooLarge { bytes, limit: max_bytes });
+    }
     let fields = match value {
         Value::Null => return Ok(None),
         Value::Object(fields) if fields.is_empty() => return Ok(None),
         Value::Object(fields) => fields,
-        other => return Err(TelemetryError::NotAnObject(json_kind(&other))),
+        other => return Err(TelemetryError::NotAnObject(json_kind(other))),
     };
-    parse_fields(&fields).map(Some)
+    parse_fields(fields).map(Some)
+}
+
+/// Length of the compact JSON text of `value`, counted without building it.
+fn json_len(value: &Value) -> usize {
+    struct Counter(usize);
+    impl std::io::Write for Counter {
+        fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+            self.0 += bytes.len();
+            Ok(bytes.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+    let mut counter = Counter(0);
+    let _ = serde_json::to_writer(&mut counter, value);
+    counter.0
 }
 
 fn parse_fields(fields: &Map<String, Value>) -> Result<SimTelemetry, TelemetryError> {
@@ -146,10 +163,7 @@ fn parse_fields(fields: &Map<String, Value>) -> Result<SimTelemetry, TelemetryEr
     let samples_x = parse_list("samples_x", text(fields, "samples_x")?)?;
     let samples_y = parse_list("samples_y", text(fields, "samples_y")?)?;
     if samples_x.len() != samples_y.len() {
-        return Err(TelemetryError::SampleListsDiffer {
-            x: samples_x.len(),
-            y: samples_y.len(),
-        });
+        return Err(TelemetryError::SampleListsDiffer { x: samples_x.len(), y: samples_y.len() });
     }
     Ok(SimTelemetry {
         steering_angle_deg: number("steering_angle")?,
@@ -173,25 +187,16 @@ fn text<'a>(fields: &'a Map<String, Value>, name: &'static str) -> Result<&'a st
     match fields.get(name) {
         None => Err(TelemetryError::MissingField(name)),
         Some(Value::String(s)) => Ok(s),
-        Some(other) => Err(TelemetryError::NotAString {
-            field: name,
-            found: json_kind(other),
-        }),
+        Some(other) => Err(TelemetryError::NotAString { field: name, found: json_kind(other) }),
     }
 }
 
 /// Parses a .NET "N4"-style number with `.` or `,` as the decimal separator and optional group separators.
 pub fn parse_number(field: &'static str, text: &str) -> Result<f64, TelemetryError> {
     let normalized = normalize_decimal(text.trim());
-    let value: f64 = normalized.parse().map_err(|_| TelemetryError::NotANumber {
-        field,
-        text: text.to_string(),
-    })?;
+    let value: f64 = normalized.parse().map_err(|_| TelemetryError::NotANumber { field, text: text.to_string() })?;
     if !value.is_finite() {
-        return Err(TelemetryError::NotFinite {
-            field,
-            text: text.to_string(),
-        });
+        return Err(TelemetryError::NotFinite { field, text: text.to_string() });
     }
     Ok(value)
 }
@@ -215,13 +220,9 @@ fn normalize_decimal(text: &str) -> String {
 }
 
 fn parse_position(text: &str) -> Result<(f64, f64), TelemetryError> {
-    let (x, y) = text
-        .split_once(';')
-        .ok_or_else(|| TelemetryError::BadPosition(text.to_string()))?;
-    let x =
-        parse_number("position", x).map_err(|_| TelemetryError::BadPosition(text.to_string()))?;
-    let y =
-        parse_number("position", y).map_err(|_| TelemetryError::BadPosition(text.to_string()))?;
+    let (x, y) = text.split_once(';').ok_or_else(|| TelemetryError::BadPosition(text.to_string()))?;
+    let x = parse_number("position", x).map_err(|_| TelemetryError::BadPosition(text.to_string()))?;
+    let y = parse_number("position", y).map_err(|_| TelemetryError::BadPosition(text.to_string()))?;
     Ok((x, y))
 }
 
@@ -229,15 +230,11 @@ fn parse_list(field: &'static str, text: &str) -> Result<Vec<f64>, TelemetryErro
     if text.trim().is_empty() {
         return Ok(Vec::new());
     }
-    text.split(';')
-        .map(|item| parse_number(field, item))
-        .collect()
+    text.split(';').map(|item| parse_number(field, item)).collect()
 }
 
 fn decode_image(text: &str) -> Result<Vec<u8>, TelemetryError> {
-    base64::engine::general_purpose::STANDARD
-        .decode(text)
-        .map_err(|e| TelemetryError::BadBase64(e.to_string()))
+    base64::engine::general_purpose::STANDARD.decode(text).map_err(|e| TelemetryError::BadBase64(e.to_string()))
 }
 
 fn json_kind(value: &Value) -> &'static str {
@@ -304,20 +301,11 @@ pub(crate) mod tests {
     fn rejections_name_the_field() {
         let mut missing = sample_payload();
         missing.remove("yaw");
-        assert_eq!(
-            parse(&missing).unwrap_err(),
-            TelemetryError::MissingField("yaw")
-        );
+        assert_eq!(parse(&missing).unwrap_err(), TelemetryError::MissingField("yaw"));
 
         let mut number = sample_payload();
         number.insert("speed".into(), serde_json::json!(1.5));
-        assert_eq!(
-            parse(&number).unwrap_err(),
-            TelemetryError::NotAString {
-                field: "speed",
-                found: "a number"
-            }
-        );
+        assert_eq!(parse(&number).unwrap_err(), TelemetryError::NotAString { field: "speed", found: "a number" });
 
         let mut text = sample_payload();
         text.insert("throttle".into(), "fast".into());
@@ -325,13 +313,7 @@ pub(crate) mod tests {
 
         let mut nan = sample_payload();
         nan.insert("pitch".into(), "nan".into());
-        assert_eq!(
-            parse(&nan).unwrap_err(),
-            TelemetryError::NotFinite {
-                field: "pitch",
-                text: "nan".into()
-            }
-        );
+        assert_eq!(parse(&nan).unwrap_err(), TelemetryError::NotFinite { field: "pitch", text: "nan".into() });
 
         let mut position = sample_payload();
         position.insert("position".into(), "99.67".into());
@@ -339,27 +321,15 @@ pub(crate) mod tests {
 
         let mut lists = sample_payload();
         lists.insert("samples_y".into(), "1.0".into());
-        assert_eq!(
-            parse(&lists).unwrap_err(),
-            TelemetryError::SampleListsDiffer { x: 2, y: 1 }
-        );
+        assert_eq!(parse(&lists).unwrap_err(), TelemetryError::SampleListsDiffer { x: 2, y: 1 });
 
         let mut image = sample_payload();
         image.insert("image".into(), "not base64!".into());
         assert_eq!(parse(&image).unwrap_err().kind(), "bad_base64");
 
-        assert_eq!(
-            parse_telemetry("[1]", 100).unwrap_err(),
-            TelemetryError::NotAnObject("an array")
-        );
-        assert_eq!(
-            parse_telemetry("{", 100).unwrap_err().kind(),
-            "invalid_json"
-        );
-        assert_eq!(
-            parse_telemetry("{}", 1).unwrap_err(),
-            TelemetryError::TooLarge { bytes: 2, limit: 1 }
-        );
+        assert_eq!(parse_telemetry("[1]", 100).unwrap_err(), TelemetryError::NotAnObject("an array"));
+        assert_eq!(parse_telemetry("{", 100).unwrap_err().kind(), "invalid_json");
+        assert_eq!(parse_telemetry("{}", 1).unwrap_err(), TelemetryError::TooLarge { bytes: 2, limit: 1 });
     }
 
     #[test]

@@ -33,15 +33,12 @@ pub fn twist_to_drive(twist: &Twist, speed_mps: f64, gains: TeleopGains) -> Driv
         return clamp(0.0, gains.brake, 0.0);
     }
     let throttle = gains.throttle_per_mps * (target_mps - speed_mps);
-    let steering = (twist.angular.z * WHEELBASE_M / target_mps.abs().max(0.1))
-        .atan()
-        .to_degrees();
+    let steering = (twist.angular.z * WHEELBASE_M / target_mps.abs().max(0.1)).atan().to_degrees();
     clamp(throttle, 0.0, steering)
 }
 
 fn clamp(throttle: f64, brake: f64, steering_deg: f64) -> DriveValues {
-    DriveValues::checked(throttle as f32, brake as f32, steering_deg as f32)
-        .unwrap_or(DriveValues::brake(brake as f32))
+    DriveValues::checked(throttle as f32, brake as f32, steering_deg as f32).unwrap_or(DriveValues::brake(brake as f32))
 }
 
 #[cfg(test)]
@@ -49,21 +46,12 @@ mod tests {
     use super::*;
     use rover_msgs::geometry_msgs::Vector3;
 
-    const GAINS: TeleopGains = TeleopGains {
-        throttle_per_mps: 0.5,
-        brake: 10.0,
-    };
+    const GAINS: TeleopGains = TeleopGains { throttle_per_mps: 0.5, brake: 10.0 };
 
     fn twist(linear: f64, angular: f64) -> Twist {
         Twist {
-            linear: Vector3 {
-                x: linear,
-                ..Default::default()
-            },
-            angular: Vector3 {
-                z: angular,
-                ..Default::default()
-            },
+            linear: Vector3 { x: linear, ..Default::default() },
+            angular: Vector3 { z: angular, ..Default::default() },
         }
     }
 
@@ -77,10 +65,7 @@ mod tests {
 
     #[test]
     fn stop_brakes_then_turns_in_place() {
-        assert_eq!(
-            twist_to_drive(&twist(0.0, 0.0), 2.0, GAINS),
-            DriveValues::brake(10.0)
-        );
+        assert_eq!(twist_to_drive(&twist(0.0, 0.0), 2.0, GAINS), DriveValues::brake(10.0));
         let spin = twist_to_drive(&twist(0.0, -std::f64::consts::FRAC_PI_4), 0.0, GAINS);
         assert!((spin.steering_deg + 15.0).abs() < 1e-4, "{spin:?}");
         assert_eq!(spin.throttle, 0.0);
@@ -88,9 +73,6 @@ mod tests {
 
     #[test]
     fn nan_twists_brake() {
-        assert_eq!(
-            twist_to_drive(&twist(f64::NAN, 0.0), 1.0, GAINS).throttle,
-            0.0
-        );
+        assert_eq!(twist_to_drive(&twist(f64::NAN, 0.0), 1.0, GAINS).throttle, 0.0);
     }
 }

@@ -41,9 +41,7 @@ impl<'de> Deserialize<'de> for Covariance {
             fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Covariance, A::Error> {
                 let mut values = [0.0; 36];
                 for (index, slot) in values.iter_mut().enumerate() {
-                    *slot = seq
-                        .next_element()?
-                        .ok_or_else(|| A::Error::invalid_length(index, &self))?;
+                    *slot = seq.next_element()?.ok_or_else(|| A::Error::invalid_length(index, &self))?;
                 }
                 Ok(Covariance(values))
             }

@@ -64,9 +64,8 @@ pub fn parse_msg(package: &str, text: &str) -> Result<MessageSpec, String> {
             doc.push(comment.trim().to_string());
         }
         if let Some((declaration, value)) = split_constant(code) {
-            let (ros_type, name) = split_declaration(declaration.trim()).ok_or_else(|| {
-                format!("line {line_number}: expected `TYPE NAME=VALUE`, got {code:?}")
-            })?;
+            let (ros_type, name) = split_declaration(declaration.trim())
+                .ok_or_else(|| format!("line {line_number}: expected `TYPE NAME=VALUE`, got {code:?}"))?;
             spec.constants.push(ConstantSpec {
                 name: name.to_string(),
                 ros_type: normalize_type(package, ros_type),
@@ -75,15 +74,9 @@ pub fn parse_msg(package: &str, text: &str) -> Result<MessageSpec, String> {
         } else {
             let mut parts = code.split_whitespace();
             let (Some(ros_type), Some(name)) = (parts.next(), parts.next()) else {
-                return Err(format!(
-                    "line {line_number}: expected `TYPE NAME`, got {code:?}"
-                ));
+                return Err(format!("line {line_number}: expected `TYPE NAME`, got {code:?}"));
             };
-            spec.fields.push(FieldSpec {
-                name: name.to_string(),
-                ros_type: normalize_type(package, ros_type),
-                doc,
-            });
+            spec.fields.push(FieldSpec { name: name.to_string(), ros_type: normalize_type(package, ros_type), doc });
         }
     }
     Ok(spec)
@@ -98,10 +91,7 @@ fn split_comment(line: &str) -> (&str, Option<&str>) {
 
 /// Splits `TYPE NAME=VALUE` at the `=` that is not part of a `<=` bound.
 fn split_constant(code: &str) -> Option<(&str, &str)> {
-    let at = code
-        .char_indices()
-        .find(|&(i, c)| c == '=' && !code[..i].ends_with('<'))?
-        .0;
+    let at = code.char_indices().find(|&(i, c)| c == '=' && !code[..i].ends_with('<'))?.0;
     Some((&code[..at], &code[at + 1..]))
 }
 
@@ -128,11 +118,7 @@ pub fn normalize_type(package: &str, ros_type: &str) -> String {
 }
 
 fn normalize_array_suffix(suffix: &str) -> String {
-    if suffix.starts_with("[<=") {
-        "[]".to_string()
-    } else {
-        suffix.to_string()
-    }
+    if suffix.starts_with("[<=") { "[]".to_string() } else { suffix.to_string() }
 }
 
 /// True for the ROS primitive types (after `byte`/`char` normalisation).
@@ -165,11 +151,7 @@ mod tests {
         assert_eq!(spec.doc, vec!["A doc line"]);
         assert_eq!(spec.constants[0].name, "A");
         assert_eq!(spec.constants[0].value, "3");
-        let types: Vec<_> = spec
-            .fields
-            .iter()
-            .map(|f| (f.name.as_str(), f.ros_type.as_str()))
-            .collect();
+        let types: Vec<_> = spec.fields.iter().map(|f| (f.name.as_str(), f.ros_type.as_str())).collect();
         assert_eq!(
             types,
             vec![

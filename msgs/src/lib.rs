@@ -72,13 +72,8 @@ pub mod builtin_interfaces {
     impl Time {
         /// The current wall-clock time.
         pub fn now() -> Self {
-            let since_epoch = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .unwrap_or_default();
-            Time {
-                sec: since_epoch.as_secs() as i32,
-                nanosec: since_epoch.subsec_nanos(),
-            }
+            let since_epoch = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+            Time { sec: since_epoch.as_secs() as i32, nanosec: since_epoch.subsec_nanos() }
         }
     }
 }
@@ -93,10 +88,7 @@ pub mod std_msgs {
     impl Header {
         /// A header stamped now in `frame_id`.
         pub fn now(frame_id: &str) -> Self {
-            Header {
-                stamp: crate::builtin_interfaces::Time::now(),
-                frame_id: frame_id.to_string(),
-            }
+            Header { stamp: crate::builtin_interfaces::Time::now(), frame_id: frame_id.to_string() }
         }
     }
 }

@@ -5,50 +5,28 @@ fn msg_file_fields(name: &str) -> Vec<(String, String)> {
     let path = format!("{}/msg/{name}.msg", env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     let spec = crate::idl::parse_msg("rover_msgs", &text).unwrap();
-    spec.fields
-        .into_iter()
-        .map(|f| (f.name, f.ros_type))
-        .collect()
+    spec.fields.into_iter().map(|f| (f.name, f.ros_type)).collect()
 }
 
 fn rust_fields<M: RosMessage>() -> Vec<(String, String)> {
-    M::fields()
-        .into_iter()
-        .map(|(name, ty)| (name.to_string(), ty))
-        .collect()
+    M::fields().into_iter().map(|(name, ty)| (name.to_string(), ty)).collect()
 }
 
 #[test]
 fn generated_types_match_their_msg_files() {
     assert_eq!(rust_fields::<Telemetry>(), msg_file_fields("Telemetry"));
-    assert_eq!(
-        rust_fields::<DriveCommand>(),
-        msg_file_fields("DriveCommand")
-    );
-    assert_eq!(
-        rust_fields::<PickupRequest>(),
-        msg_file_fields("PickupRequest")
-    );
+    assert_eq!(rust_fields::<DriveCommand>(), msg_file_fields("DriveCommand"));
+    assert_eq!(rust_fields::<PickupRequest>(), msg_file_fields("PickupRequest"));
     assert_eq!(rust_fields::<TerrainScan>(), msg_file_fields("TerrainScan"));
     assert_eq!(rust_fields::<MapStats>(), msg_file_fields("MapStats"));
-    assert_eq!(
-        rust_fields::<DecisionState>(),
-        msg_file_fields("DecisionState")
-    );
+    assert_eq!(rust_fields::<DecisionState>(), msg_file_fields("DecisionState"));
 }
 
 #[test]
 fn every_msg_file_has_a_rust_type() {
     let mut files: Vec<String> = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/msg"))
         .unwrap()
-        .map(|e| {
-            e.unwrap()
-                .path()
-                .file_stem()
-                .unwrap()
-                .to_string_lossy()
-                .into_owned()
-        })
+        .map(|e| e.unwrap().path().file_stem().unwrap().to_string_lossy().into_owned())
         .collect();
     files.sort();
     let mut types = vec![
@@ -74,10 +52,7 @@ fn constants_are_generated() {
 #[test]
 fn type_names_follow_ros_conventions() {
     assert_eq!(Telemetry::type_name(), "rover_msgs/msg/Telemetry");
-    assert_eq!(
-        crate::sensor_msgs::CameraInfo::type_name(),
-        "sensor_msgs/msg/CameraInfo"
-    );
+    assert_eq!(crate::sensor_msgs::CameraInfo::type_name(), "sensor_msgs/msg/CameraInfo");
     let camera_fields = crate::sensor_msgs::CameraInfo::fields();
     assert!(camera_fields.contains(&("k", "float64[9]".to_string())));
     assert!(camera_fields.contains(&("d", "float64[]".to_string())));

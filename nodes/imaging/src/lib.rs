@@ -22,11 +22,7 @@ pub struct RgbImage {
 impl RgbImage {
     /// A black image.
     pub fn new(width: usize, height: usize) -> Self {
-        RgbImage {
-            width,
-            height,
-            data: vec![0; width * height * 3],
-        }
+        RgbImage { width, height, data: vec![0; width * height * 3] }
     }
 
     /// The pixel at column `x`, row `y`.
@@ -83,24 +79,15 @@ pub fn jpeg_dimensions(jpeg: &[u8]) -> Result<(usize, usize), ImageError> {
         return Err(ImageError::Truncated);
     }
     let mut decoder = JpegDecoder::new(ZCursor::new(jpeg));
-    decoder
-        .decode_headers()
-        .map_err(|e| ImageError::Corrupt(format!("{e:?}")))?;
-    decoder
-        .dimensions()
-        .ok_or_else(|| ImageError::Corrupt("no frame header".into()))
+    decoder.decode_headers().map_err(|e| ImageError::Corrupt(format!("{e:?}")))?;
+    decoder.dimensions().ok_or_else(|| ImageError::Corrupt("no frame header".into()))
 }
 
 /// Checks that the JPEG header describes a `width` x `height` image.
 pub fn check_jpeg(jpeg: &[u8], width: usize, height: usize) -> Result<(), ImageError> {
     let (w, h) = jpeg_dimensions(jpeg)?;
     if (w, h) != (width, height) {
-        return Err(ImageError::WrongSize {
-            width: w,
-            height: h,
-            expected_width: width,
-            expected_height: height,
-        });
+        return Err(ImageError::WrongSize { width: w, height: h, expected_width: width, expected_height: height });
     }
     Ok(())
 }
@@ -110,22 +97,14 @@ pub fn decode_jpeg_into(jpeg: &[u8], out: &mut RgbImage) -> Result<(), ImageErro
     if !jpeg.starts_with(&[0xFF, 0xD8]) {
         return Err(ImageError::NotJpeg(jpeg.len()));
     }
-    let options = DecoderOptions::default()
-        .jpeg_set_out_colorspace(ColorSpace::RGB)
-        .set_strict_mode(true);
+    let options = DecoderOptions::default().jpeg_set_out_colorspace(ColorSpace::RGB).set_strict_mode(true);
     let mut decoder = JpegDecoder::new_with_options(ZCursor::new(jpeg), options);
-    decoder
-        .decode_headers()
-        .map_err(|e| ImageError::Corrupt(format!("{e:?}")))?;
-    let (width, height) = decoder
-        .dimensions()
-        .ok_or_else(|| ImageError::Corrupt("no frame header".into()))?;
+    decoder.decode_headers().map_err(|e| ImageError::Corrupt(format!("{e:?}")))?;
+    let (width, height) = decoder.dimensions().ok_or_else(|| ImageError::Corrupt("no frame header".into()))?;
     out.width = width;
     out.height = height;
     out.data.resize(width * height * 3, 0);
-    decoder
-        .decode_into(&mut out.data)
-        .map_err(|e| ImageError::Corrupt(format!("{e:?}")))
+    decoder.decode_into(&mut out.data).map_err(|e| ImageError::Corrupt(format!("{e:?}")))
 }
 
 /// Decodes a JPEG into a new RGB image.
@@ -143,16 +122,10 @@ pub fn encode_jpeg(image: &RgbImage, quality: u8) -> Result<Vec<u8>, ImageError>
 }
 
 /// Like [`encode_jpeg`], appending to `out` (cleared first).
-pub fn encode_jpeg_into(
-    image: &RgbImage,
-    quality: u8,
-    out: &mut Vec<u8>,
-) -> Result<(), ImageError> {
+pub fn encode_jpeg_into(image: &RgbImage, quality: u8, out: &mut Vec<u8>) -> Result<(), ImageError> {
     out.clear();
-    let width =
-        u16::try_from(image.width).map_err(|_| ImageError::Encode("width over 65535".into()))?;
-    let height =
-        u16::try_from(image.height).map_err(|_| ImageError::Encode("height over 65535".into()))?;
+    let width = u16::try_from(image.width).map_err(|_| ImageError::Encode("width over 65535".into()))?;
+    let height = u16::try_from(image.height).map_err(|_| ImageError::Encode("height over 65535".into()))?;
     let mut encoder = jpeg_encoder::Encoder::new(&mut *out, quality);
     encoder.set_sampling_factor(jpeg_encoder::SamplingFactor::R_4_2_0);
     encoder
@@ -164,21 +137,13 @@ pub fn encode_jpeg_into(
 pub fn decode_png(bytes: &[u8]) -> Result<RgbImage, ImageError> {
     let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
     decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
-    let mut reader = decoder
-        .read_info()
-        .map_err(|e| ImageError::Corrupt(format!("PNG: {e}")))?;
+    let mut reader = decoder.read_info().map_err(|e| ImageError::Corrupt(format!("PNG: {e}")))?;
     let mut buffer = vec![0; reader.output_buffer_size().unwrap_or_default()];
-    let info = reader
-        .next_frame(&mut buffer)
-        .map_err(|e| ImageError::Corrupt(format!("PNG: {e}")))?;
+    let info = reader.next_frame(&mut buffer).map_err(|e| ImageError::Corrupt(format!("PNG: {e}")))?;
     let (width, height) = (info.width as usize, info.height as usize);
     let channels = info.color_type.samples();
     let mut image = RgbImage::new(width, height);
-    for (pixel, source) in image
-        .data
-        .chunks_exact_mut(3)
-        .zip(buffer.chunks_exact(channels))
-    {
+    for (pixel, source) in image.data.chunks_exact_mut(3).zip(buffer.chunks_exact(channels)) {
         match channels {
             1 | 2 => pixel.fill(source[0]),
             _ => pixel.copy_from_slice(&source[..3]),
@@ -193,15 +158,9 @@ pub fn encode_png(image: &RgbImage) -> Result<Vec<u8>, ImageError> {
     let mut encoder = png::Encoder::new(&mut out, image.width as u32, image.height as u32);
     encoder.set_color(png::ColorType::Rgb);
     encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder
-        .write_header()
-        .map_err(|e| ImageError::Encode(e.to_string()))?;
-    writer
-        .write_image_data(&image.data)
-        .map_err(|e| ImageError::Encode(e.to_string()))?;
-    writer
-        .finish()
-        .map_err(|e| ImageError::Encode(e.to_string()))?;
+    let mut writer = encoder.write_header().map_err(|e| ImageError::Encode(e.to_string()))?;
+    writer.write_image_data(&image.data).map_err(|e| ImageError::Encode(e.to_string()))?;
+    writer.finish().map_err(|e| ImageError::Encode(e.to_string()))?;
     Ok(out)
 }
 
@@ -213,11 +172,7 @@ mod tests {
         let mut image = RgbImage::new(width, height);
         for y in 0..height {
             for x in 0..width {
-                image.set_pixel(
-                    x,
-                    y,
-                    [(x * 255 / width) as u8, (y * 255 / height) as u8, 128],
-                );
+                image.set_pixel(x, y, [(x * 255 / width) as u8, (y * 255 / height) as u8, 128]);
             }
         }
         image
@@ -227,20 +182,11 @@ mod tests {
     fn jpeg_round_trip_keeps_size_and_colours() {
         let image = gradient(320, 160);
         let jpeg = encode_jpeg(&image, UNITY_JPEG_QUALITY).unwrap();
-        assert!(
-            jpeg.starts_with(&[0xFF, 0xD8, 0xFF, 0xE0]),
-            "JFIF APP0 first"
-        );
+        assert!(jpeg.starts_with(&[0xFF, 0xD8, 0xFF, 0xE0]), "JFIF APP0 first");
         assert_eq!(jpeg_dimensions(&jpeg).unwrap(), (320, 160));
         let decoded = decode_jpeg(&jpeg).unwrap();
         assert_eq!((decoded.width, decoded.height), (320, 160));
-        let max_error = image
-            .data
-            .iter()
-            .zip(&decoded.data)
-            .map(|(a, b)| a.abs_diff(*b))
-            .max()
-            .unwrap();
+        let max_error = image.data.iter().zip(&decoded.data).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
         assert!(max_error < 16, "max error {max_error}");
     }
 
@@ -248,14 +194,8 @@ mod tests {
     fn corrupt_and_truncated_jpegs_are_named() {
         let jpeg = encode_jpeg(&gradient(64, 32), 75).unwrap();
         assert_eq!(jpeg_dimensions(b"hello"), Err(ImageError::NotJpeg(5)));
-        assert_eq!(
-            jpeg_dimensions(&jpeg[..jpeg.len() / 2]),
-            Err(ImageError::Truncated)
-        );
-        assert!(matches!(
-            check_jpeg(&jpeg, 320, 160),
-            Err(ImageError::WrongSize { width: 64, .. })
-        ));
+        assert_eq!(jpeg_dimensions(&jpeg[..jpeg.len() / 2]), Err(ImageError::Truncated));
+        assert!(matches!(check_jpeg(&jpeg, 320, 160), Err(ImageError::WrongSize { width: 64, .. })));
         let mut garbage = jpeg.clone();
         let len = garbage.len();
         garbage[20..len - 2].fill(0xFF);

@@ -12,9 +12,11 @@ use tracing_subscriber::registry::LookupSpan;
 use tracing_subscriber::util::SubscriberInitExt;
 use tracing_subscriber::{EnvFilter, Layer};
 
-/// Filter used when `RUST_LOG` is not set: our logs at info, the DDS stack's noise muted.
-pub const DEFAULT_FILTER: &str = "info,rustdds=warn,rustdds::network::udp_sender=error,rustdds::rtps=error,\
-ros2_client=warn,ros2_client::rosout=off,ros2_client::distributions=error,socketioxide=warn,engineioxide=warn";
+/// Directives that mute the DDS and Socket.IO stacks' chatter; `RUST_LOG` or `--log-level` come after
+/// them and can override each one.
+pub const QUIET_DEPENDENCIES: &str = "rustdds=warn,rustdds::network::udp_sender=error,rustdds::rtps=error,\
+rustdds::dds::participant=error,ros2_client=warn,ros2_client::rosout=off,ros2_client::distributions=error,\
+socketioxide=warn,engineioxide=warn";
 
 /// Name of the span that tags events with the node they belong to (field `name`).
 pub const NODE_SPAN: &str = "node";
@@ -25,24 +27,18 @@ fn handles() -> &'static Mutex<Vec<(String, NodeLoggingHandle)>> {
     ROSOUT_HANDLES.get_or_init(|| Mutex::new(Vec::new()))
 }
 
-/// Installs the global subscriber. `log_level` (from `--ros-args --log-level`) overrides `RUST_LOG`.
-/// Calling it again is harmless.
+/// Installs the global subscriber: level `info` unless `RUST_LOG` says otherwise, and `log_level`
+/// (from `--ros-args --log-level`) overrides both. Calling it again is harmless.
 pub fn init(log_level: Option<&str>) {
-    let filter = match log_level {
-        Some(level) => EnvFilter::new(format!(
-            "{level},{}",
-            DEFAULT_FILTER.split_once(',').map_or("", |d| d.1)
-        )),
-        None => {
-            EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(DEFAULT_FILTER))
-        }
-    };
+    let requested = log_level.map(str::to_string).or_else(|| std::env::var("RUST_LOG").ok()).unwrap_or_default();
+    let requested = if requested.trim().is_empty() { "info".to_string() } else { requested };
+    let filter = EnvFilter::try_new(format!("info,{QUIET_DEPENDENCIES},{requested}")).unwrap_or_else(|e| {
+        eprintln!("ignoring the log filter {requested:?}: {e}");
+        EnvFilter::new(format!("info,{QUIET_DEPENDENCIES}"))
+    });
+    let ansi = std::io::IsTerminal::is_terminal(&std::io::stderr());
     let _ = tracing_subscriber::registry()
-        .with(
-            tracing_subscriber::fmt::layer()
-                .with_writer(std::io::stderr)
-                .with_target(false),
-        )
+        .with(tracing_subscriber::fmt::layer().with_writer(std::io::stderr).with_target(false).with_ansi(ansi))
         .with(RosoutLayer)
         .with(filter)
         .try_init();
@@ -50,18 +46,12 @@ pub fn init(log_level: Option<&str>) {
 
 /// Registers the `/rosout` publisher of the node with fully qualified name `node`.
 pub(crate) fn register_rosout(node: &str, handle: NodeLoggingHandle) {
-    handles()
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .push((node.to_string(), handle));
+    handles().lock().unwrap_or_else(|e| e.into_inner()).push((node.to_string(), handle));
 }
 
 /// Removes the `/rosout` publisher of `node` (when the node is dropped).
 pub(crate) fn unregister_rosout(node: &str) {
-    handles()
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .retain(|(name, _)| name != node);
+    handles().lock().unwrap_or_else(|e| e.into_inner()).retain(|(name, _)| name != node);
 }
 
 struct NodeName(String);
@@ -69,21 +59,13 @@ struct NodeName(String);
 struct RosoutLayer;
 
 impl<S: Subscriber + for<'a> LookupSpan<'a>> Layer<S> for RosoutLayer {
-    fn on_new_span(
-        &self,
-        attrs: &tracing::span::Attributes<'_>,
-        id: &tracing::span::Id,
-        ctx: Context<'_, S>,
-    ) {
+    fn on_new_span(&self, attrs: &tracing::span::Attributes<'_>, id: &tracing::span::Id, ctx: Context<'_, S>) {
         if attrs.metadata().name() != NODE_SPAN {
             return;
         }
         let mut visitor = MessageVisitor::default();
         attrs.record(&mut visitor);
-        if let (Some(span), Some(name)) = (
-            ctx.span(id),
-            visitor.fields.into_iter().find(|(k, _)| k == "name"),
-        ) {
+        if let (Some(span), Some(name)) = (ctx.span(id), visitor.fields.into_iter().find(|(k, _)| k == "name")) {
             span.extensions_mut().insert(NodeName(name.1));
         }
     }
@@ -94,9 +76,7 @@ impl<S: Subscriber + for<'a> LookupSpan<'a>> Layer<S> for RosoutLayer {
             return;
         }
         let node = ctx.event_scope(event).and_then(|scope| {
-            scope
-                .from_root()
-                .find_map(|span| span.extensions().get::<NodeName>().map(|n| n.0.clone()))
+            scope.from_root().find_map(|span| span.extensions().get::<NodeName>().map(|n| n.0.clone()))
         });
         let handles = handles().lock().unwrap_or_else(|e| e.into_inner());
         let handle = match node {
@@ -149,8 +129,7 @@ impl Visit for MessageVisitor {
         if field.name() == "message" {
             self.message = value.to_string();
         } else {
-            self.fields
-                .push((field.name().to_string(), value.to_string()));
+            self.fields.push((field.name().to_string(), value.to_string()));
         }
     }
 
@@ -158,8 +137,7 @@ impl Visit for MessageVisitor {
         if field.name() == "message" {
             self.message = format!("{value:?}");
         } else {
-            self.fields
-                .push((field.name().to_string(), format!("{value:?}")));
+            self.fields.push((field.name().to_string(), format!("{value:?}")));
         }
     }
 }

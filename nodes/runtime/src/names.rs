@@ -30,24 +30,11 @@ pub struct NodeIdentity {
 impl NodeIdentity {
     /// Resolves the identity of the node whose default name is `default_name`.
     pub fn resolve(default_name: &str, ros_args: &RosArgs) -> Result<Self, NameError> {
-        let name = ros_args
-            .special_for(default_name, "__node")
-            .unwrap_or_else(|| default_name.to_string());
+        let name = ros_args.special_for(default_name, "__node").unwrap_or_else(|| default_name.to_string());
         check_token("node", &name, &name)?;
-        let namespace = normalize_namespace(
-            &ros_args
-                .special_for(default_name, "__ns")
-                .unwrap_or_default(),
-        )?;
-        let mut identity = NodeIdentity {
-            name,
-            namespace,
-            remaps: Vec::new(),
-        };
-        for remap in ros_args
-            .remaps_for(default_name)
-            .filter(|r| !r.from.starts_with("__"))
-        {
+        let namespace = normalize_namespace(&ros_args.special_for(default_name, "__ns").unwrap_or_default())?;
+        let mut identity = NodeIdentity { name, namespace, remaps: Vec::new() };
+        for remap in ros_args.remaps_for(default_name).filter(|r| !r.from.starts_with("__")) {
             let from = identity.expand(&remap.from)?;
             let to = identity.expand(&remap.to)?;
             identity.remaps.push((from, to));
@@ -63,12 +50,7 @@ impl NodeIdentity {
     /// Resolves a topic name as the node sees it: expanded to an absolute name, then remapped.
     pub fn resolve_topic(&self, topic: &str) -> Result<String, NameError> {
         let expanded = self.expand(topic)?;
-        let remapped = self
-            .remaps
-            .iter()
-            .rev()
-            .find(|(from, _)| *from == expanded)
-            .map(|(_, to)| to.clone());
+        let remapped = self.remaps.iter().rev().find(|(from, _)| *from == expanded).map(|(_, to)| to.clone());
         Ok(remapped.unwrap_or(expanded))
     }
 
@@ -88,11 +70,7 @@ impl NodeIdentity {
 }
 
 fn join(namespace: &str, relative: &str) -> String {
-    if namespace == "/" {
-        format!("/{relative}")
-    } else {
-        format!("{namespace}/{relative}")
-    }
+    if namespace == "/" { format!("/{relative}") } else { format!("{namespace}/{relative}") }
 }
 
 fn normalize_namespace(namespace: &str) -> Result<String, NameError> {
@@ -100,11 +78,7 @@ fn normalize_namespace(namespace: &str) -> Result<String, NameError> {
     if trimmed.is_empty() {
         return Ok("/".to_string());
     }
-    let absolute = if trimmed.starts_with('/') {
-        trimmed.to_string()
-    } else {
-        format!("/{trimmed}")
-    };
+    let absolute = if trimmed.starts_with('/') { trimmed.to_string() } else { format!("/{trimmed}") };
     for token in absolute[1..].split('/') {
         check_token("namespace", namespace, token)?;
     }
@@ -112,13 +86,7 @@ fn normalize_namespace(namespace: &str) -> Result<String, NameError> {
 }
 
 fn check_token(kind: &'static str, name: &str, token: &str) -> Result<(), NameError> {
-    let invalid = |reason| {
-        Err(NameError::Invalid {
-            kind,
-            name: name.to_string(),
-            reason,
-        })
-    };
+    let invalid = |reason| Err(NameError::Invalid { kind, name: name.to_string(), reason });
     if token.is_empty() {
         return invalid("it has an empty part (repeated or trailing `/`)");
     }
@@ -140,11 +108,7 @@ mod tests {
     use crate::ros_args::split_ros_args;
 
     fn identity(node: &str, ros: &[&str]) -> NodeIdentity {
-        let argv = ["rover", "--ros-args"]
-            .iter()
-            .chain(ros)
-            .map(|s| s.to_string())
-            .collect();
+        let argv = ["rover", "--ros-args"].iter().chain(ros).map(|s| s.to_string()).collect();
         let (_, args) = split_ros_args(argv).unwrap();
         NodeIdentity::resolve(node, &args).unwrap()
     }
@@ -153,30 +117,14 @@ mod tests {
     fn relative_names_follow_the_namespace() {
         let id = identity("bridge", &["-r", "__ns:=/rover1"]);
         assert_eq!(id.fully_qualified(), "/rover1/bridge");
-        assert_eq!(
-            id.resolve_topic("rover/telemetry").unwrap(),
-            "/rover1/rover/telemetry"
-        );
+        assert_eq!(id.resolve_topic("rover/telemetry").unwrap(), "/rover1/rover/telemetry");
         assert_eq!(id.resolve_topic("/tf").unwrap(), "/tf");
-        assert_eq!(
-            id.resolve_topic("~/status").unwrap(),
-            "/rover1/bridge/status"
-        );
+        assert_eq!(id.resolve_topic("~/status").unwrap(), "/rover1/bridge/status");
     }
 
     #[test]
     fn remaps_match_expanded_names() {
-        let id = identity(
-            "bridge",
-            &[
-                "-r",
-                "__ns:=/r",
-                "-r",
-                "odom:=/odometry",
-                "-r",
-                "/r/map:=world_map",
-            ],
-        );
+        let id = identity("bridge", &["-r", "__ns:=/r", "-r", "odom:=/odometry", "-r", "/r/map:=world_map"]);
         assert_eq!(id.resolve_topic("odom").unwrap(), "/odometry");
         assert_eq!(id.resolve_topic("map").unwrap(), "/r/world_map");
         assert_eq!(id.resolve_topic("rover/mode").unwrap(), "/r/rover/mode");
@@ -191,13 +139,8 @@ mod tests {
 
     #[test]
     fn bad_names_are_rejected_with_the_reason() {
-        let (_, args) = split_ros_args(vec![
-            "x".into(),
-            "--ros-args".into(),
-            "-r".into(),
-            "__ns:=/9bad".into(),
-        ])
-        .unwrap();
+        let (_, args) =
+            split_ros_args(vec!["x".into(), "--ros-args".into(), "-r".into(), "__ns:=/9bad".into()]).unwrap();
         let error = NodeIdentity::resolve("bridge", &args).unwrap_err();
         assert!(error.to_string().contains("/9bad"), "{error}");
         let id = identity("bridge", &[]);

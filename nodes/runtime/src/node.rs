@@ -4,9 +4,7 @@ use std::sync::{Arc, Mutex};
 
 use anyhow::Context as _;
 use futures::StreamExt;
-use ros2_client::{
-    Context, ContextOptions, MessageTypeName, Name, NodeName, NodeOptions, Publisher, Subscription,
-};
+use ros2_client::{Context, ContextOptions, MessageTypeName, Name, NodeName, NodeOptions, Publisher, Subscription};
 use rover_msgs::RosMessage;
 use tokio::sync::watch;
 
@@ -24,16 +22,9 @@ pub fn domain_id_from_env() -> anyhow::Result<u16> {
     match std::env::var("ROS_DOMAIN_ID") {
         Err(_) => Ok(0),
         Ok(text) if text.trim().is_empty() => Ok(0),
-        Ok(text) => text
-            .trim()
-            .parse::<u16>()
-            .ok()
-            .filter(|&id| id <= MAX_DOMAIN_ID)
-            .ok_or_else(|| {
-                anyhow::anyhow!(
-                    "ROS_DOMAIN_ID={text:?} is not a whole number between 0 and {MAX_DOMAIN_ID}"
-                )
-            }),
+        Ok(text) => text.trim().parse::<u16>().ok().filter(|&id| id <= MAX_DOMAIN_ID).ok_or_else(|| {
+            anyhow::anyhow!("ROS_DOMAIN_ID={text:?} is not a whole number between 0 and {MAX_DOMAIN_ID}")
+        }),
     }
 }
 
@@ -48,15 +39,15 @@ pub struct Runtime {
 impl Runtime {
     /// Creates the DDS context on `ROS_DOMAIN_ID`. Must run inside a tokio runtime.
     pub fn new(ros_args: RosArgs, shutdown: Shutdown) -> anyhow::Result<Self> {
-        let domain_id = domain_id_from_env()?;
+        Self::on_domain(domain_id_from_env()?, ros_args, shutdown)
+    }
+
+    /// Creates the DDS context on `domain_id`, ignoring `ROS_DOMAIN_ID`.
+    pub fn on_domain(domain_id: u16, ros_args: RosArgs, shutdown: Shutdown) -> anyhow::Result<Self> {
         let context = Context::with_options(ContextOptions::new().domain_id(domain_id))
             .with_context(|| format!("cannot create the DDS participant on domain {domain_id}"))?;
         tracing::debug!(domain_id, "DDS participant created");
-        Ok(Runtime {
-            context,
-            ros_args: Arc::new(ros_args),
-            shutdown,
-        })
+        Ok(Runtime { context, ros_args: Arc::new(ros_args), shutdown })
     }
 
     /// The shutdown flag of the process.
@@ -93,17 +84,10 @@ impl Runtime {
         Ok((RosNode { node, identity }, params))
     }
 
-    fn assignments(
-        &self,
-        default_name: &str,
-        identity: &NodeIdentity,
-    ) -> anyhow::Result<Vec<Assignment>> {
+    fn assignments(&self, default_name: &str, identity: &NodeIdentity) -> anyhow::Result<Vec<Assignment>> {
         let mut assignments = Vec::new();
         for file in &self.ros_args.params_files {
-            assignments.extend(params::assignments_from_file(
-                file,
-                &identity.fully_qualified(),
-            )?);
+            assignments.extend(params::assignments_from_file(file, &identity.fully_qualified())?);
         }
         for p in self.ros_args.params_for(default_name) {
             let value = params::parse_override(&p.value)
@@ -150,20 +134,14 @@ impl RosNode {
     }
 
     /// Creates a subscription on `topic`.
-    pub fn subscription<M: RosMessage>(
-        &mut self,
-        topic: &Topic<M>,
-    ) -> anyhow::Result<Subscription<M>> {
+    pub fn subscription<M: RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<Subscription<M>> {
         let dds_topic = self.dds_topic(topic)?;
         self.node
             .create_subscription(&dds_topic, None)
             .with_context(|| format!("cannot create a subscription on {}", topic.name))
     }
 
-    fn dds_topic<M: RosMessage>(
-        &self,
-        topic: &Topic<M>,
-    ) -> anyhow::Result<ros2_client::dds::rustdds::Topic> {
+    fn dds_topic<M: RosMessage>(&self, topic: &Topic<M>) -> anyhow::Result<ros2_client::dds::rustdds::Topic> {
         let resolved = self.identity.resolve_topic(topic.name)?;
         let name = Name::parse(&resolved).map_err(|e| anyhow::anyhow!("topic {resolved}: {e}"))?;
         self.node
@@ -224,9 +202,7 @@ impl<P: NodeParams> Params<P> {
 
     fn with_services(values: ParamValues, specs: Vec<params::ParamSpec>) -> (Self, NodeOptions) {
         let (sender, current) = watch::channel(P::from_values(&values));
-        let mut options = NodeOptions::new()
-            .enable_rosout(true)
-            .start_parameter_services(true);
+        let mut options = NodeOptions::new().enable_rosout(true).start_parameter_services(true);
         for (name, value) in &values {
             options = options.declare_parameter(name, value.clone());
         }

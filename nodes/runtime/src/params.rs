@@ -78,9 +78,7 @@ pub enum ParamError {
         reason: String,
     },
     /// A parameter the node does not declare.
-    #[error(
-        "node `{node}`: unknown parameter `{name}` (from {source_name}); known parameters: {known}"
-    )]
+    #[error("node `{node}`: unknown parameter `{name}` (from {source_name}); known parameters: {known}")]
     Unknown {
         /// Node name.
         node: String,
@@ -110,19 +108,12 @@ const USE_SIM_TIME: &str = "use_sim_time";
 
 /// Checks `value` against `spec` and returns it with integers widened to doubles where needed.
 pub fn check_value(spec: &ParamSpec, value: &ParameterValue) -> Result<ParameterValue, String> {
-    let value = coerce(&spec.default, value).ok_or_else(|| {
-        format!(
-            "expects {}, got {}",
-            type_description(&spec.default),
-            describe_value(value)
-        )
-    })?;
+    let value = coerce(&spec.default, value)
+        .ok_or_else(|| format!("expects {}, got {}", type_description(&spec.default), describe_value(value)))?;
     if let (Some((lo, hi)), Some(number)) = (spec.range, as_number(&value))
         && !(lo..=hi).contains(&number)
     {
-        return Err(format!(
-            "= {number} is outside the allowed range [{lo}, {hi}]"
-        ));
+        return Err(format!("= {number} is outside the allowed range [{lo}, {hi}]"));
     }
     Ok(value)
 }
@@ -131,18 +122,12 @@ fn coerce(default: &ParameterValue, value: &ParameterValue) -> Option<ParameterV
     use ParameterValue as V;
     match (default, value) {
         (V::Double(_), V::Integer(i)) => Some(V::Double(*i as f64)),
-        (V::DoubleArray(_), V::IntegerArray(items)) => {
-            Some(V::DoubleArray(items.iter().map(|&i| i as f64).collect()))
-        }
-        (V::DoubleArray(_) | V::IntegerArray(_) | V::StringArray(_), V::StringArray(items))
-            if items.is_empty() =>
-        {
+        (V::DoubleArray(_), V::IntegerArray(items)) => Some(V::DoubleArray(items.iter().map(|&i| i as f64).collect())),
+        (V::DoubleArray(_) | V::IntegerArray(_) | V::StringArray(_), V::StringArray(items)) if items.is_empty() => {
             Some(default_empty(default))
         }
         (V::Double(_), V::Double(d)) if !d.is_finite() => None,
-        _ if std::mem::discriminant(default) == std::mem::discriminant(value) => {
-            Some(value.clone())
-        }
+        _ if std::mem::discriminant(default) == std::mem::discriminant(value) => Some(value.clone()),
         _ => None,
     }
 }
@@ -205,28 +190,18 @@ pub struct Assignment {
 }
 
 /// Resolves a node's parameter values: defaults, then files, then `-p` overrides.
-pub fn resolve_values(
-    node: &str,
-    specs: &[ParamSpec],
-    assignments: &[Assignment],
-) -> Result<ParamValues, ParamError> {
-    let mut values: ParamValues = specs
-        .iter()
-        .map(|s| (s.name.to_string(), s.default.clone()))
-        .collect();
+pub fn resolve_values(node: &str, specs: &[ParamSpec], assignments: &[Assignment]) -> Result<ParamValues, ParamError> {
+    let mut values: ParamValues = specs.iter().map(|s| (s.name.to_string(), s.default.clone())).collect();
     for assignment in assignments {
         if assignment.name == USE_SIM_TIME {
             continue;
         }
-        let spec = specs
-            .iter()
-            .find(|s| s.name == assignment.name)
-            .ok_or_else(|| ParamError::Unknown {
-                node: node.to_string(),
-                name: assignment.name.clone(),
-                source_name: assignment.source_name.clone(),
-                known: specs.iter().map(|s| s.name).collect::<Vec<_>>().join(", "),
-            })?;
+        let spec = specs.iter().find(|s| s.name == assignment.name).ok_or_else(|| ParamError::Unknown {
+            node: node.to_string(),
+            name: assignment.name.clone(),
+            source_name: assignment.source_name.clone(),
+            known: specs.iter().map(|s| s.name).collect::<Vec<_>>().join(", "),
+        })?;
         let value = check_value(spec, &assignment.value).map_err(|reason| ParamError::Invalid {
             node: node.to_string(),
             name: assignment.name.clone(),
@@ -241,39 +216,22 @@ pub fn resolve_values(
 /// Reads the assignments for node `fully_qualified` (e.g. `/rover1/bridge`) from a YAML parameter file.
 ///
 /// Sections named `/**`, the node's base name, its fully qualified name, or `/**/name` apply.
-pub fn assignments_from_file(
-    path: &Path,
-    fully_qualified: &str,
-) -> Result<Vec<Assignment>, ParamError> {
-    let file_error = |reason: String| ParamError::File {
-        path: path.display().to_string(),
-        reason,
-    };
-    let text =
-        std::fs::read_to_string(path).map_err(|e| file_error(format!("cannot read it: {e}")))?;
+pub fn assignments_from_file(path: &Path, fully_qualified: &str) -> Result<Vec<Assignment>, ParamError> {
+    let file_error = |reason: String| ParamError::File { path: path.display().to_string(), reason };
+    let text = std::fs::read_to_string(path).map_err(|e| file_error(format!("cannot read it: {e}")))?;
     assignments_from_yaml(&text, &path.display().to_string(), fully_qualified).map_err(file_error)
 }
 
 /// Like [`assignments_from_file`], on YAML text; `source_name` names it in messages.
-pub fn assignments_from_yaml(
-    text: &str,
-    source_name: &str,
-    fully_qualified: &str,
-) -> Result<Vec<Assignment>, String> {
-    let root: serde_yaml_ng::Value =
-        serde_yaml_ng::from_str(text).map_err(|e| format!("invalid YAML: {e}"))?;
+pub fn assignments_from_yaml(text: &str, source_name: &str, fully_qualified: &str) -> Result<Vec<Assignment>, String> {
+    let root: serde_yaml_ng::Value = serde_yaml_ng::from_str(text).map_err(|e| format!("invalid YAML: {e}"))?;
     let serde_yaml_ng::Value::Mapping(sections) = root else {
         return Err("expected a mapping of node names to `ros__parameters`".to_string());
     };
-    let base_name = fully_qualified
-        .rsplit('/')
-        .next()
-        .unwrap_or(fully_qualified);
+    let base_name = fully_qualified.rsplit('/').next().unwrap_or(fully_qualified);
     let mut assignments = Vec::new();
     for (key, section) in &sections {
-        let key = key
-            .as_str()
-            .ok_or_else(|| format!("section key {key:?} is not a string"))?;
+        let key = key.as_str().ok_or_else(|| format!("section key {key:?} is not a string"))?;
         if !section_applies(key, base_name, fully_qualified) {
             continue;
         }
@@ -286,10 +244,7 @@ pub fn assignments_from_yaml(
 }
 
 fn section_applies(key: &str, base_name: &str, fully_qualified: &str) -> bool {
-    key == "/**"
-        || key == base_name
-        || key == fully_qualified
-        || key.strip_prefix("/**/") == Some(base_name)
+    key == "/**" || key == base_name || key == fully_qualified || key.strip_prefix("/**/") == Some(base_name)
 }
 
 fn flatten_yaml(
@@ -299,30 +254,16 @@ fn flatten_yaml(
     out: &mut Vec<Assignment>,
 ) -> Result<(), String> {
     let serde_yaml_ng::Value::Mapping(map) = value else {
-        return Err(format!(
-            "`ros__parameters` must be a mapping, found {}",
-            yaml_kind(value)
-        ));
+        return Err(format!("`ros__parameters` must be a mapping, found {}", yaml_kind(value)));
     };
     for (key, item) in map {
-        let key = key
-            .as_str()
-            .ok_or_else(|| format!("parameter name {key:?} is not a string"))?;
-        let name = if prefix.is_empty() {
-            key.to_string()
-        } else {
-            format!("{prefix}.{key}")
-        };
+        let key = key.as_str().ok_or_else(|| format!("parameter name {key:?} is not a string"))?;
+        let name = if prefix.is_empty() { key.to_string() } else { format!("{prefix}.{key}") };
         if matches!(item, serde_yaml_ng::Value::Mapping(_)) {
             flatten_yaml(&name, item, source_name, out)?;
         } else {
-            let value =
-                yaml_to_value(item).map_err(|reason| format!("parameter `{name}`: {reason}"))?;
-            out.push(Assignment {
-                name,
-                value,
-                source_name: source_name.to_string(),
-            });
+            let value = yaml_to_value(item).map_err(|reason| format!("parameter `{name}`: {reason}"))?;
+            out.push(Assignment { name, value, source_name: source_name.to_string() });
         }
     }
     Ok(())
@@ -350,32 +291,18 @@ fn yaml_to_value(value: &serde_yaml_ng::Value) -> Result<ParameterValue, String>
 
 fn sequence_to_value(items: &[serde_yaml_ng::Value]) -> Result<ParameterValue, String> {
     use serde_yaml_ng::Value as Y;
-    if items
-        .iter()
-        .all(|i| matches!(i, Y::Number(n) if n.is_i64()))
-        && !items.is_empty()
-    {
-        return Ok(ParameterValue::IntegerArray(
-            items.iter().filter_map(Y::as_i64).collect(),
-        ));
+    if items.iter().all(|i| matches!(i, Y::Number(n) if n.is_i64())) && !items.is_empty() {
+        return Ok(ParameterValue::IntegerArray(items.iter().filter_map(Y::as_i64).collect()));
     }
     if items.iter().all(|i| matches!(i, Y::Number(_))) && !items.is_empty() {
-        return Ok(ParameterValue::DoubleArray(
-            items.iter().filter_map(Y::as_f64).collect(),
-        ));
+        return Ok(ParameterValue::DoubleArray(items.iter().filter_map(Y::as_f64).collect()));
     }
     if items.iter().all(|i| matches!(i, Y::Bool(_))) && !items.is_empty() {
-        return Ok(ParameterValue::BooleanArray(
-            items.iter().filter_map(Y::as_bool).collect(),
-        ));
+        return Ok(ParameterValue::BooleanArray(items.iter().filter_map(Y::as_bool).collect()));
     }
     items
         .iter()
-        .map(|i| {
-            i.as_str()
-                .map(str::to_string)
-                .ok_or_else(|| "lists must hold items of one type".to_string())
-        })
+        .map(|i| i.as_str().map(str::to_string).ok_or_else(|| "lists must hold items of one type".to_string()))
         .collect::<Result<Vec<_>, _>>()
         .map(ParameterValue::StringArray)
 }
@@ -394,13 +321,9 @@ fn yaml_kind(value: &serde_yaml_ng::Value) -> &'static str {
 
 /// Formats the parameter table for `--help`.
 pub fn help_table(specs: &[ParamSpec]) -> String {
-    let mut out =
-        String::from("Parameters (set with --ros-args -p NAME:=VALUE or --params-file FILE):\n");
+    let mut out = String::from("Parameters (set with --ros-args -p NAME:=VALUE or --params-file FILE):\n");
     for spec in specs {
-        let range = spec
-            .range
-            .map(|(lo, hi)| format!(", range [{lo}, {hi}]"))
-            .unwrap_or_default();
+        let range = spec.range.map(|(lo, hi)| format!(", range [{lo}, {hi}]")).unwrap_or_default();
         out.push_str(&format!(
             "  {} ({}{range}, default {})\n      {}\n",
             spec.name,
@@ -504,12 +427,9 @@ mod tests {
 
     #[test]
     fn defaults_then_overrides() {
-        let values = resolve_values(
-            "t",
-            &TestParams::specs(),
-            &[assignment("port", "4568"), assignment("deadline_ms", "20")],
-        )
-        .unwrap();
+        let values =
+            resolve_values("t", &TestParams::specs(), &[assignment("port", "4568"), assignment("deadline_ms", "20")])
+                .unwrap();
         let params = TestParams::from_values(&values);
         assert_eq!(params.port, 4568);
         assert_eq!(params.deadline_ms, 20.0);
@@ -530,26 +450,12 @@ mod tests {
     fn unknown_wrong_type_and_out_of_range_are_rejected() {
         let specs = TestParams::specs();
         let unknown = resolve_values("t", &specs, &[assignment("prot", "1")]).unwrap_err();
-        assert!(
-            unknown.to_string().contains("unknown parameter `prot`"),
-            "{unknown}"
-        );
-        assert!(
-            unknown.to_string().contains("known parameters: port"),
-            "{unknown}"
-        );
+        assert!(unknown.to_string().contains("unknown parameter `prot`"), "{unknown}");
+        assert!(unknown.to_string().contains("known parameters: port"), "{unknown}");
         let wrong = resolve_values("t", &specs, &[assignment("port", "abc")]).unwrap_err();
-        assert!(
-            wrong
-                .to_string()
-                .contains("expects an integer, got \"abc\""),
-            "{wrong}"
-        );
+        assert!(wrong.to_string().contains("expects an integer, got \"abc\""), "{wrong}");
         let range = resolve_values("t", &specs, &[assignment("port", "70000")]).unwrap_err();
-        assert!(
-            range.to_string().contains("outside the allowed range"),
-            "{range}"
-        );
+        assert!(range.to_string().contains("outside the allowed range"), "{range}");
         let nan = resolve_values("t", &specs, &[assignment("deadline_ms", ".nan")]).unwrap_err();
         assert!(nan.to_string().contains("finite number"), "{nan}");
     }
@@ -567,10 +473,6 @@ mod tests {
     fn yaml_errors_are_explained() {
         let error = assignments_from_yaml("bridge:\n  port: 1\n", "p.yaml", "/bridge").unwrap_err();
         assert!(error.contains("no `ros__parameters`"), "{error}");
-        assert!(
-            assignments_from_yaml("[1, 2", "p.yaml", "/bridge")
-                .unwrap_err()
-                .contains("invalid YAML")
-        );
+        assert!(assignments_from_yaml("[1, 2", "p.yaml", "/bridge").unwrap_err().contains("invalid YAML"));
     }
 }

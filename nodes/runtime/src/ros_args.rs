@@ -16,9 +16,7 @@ pub enum RosArgsError {
     #[error("`{0}` is not of the form NAME:=VALUE")]
     NotAnAssignment(String),
     /// An argument inside `--ros-args` that ROS does not know.
-    #[error(
-        "unknown ROS argument `{0}` (expected -r/--remap, -p/--param, --params-file, --log-level or --)"
-    )]
+    #[error("unknown ROS argument `{0}` (expected -r/--remap, -p/--param, --params-file, --log-level or --)")]
     Unknown(String),
 }
 
@@ -80,16 +78,11 @@ pub fn split_ros_args(argv: Vec<String>) -> Result<(Vec<String>, RosArgs), RosAr
                     ros.params.push(ParamOverride { node, name, value });
                 }
                 "--params-file" => {
-                    let file = args
-                        .next()
-                        .ok_or_else(|| RosArgsError::MissingValue(arg.clone()))?;
+                    let file = args.next().ok_or_else(|| RosArgsError::MissingValue(arg.clone()))?;
                     ros.params_files.push(PathBuf::from(file));
                 }
                 "--log-level" => {
-                    ros.log_level = Some(
-                        args.next()
-                            .ok_or_else(|| RosArgsError::MissingValue(arg.clone()))?,
-                    );
+                    ros.log_level = Some(args.next().ok_or_else(|| RosArgsError::MissingValue(arg.clone()))?);
                 }
                 other if other.contains(":=") => {
                     let (node, from, to) = parse_assignment("-r", Some(other.to_string()))?;
@@ -102,14 +95,9 @@ pub fn split_ros_args(argv: Vec<String>) -> Result<(Vec<String>, RosArgs), RosAr
     Ok((own, ros))
 }
 
-fn parse_assignment(
-    option: &str,
-    value: Option<String>,
-) -> Result<(Option<String>, String, String), RosArgsError> {
+fn parse_assignment(option: &str, value: Option<String>) -> Result<(Option<String>, String, String), RosArgsError> {
     let value = value.ok_or_else(|| RosArgsError::MissingValue(option.to_string()))?;
-    let (lhs, rhs) = value
-        .split_once(":=")
-        .ok_or_else(|| RosArgsError::NotAnAssignment(value.clone()))?;
+    let (lhs, rhs) = value.split_once(":=").ok_or_else(|| RosArgsError::NotAnAssignment(value.clone()))?;
     let (node, name) = match lhs.split_once(':') {
         Some((node, name)) => (Some(node.to_string()), name),
         None => (None, lhs),
@@ -123,24 +111,17 @@ fn parse_assignment(
 impl RosArgs {
     /// Remap rules that apply to the node originally named `node`.
     pub fn remaps_for<'a>(&'a self, node: &'a str) -> impl Iterator<Item = &'a Remap> + 'a {
-        self.remaps
-            .iter()
-            .filter(move |r| r.node.as_deref().is_none_or(|n| n == node))
+        self.remaps.iter().filter(move |r| r.node.as_deref().is_none_or(|n| n == node))
     }
 
     /// Parameter overrides that apply to the node originally named `node`.
     pub fn params_for<'a>(&'a self, node: &'a str) -> impl Iterator<Item = &'a ParamOverride> + 'a {
-        self.params
-            .iter()
-            .filter(move |p| p.node.as_deref().is_none_or(|n| n == node))
+        self.params.iter().filter(move |p| p.node.as_deref().is_none_or(|n| n == node))
     }
 
     /// The `__special` remap for `node` (`__ns` or `__node`), the last one winning.
     pub fn special_for(&self, node: &str, special: &str) -> Option<String> {
-        self.remaps_for(node)
-            .filter(|r| r.from == special)
-            .last()
-            .map(|r| r.to.clone())
+        self.remaps_for(node).filter(|r| r.from == special).last().map(|r| r.to.clone())
     }
 }
 
@@ -171,14 +152,7 @@ mod tests {
         ]);
         let (own, ros) = split_ros_args(argv).unwrap();
         assert_eq!(own, strings(&["rover", "bridge", "--verbose"]));
-        assert_eq!(
-            ros.remaps[0],
-            Remap {
-                node: None,
-                from: "odom".into(),
-                to: "odometry".into()
-            }
-        );
+        assert_eq!(ros.remaps[0], Remap { node: None, from: "odom".into(), to: "odometry".into() });
         assert_eq!(ros.params[0].name, "port");
         assert_eq!(ros.params[0].value, "4568");
         assert_eq!(ros.params_files, vec![PathBuf::from("a.yaml")]);
@@ -187,14 +161,7 @@ mod tests {
 
     #[test]
     fn node_prefixed_rules_apply_to_that_node_only() {
-        let argv = strings(&[
-            "rover",
-            "--ros-args",
-            "-r",
-            "bridge:__node:=b2",
-            "-p",
-            "mapping:range_m:=6.5",
-        ]);
+        let argv = strings(&["rover", "--ros-args", "-r", "bridge:__node:=b2", "-p", "mapping:range_m:=6.5"]);
         let (_, ros) = split_ros_args(argv).unwrap();
         assert_eq!(ros.special_for("bridge", "__node").as_deref(), Some("b2"));
         assert_eq!(ros.special_for("mapping", "__node"), None);

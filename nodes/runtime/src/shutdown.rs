@@ -13,10 +13,7 @@ impl Shutdown {
     /// A flag that is only set by [`Shutdown::request`].
     pub fn new() -> Self {
         let (trigger, requested) = watch::channel(false);
-        Shutdown {
-            requested,
-            trigger: std::sync::Arc::new(trigger),
-        }
+        Shutdown { requested, trigger: std::sync::Arc::new(trigger) }
     }
 
     /// A flag that is also set on SIGINT (Ctrl-C) or SIGTERM. Needs a tokio runtime.
@@ -56,10 +53,8 @@ impl Default for Shutdown {
 
 async fn wait_for_signal() -> &'static str {
     use tokio::signal::unix::{SignalKind, signal};
-    let (Ok(mut interrupt), Ok(mut terminate)) = (
-        signal(SignalKind::interrupt()),
-        signal(SignalKind::terminate()),
-    ) else {
+    let (Ok(mut interrupt), Ok(mut terminate)) = (signal(SignalKind::interrupt()), signal(SignalKind::terminate()))
+    else {
         tracing::warn!("cannot install signal handlers; Ctrl-C will kill the process abruptly");
         return std::future::pending().await;
     };
@@ -80,10 +75,7 @@ mod tests {
         let task = tokio::spawn(async move { waiter.wait().await });
         assert!(!shutdown.is_requested());
         shutdown.request();
-        tokio::time::timeout(std::time::Duration::from_secs(1), task)
-            .await
-            .unwrap()
-            .unwrap();
+        tokio::time::timeout(std::time::Duration::from_secs(1), task).await.unwrap().unwrap();
         assert!(shutdown.is_requested());
     }
 }

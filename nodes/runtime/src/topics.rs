@@ -5,9 +5,7 @@ use std::marker::PhantomData;
 use ros2_client::QosProfile;
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_msgs::geometry_msgs::{PoseArray, Twist};
-use rover_msgs::msg::{
-    DecisionState, DriveCommand, MapStats, PickupRequest, Telemetry, TerrainScan,
-};
+use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, PickupRequest, Telemetry, TerrainScan};
 use rover_msgs::nav_msgs::{OccupancyGrid, Odometry};
 use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image};
 use rover_msgs::tf2_msgs::TFMessage;
@@ -25,17 +23,12 @@ pub struct Topic<M> {
 
 impl<M> Topic<M> {
     const fn new(name: &'static str, qos: QosProfile) -> Self {
-        Topic {
-            name,
-            qos,
-            message: PhantomData,
-        }
+        Topic { name, qos, message: PhantomData }
     }
 }
 
 /// The simulator's JPEG, untouched.
-pub const CAMERA_COMPRESSED: Topic<CompressedImage> =
-    Topic::new("camera/image_raw/compressed", reliable(5));
+pub const CAMERA_COMPRESSED: Topic<CompressedImage> = Topic::new("camera/image_raw/compressed", reliable(5));
 /// The decoded camera image, rgb8 320x160 (optional).
 pub const CAMERA_RAW: Topic<Image> = Topic::new("camera/image_raw", reliable(1));
 /// The calibrated pinhole model of the camera.

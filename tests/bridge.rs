@@ -1,0 +1,403 @@
+//! The bridge against a fake Unity client that speaks the simulator's dialect byte for byte
+//! (`rover_sim::wire`), with real recorded frames, real DDS and the bridge in its own process.
+
+mod support;
+
+use std::collections::{HashSet, VecDeque};
+use std::time::{Duration, Instant};
+
+use rover_sim::wire::client::{ClientConfig, Connection, Simulation, run_client, unity_url};
+use rover_sim::wire::command::Command;
+use rover_sim::wire::packet::Inbound;
+use rover_sim::wire::telemetry::TelemetryValues;
+use support::frames::{RecordedFrame, load};
+use support::{
+    Domain, Latest, Process, diagnostic_value, echo_node, eventually, rover, shared_dir, test_runtime, wait_for_port,
+};
+use tokio_tungstenite::tungstenite::Message;
+
+/// Positions cycle through 1..=997 so that the echo node's throttle (x / 1000) names the telemetry.
+const POSITION_CYCLE: u64 = 997;
+
+fn recorded_frames() -> Vec<RecordedFrame> {
+    load(&shared_dir().join("udacity/test_dataset"))
+}
+
+fn telemetry_json(frame: &RecordedFrame, x_m: f64) -> String {
+    TelemetryValues {
+        steering_angle_deg: 0.0,
+        throttle: 0.0,
+        brake: 0.0,
+        speed_mps: frame.speed_mps,
+        x_m,
+        y_m: frame.y_m,
+        pitch_deg: frame.pitch_deg,
+        yaw_deg: frame.yaw_deg,
+        roll_deg: frame.roll_deg,
+        near_sample: false,
+        picking_up: false,
+        samples: &[(97.44, 74.65), (122.28, 51.66)],
+        image_jpeg: &frame.jpeg,
+    }
+    .to_json()
+}
+
+/// One reply as the fake simulator saw it.
+#[derive(Debug, Clone)]
+struct SeenReply {
+    throttle: f64,
+    brake: f64,
+    latency: Duration,
+    at: Instant,
+}
+
+/// A fake simulator that sends recorded frames and checks which telemetry each reply answers.
+struct EchoCheckingSimulator {
+    frames: Vec<RecordedFrame>,
+    sent: u64,
+    outstanding: VecDeque<(u64, Instant)>,
+    replies: Vec<SeenReply>,
+    fresh_matches: Vec<(u64, f64)>,
+    unmatched: Vec<SeenReply>,
+    other_events: u64,
+    limit: usize,
+    on_reply: Box<dyn FnMut(usize) + Send>,
+}
+
+impl EchoCheckingSimulator {
+    fn new(limit: usize) -> Self {
+        EchoCheckingSimulator {
+            frames: recorded_frames(),
+            sent: 0,
+            outstanding: VecDeque::new(),
+            replies: Vec::new(),
+            fresh_matches: Vec::new(),
+            unmatched: Vec::new(),
+            other_events: 0,
+            limit,
+            on_reply: Box::new(|_| {}),
+        }
+    }
+
+    fn position_of(k: u64) -> u64 {
+        1 + k % POSITION_CYCLE
+    }
+}
+
+impl Simulation for EchoCheckingSimulator {
+    fn telemetry_json(&mut self) -> String {
+        self.sent += 1;
+        let k = self.sent;
+        self.outstanding.push_back((k, Instant::now()));
+        let frame = &self.frames[k as usize % self.frames.len()];
+        telemetry_json(frame, Self::position_of(k) as f64)
+    }
+
+    fn apply(&mut self, command: Command) {
+        let Command::Drive { throttle, brake, .. } = command else {
+            self.other_events += 1;
+            return;
+        };
+        let now = Instant::now();
+        let position = (throttle * 1000.0).round() as u64;
+        let answered = self.outstanding.iter().position(|&(k, _)| Self::position_of(k) == position && throttle > 0.0);
+        let latency = match answered {
+            Some(index) => {
+                let (k, sent_at) = self.outstanding.remove(index).expect("index in range");
+                self.fresh_matches.push((k, brake));
+                now - sent_at
+            }
+            None => {
+                let (_, sent_at) = self.outstanding.pop_front().expect("a reply without outstanding telemetry");
+                now - sent_at
+            }
+        };
+        let reply = SeenReply { throttle, brake, latency, at: now };
+        if answered.is_none() {
+            self.unmatched.push(reply.clone());
+        }
+        self.replies.push(reply);
+        (self.on_reply)(self.replies.len());
+    }
+
+    fn finished(&self) -> bool {
+        self.replies.len() >= self.limit
+    }
+}
+
+fn start_bridge(domain: &Domain, extra: &[&str]) -> Process {
+    let port = format!("port:={}", domain.port());
+    let mut args = vec!["bridge", "--ros-args", "-p", &port, "-p", "diagnostics_period_ms:=100.0"];
+    for param in extra {
+        args.extend(["-p", param]);
+    }
+    let bridge = Process::start(&rover(), &args, domain, "bridge");
+    wait_for_port(domain.port(), Duration::from_secs(20));
+    bridge
+}
+
+async fn run_fake_unity(simulation: &mut EchoCheckingSimulator, port: u16) -> rover_sim::wire::client::ClientStats {
+    let config = ClientConfig::unity("127.0.0.1", port);
+    tokio::time::timeout(Duration::from_secs(300), run_client(simulation, &config, std::future::pending()))
+        .await
+        .expect("the fake simulator finished within 5 minutes")
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_thousand_frames_each_get_exactly_one_reply_with_the_command_for_that_frame() {
+    support::assert_isolated();
+    let domain = Domain::reserve();
+    let _bridge = start_bridge(&domain, &[]);
+    let _echo = Process::start(&echo_node(), &[], &domain, "echo");
+    let mut simulation = EchoCheckingSimulator::new(1000);
+    let stats = run_fake_unity(&mut simulation, domain.port()).await;
+
+    assert_eq!(stats.connections, 1);
+    assert_eq!(stats.commands_dropped, 0, "every reply parsed: all values were JSON strings");
+    assert_eq!(simulation.other_events, 0);
+    assert_eq!(simulation.replies.len(), 1000);
+    assert_eq!(
+        stats.telemetry_sent as usize,
+        simulation.replies.len() + simulation.outstanding.len(),
+        "every telemetry but the ones still in flight got exactly one reply"
+    );
+    assert!(simulation.outstanding.len() <= 2, "at most the two connect loops are in flight");
+    let answered: HashSet<u64> = simulation.fresh_matches.iter().map(|&(k, _)| k).collect();
+    assert_eq!(answered.len(), simulation.fresh_matches.len(), "no telemetry was answered twice");
+    for &(k, frame) in &simulation.fresh_matches {
+        assert_eq!(frame, k as f64, "the reply to telemetry {k} carries the command for frame {k}");
+    }
+    let first_fresh = simulation.replies.iter().position(|r| r.throttle > 0.0).expect("the echo node answered");
+    let misses = simulation.unmatched.iter().filter(|r| r.at > simulation.replies[first_fresh].at).count();
+    assert!(misses <= 5, "{misses} replies missed their command after the echo node was discovered");
+    assert!(simulation.fresh_matches.len() >= 950, "only {} fresh replies", simulation.fresh_matches.len());
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn without_a_decision_node_replies_keep_their_deadline_and_brake_after_the_silence_limit() {
+    support::assert_isolated();
+    let domain = Domain::reserve();
+    let _bridge = start_bridge(&domain, &["reply_deadline_ms:=50.0", "silence_limit_ms:=600.0"]);
+    let echo = std::sync::Arc::new(std::sync::Mutex::new(Some(Process::start(&echo_node(), &[], &domain, "echo"))));
+    let mut simulation = EchoCheckingSimulator::new(400);
+    let killed_at = std::sync::Arc::new(std::sync::Mutex::new(None));
+    let (echo_for_kill, killed_for_sim) = (echo.clone(), killed_at.clone());
+    let fresh_seen = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    simulation.on_reply = Box::new(move |_| {
+        let fresh = fresh_seen.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        if fresh == 150
+            && let Some(mut process) = echo_for_kill.lock().unwrap().take()
+        {
+            process.kill();
+            *killed_for_sim.lock().unwrap() = Some(Instant::now());
+        }
+    });
+    run_fake_unity(&mut simulation, domain.port()).await;
+
+    let killed_at = killed_at.lock().unwrap().expect("the echo node was killed");
+    let after: Vec<&SeenReply> =
+        simulation.replies.iter().filter(|r| r.at > killed_at + Duration::from_millis(100)).collect();
+    assert!(after.len() > 50, "replies kept coming after the decision node died");
+    for reply in &after {
+        assert!(reply.latency < Duration::from_millis(50 + 150), "a reply took {:?}", reply.latency);
+    }
+    let held: Vec<_> = after.iter().filter(|r| r.throttle > 0.0).collect();
+    let braking: Vec<_> = after.iter().filter(|r| r.throttle == 0.0 && r.brake == 10.0).collect();
+    assert!(!held.is_empty(), "the last command is held for a while");
+    assert!(!braking.is_empty(), "then the rover is told to brake");
+    let first_brake = braking[0].at - killed_at;
+    assert!(
+        first_brake >= Duration::from_millis(500) && first_brake <= Duration::from_millis(1500),
+        "braking started {first_brake:?} after the decision node died"
+    );
+    assert!(braking.iter().all(|r| r.at >= braking[0].at), "no command came back after braking started");
+    assert!(after.iter().skip_while(|r| r.throttle > 0.0).all(|r| r.throttle == 0.0), "braking lasts");
+}
+
+/// A connection that reads the handshake and then exchanges single telemetry frames.
+struct RawClient {
+    connection: Connection,
+}
+
+impl RawClient {
+    async fn connect(port: u16) -> RawClient {
+        let connection = Connection::open(&unity_url("127.0.0.1", port)).await.expect("connect to the bridge");
+        RawClient { connection }
+    }
+
+    async fn send_text(&mut self, text: &str) {
+        self.connection.send_text(text).await.expect("send");
+    }
+
+    /// Waits for the next event; `None` if the connection closed or nothing came within 3 s.
+    async fn next_event(&mut self) -> Option<(String, Option<serde_json::Value>)> {
+        let deadline = tokio::time::Instant::now() + Duration::from_secs(3);
+        loop {
+            match tokio::time::timeout_at(deadline, self.connection.receive()).await.ok()?? {
+                Inbound::Event { name, data } => return Some((name, data)),
+                Inbound::Close => return None,
+                _ => continue,
+            }
+        }
+    }
+
+    async fn exchange(&mut self, telemetry_argument: &str) -> Option<(String, Option<serde_json::Value>)> {
+        self.send_text(&format!("42[\"telemetry\",{telemetry_argument}]")).await;
+        self.next_event().await
+    }
+}
+
+fn valid_telemetry() -> serde_json::Value {
+    serde_json::from_str(&telemetry_json(&recorded_frames()[10], 42.0)).unwrap()
+}
+
+struct BadInputCase {
+    domain: Domain,
+    bridge: Process,
+    diagnostics: Latest<rover_msgs::diagnostic_msgs::DiagnosticArray>,
+    telemetry: Latest<rover_msgs::msg::Telemetry>,
+    _runtime: rover_node::Runtime,
+    _node: rover_node::RosNode,
+}
+
+impl BadInputCase {
+    fn start(extra: &[&str]) -> BadInputCase {
+        support::assert_isolated();
+        let domain = Domain::reserve();
+        let bridge = start_bridge(&domain, extra);
+        let runtime = test_runtime(&domain);
+        let (mut node, _) = runtime.node::<support::NoParams>("observer").unwrap();
+        let diagnostics = Latest::subscribe(&mut node, &rover_node::topics::DIAGNOSTICS);
+        let telemetry = Latest::subscribe(&mut node, &rover_node::topics::TELEMETRY);
+        BadInputCase { domain, bridge, diagnostics, telemetry, _runtime: runtime, _node: node }
+    }
+
+    /// Checks the log line, the diagnostics counter, and that a valid frame still gets a reply.
+    async fn assert_handled(&self, log_needle: &str, counter: &str) {
+        assert!(
+            eventually(Duration::from_secs(5), || self.bridge.log_text().contains(log_needle)),
+            "no log line containing {log_needle:?} in:\n{}",
+            self.bridge.log_text()
+        );
+        let count = |s: &Self| diagnostic_value(&s.diagnostics, counter).and_then(|v| v.parse::<u64>().ok());
+        assert!(
+            eventually(Duration::from_secs(10), || count(self).is_some_and(|c| c >= 1)),
+            "/diagnostics has no {counter} >= 1; last: {:?}",
+            self.diagnostics.last()
+        );
+        let mut client = RawClient::connect(self.domain.port()).await;
+        let reply = client.exchange(&valid_telemetry().to_string()).await;
+        assert_eq!(reply.map(|r| r.0).as_deref(), Some("data"), "the loop goes on after the bad input");
+    }
+}
+
+fn assert_brake(reply: Option<(String, Option<serde_json::Value>)>) {
+    let (name, data) = reply.expect("a reply to the bad frame");
+    assert_eq!(name, "data");
+    let data = data.expect("data has an argument");
+    assert_eq!((data["throttle"].as_str(), data["brake"].as_str()), (Some("0"), Some("10")), "{data}");
+}
+
+async fn rejected_with_brake(case: &BadInputCase, argument: &str) {
+    let mut client = RawClient::connect(case.domain.port()).await;
+    assert_brake(client.exchange(argument).await);
+}
+
+fn with_field(field: &str, value: serde_json::Value) -> String {
+    let mut telemetry = valid_telemetry();
+    telemetry[field] = value;
+    telemetry.to_string()
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn invalid_json_is_rejected_with_a_brake() {
+    let case = BadInputCase::start(&[]);
+    let mut client = RawClient::connect(case.domain.port()).await;
+    client.send_text("42[\"telemetry\",{\"speed\":\"1.0\",]").await;
+    assert_brake(client.next_event().await);
+    case.assert_handled("unparseable Socket.IO packet", "problem_unparseable_packet").await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn missing_fields_are_rejected_with_a_brake() {
+    let case = BadInputCase::start(&[]);
+    let mut telemetry = valid_telemetry();
+    telemetry.as_object_mut().unwrap().remove("yaw");
+    rejected_with_brake(&case, &telemetry.to_string()).await;
+    case.assert_handled("telemetry field `yaw` is missing", "problem_missing_field").await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn non_numeric_and_nan_values_are_rejected_with_a_brake() {
+    let case = BadInputCase::start(&[]);
+    rejected_with_brake(&case, &with_field("speed", "fast".into())).await;
+    rejected_with_brake(&case, &with_field("pitch", "nan".into())).await;
+    rejected_with_brake(&case, &with_field("throttle", serde_json::json!(0.5))).await;
+    case.assert_handled("telemetry field `speed` = \"fast\" is not a number", "problem_not_a_number").await;
+    case.assert_handled("telemetry field `pitch` = \"nan\" is not finite", "problem_not_finite").await;
+    case.assert_handled("telemetry field `throttle` is a number, expected a string", "problem_not_a_string").await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn comma_decimals_are_read_as_decimals() {
+    let case = BadInputCase::start(&[]);
+    let mut telemetry = valid_telemetry();
+    telemetry["position"] = "12,5000;85,5890".into();
+    telemetry["speed"] = "1,2500".into();
+    let mut client = RawClient::connect(case.domain.port()).await;
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let parsed = |t: &rover_msgs::msg::Telemetry| t.x_m == 12.5 && t.y_m == 85.589 && t.speed_mps == 1.25;
+    while !case.telemetry.all().iter().any(parsed) && Instant::now() < deadline {
+        let (name, _) = client.exchange(&telemetry.to_string()).await.expect("a reply");
+        assert_eq!(name, "data");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert!(
+        case.telemetry.all().iter().any(parsed),
+        "rover/telemetry carries x 12.5 and speed 1.25: {:?}",
+        case.telemetry.last()
+    );
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn corrupt_base64_is_rejected_with_a_brake() {
+    let case = BadInputCase::start(&[]);
+    rejected_with_brake(&case, &with_field("image", "/9j/4AAQ***not base64***".into())).await;
+    case.assert_handled("telemetry field `image` is not valid base64", "problem_bad_base64").await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn corrupt_jpeg_is_rejected_with_a_brake() {
+    use base64::Engine as _;
+    let case = BadInputCase::start(&[]);
+    let mut jpeg = recorded_frames()[10].jpeg.clone();
+    jpeg.truncate(jpeg.len() / 2);
+    let image = base64::engine::general_purpose::STANDARD.encode(&jpeg);
+    rejected_with_brake(&case, &with_field("image", image.into())).await;
+    case.assert_handled("telemetry field `image`: truncated JPEG", "problem_bad_image").await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_payload_over_the_size_limit_is_rejected_with_a_brake() {
+    let case = BadInputCase::start(&["max_payload_bytes:=65536"]);
+    rejected_with_brake(&case, &with_field("image", "A".repeat(100_000).into())).await;
+    case.assert_handled("exceeds the limit of 65536 bytes", "problem_too_large").await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_binary_frame_is_rejected_with_a_brake() {
+    let case = BadInputCase::start(&[]);
+    let mut client = RawClient::connect(case.domain.port()).await;
+    client.connection.send_message(Message::binary(vec![0x04, 0xFF, 0x00, 0x42])).await.expect("send binary");
+    assert_brake(client.next_event().await);
+    case.assert_handled("binary websocket message of 3 bytes", "problem_binary_message").await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn an_abrupt_disconnect_is_followed_by_a_working_reconnect() {
+    let case = BadInputCase::start(&[]);
+    let mut client = RawClient::connect(case.domain.port()).await;
+    client.connection.send_text(&format!("42[\"telemetry\",{}]", valid_telemetry())).await.expect("send");
+    drop(client);
+    case.assert_handled("simulator connection lost", "problem_disconnect_transport_error").await;
+}

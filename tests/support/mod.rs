@@ -1,0 +1,194 @@
+//! Shared helpers of the integration tests: isolation check, DDS domains, child processes,
+//! the real Udacity frames and a DDS observer.
+#![allow(dead_code)]
+
+pub mod frames;
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Fails unless the test runs in a network namespace whose only interface is `lo`
+/// (`tools/isolated`), so no DDS discovery traffic leaves the machine.
+pub fn assert_isolated() {
+    let devices = std::fs::read_to_string("/proc/net/dev").expect("read /proc/net/dev");
+    let interfaces: Vec<&str> = devices.lines().skip(2).filter_map(|l| l.split(':').next()).map(str::trim).collect();
+    assert_eq!(
+        interfaces,
+        vec!["lo"],
+        "DDS tests must run in a loopback-only network namespace: run them through tools/isolated (see README)"
+    );
+}
+
+/// The shared data folder (`../shared` beside the repository, or `ROVER_SHARED`).
+pub fn shared_dir() -> PathBuf {
+    std::env::var_os("ROVER_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared"))
+}
+
+/// A DDS domain id (and a TCP port derived from it) reserved for one test.
+pub struct Domain {
+    /// `ROS_DOMAIN_ID` of the test's processes.
+    pub id: u16,
+    lock: PathBuf,
+}
+
+impl Domain {
+    /// Reserves a domain no other running test uses.
+    pub fn reserve() -> Domain {
+        let dir = std::env::temp_dir().join("rover-test-domains");
+        std::fs::create_dir_all(&dir).expect("create the domain lock folder");
+        for id in 1..=200u16 {
+            let lock = dir.join(format!("{id}"));
+            if File::create_new(&lock).is_ok() {
+                return Domain { id, lock };
+            }
+        }
+        panic!("no free DDS domain id; remove {} if no test is running", dir.display());
+    }
+
+    /// A TCP port for this test's bridge.
+    pub fn port(&self) -> u16 {
+        30000 + self.id * 10
+    }
+}
+
+impl Drop for Domain {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.lock);
+    }
+}
+
+/// A child process of a test, stopped with SIGINT when dropped; its stderr goes to a log file.
+pub struct Process {
+    pub child: Child,
+    pub log: PathBuf,
+}
+
+impl Process {
+    /// Starts `program` with `args` on `domain`, logging to a file named after `name`.
+    pub fn start(program: &Path, args: &[&str], domain: &Domain, name: &str) -> Process {
+        let log = std::env::temp_dir().join(format!("rover-test-{}-{name}-{}.log", domain.id, std::process::id()));
+        let stderr = File::create(&log).expect("create the log file");
+        let child = Command::new(program)
+            .args(args)
+            .env("ROS_DOMAIN_ID", domain.id.to_string())
+            .env("RUST_LOG", std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()))
+            .stdout(Stdio::null())
+            .stderr(stderr)
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {}: {e}", program.display()));
+        Process { child, log }
+    }
+
+    /// The log written so far.
+    pub fn log_text(&self) -> String {
+        std::fs::read_to_string(&self.log).unwrap_or_default()
+    }
+
+    /// Sends SIGINT and waits up to 5 s for the exit status.
+    pub fn interrupt(&mut self) -> Option<std::process::ExitStatus> {
+        let _ = Command::new("kill").args(["-INT", &self.child.id().to_string()]).status();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < deadline {
+            if let Ok(Some(status)) = self.child.try_wait() {
+                return Some(status);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        None
+    }
+
+    /// Kills the process at once (a crash, as far as the others can tell).
+    pub fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        if self.interrupt().is_none() {
+            self.kill();
+        }
+    }
+}
+
+/// The `rover` binary under test.
+pub fn rover() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_rover"))
+}
+
+/// The echo node binary.
+pub fn echo_node() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_echo_node"))
+}
+
+/// Waits until a TCP server accepts connections on `port`.
+pub fn wait_for_port(port: u16, timeout: Duration) {
+    let deadline = Instant::now() + timeout;
+    while Instant::now() < deadline {
+        if std::net::TcpStream::connect(("127.0.0.1", port)).is_ok() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    panic!("nothing listens on port {port} after {timeout:?}");
+}
+
+/// Polls `condition` until it holds or `timeout` passes; returns whether it held.
+pub fn eventually(timeout: Duration, mut condition: impl FnMut() -> bool) -> bool {
+    let deadline = Instant::now() + timeout;
+    while Instant::now() < deadline {
+        if condition() {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(25));
+    }
+    condition()
+}
+
+/// A DDS participant inside the test process, on the test's domain.
+pub fn test_runtime(domain: &Domain) -> rover_node::Runtime {
+    rover_node::Runtime::on_domain(domain.id, rover_node::RosArgs::default(), rover_node::Shutdown::new())
+        .expect("create the test's DDS participant")
+}
+
+rover_node::node_params! {
+    /// The test observer node has no parameters.
+    pub struct NoParams {}
+}
+
+/// Keeps the latest message of a topic, received by a subscription in the test process.
+pub struct Latest<M> {
+    latest: std::sync::Arc<std::sync::Mutex<Vec<M>>>,
+}
+
+impl<M: rover_msgs::RosMessage> Latest<M> {
+    /// Subscribes to `topic` with `node`.
+    pub fn subscribe(node: &mut rover_node::RosNode, topic: &rover_node::topics::Topic<M>) -> Self {
+        let latest = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let sink = latest.clone();
+        rover_node::spawn_subscriber(node.subscription(topic).expect("subscribe"), tracing::Span::none(), move |m| {
+            sink.lock().unwrap().push(m)
+        });
+        Latest { latest }
+    }
+
+    /// Every message received so far.
+    pub fn all(&self) -> Vec<M> {
+        self.latest.lock().unwrap().clone()
+    }
+
+    /// The last message received, if any.
+    pub fn last(&self) -> Option<M> {
+        self.latest.lock().unwrap().last().cloned()
+    }
+}
+
+/// The value of `key` in the last `/diagnostics` message, if any.
+pub fn diagnostic_value(latest: &Latest<rover_msgs::diagnostic_msgs::DiagnosticArray>, key: &str) -> Option<String> {
+    latest.last()?.status.iter().flat_map(|s| s.values.iter()).find(|kv| kv.key == key).map(|kv| kv.value.clone())
+}
