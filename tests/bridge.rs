@@ -3,127 +3,14 @@
 
 mod support;
 
-use std::collections::{HashSet, VecDeque};
+use std::collections::HashSet;
 use std::time::{Duration, Instant};
 
-use rover_sim::wire::client::{ClientConfig, Connection, Simulation, run_client, unity_url};
-use rover_sim::wire::command::Command;
+use rover_sim::wire::client::{Connection, unity_url};
 use rover_sim::wire::packet::Inbound;
-use rover_sim::wire::telemetry::TelemetryValues;
-use support::frames::{RecordedFrame, load};
-use support::{
-    Domain, Latest, Process, diagnostic_value, echo_node, eventually, rover, shared_dir, test_runtime, wait_for_port,
-};
+use support::echo_sim::{EchoCheckingSimulator, SeenReply, recorded_frames, run_fake_unity, telemetry_json};
+use support::{Domain, Latest, Process, diagnostic_value, echo_node, eventually, rover, test_runtime, wait_for_port};
 use tokio_tungstenite::tungstenite::Message;
-
-/// Positions cycle through 1..=997 so that the echo node's throttle (x / 1000) names the telemetry.
-const POSITION_CYCLE: u64 = 997;
-
-fn recorded_frames() -> Vec<RecordedFrame> {
-    load(&shared_dir().join("udacity/test_dataset"))
-}
-
-fn telemetry_json(frame: &RecordedFrame, x_m: f64) -> String {
-    TelemetryValues {
-        steering_angle_deg: 0.0,
-        throttle: 0.0,
-        brake: 0.0,
-        speed_mps: frame.speed_mps,
-        x_m,
-        y_m: frame.y_m,
-        pitch_deg: frame.pitch_deg,
-        yaw_deg: frame.yaw_deg,
-        roll_deg: frame.roll_deg,
-        near_sample: false,
-        picking_up: false,
-        samples: &[(97.44, 74.65), (122.28, 51.66)],
-        image_jpeg: &frame.jpeg,
-    }
-    .to_json()
-}
-
-/// One reply as the fake simulator saw it.
-#[derive(Debug, Clone)]
-struct SeenReply {
-    throttle: f64,
-    brake: f64,
-    latency: Duration,
-    at: Instant,
-}
-
-/// A fake simulator that sends recorded frames and checks which telemetry each reply answers.
-struct EchoCheckingSimulator {
-    frames: Vec<RecordedFrame>,
-    sent: u64,
-    outstanding: VecDeque<(u64, Instant)>,
-    replies: Vec<SeenReply>,
-    fresh_matches: Vec<(u64, f64)>,
-    unmatched: Vec<SeenReply>,
-    other_events: u64,
-    limit: usize,
-    on_reply: Box<dyn FnMut(usize) + Send>,
-}
-
-impl EchoCheckingSimulator {
-    fn new(limit: usize) -> Self {
-        EchoCheckingSimulator {
-            frames: recorded_frames(),
-            sent: 0,
-            outstanding: VecDeque::new(),
-            replies: Vec::new(),
-            fresh_matches: Vec::new(),
-            unmatched: Vec::new(),
-            other_events: 0,
-            limit,
-            on_reply: Box::new(|_| {}),
-        }
-    }
-
-    fn position_of(k: u64) -> u64 {
-        1 + k % POSITION_CYCLE
-    }
-}
-
-impl Simulation for EchoCheckingSimulator {
-    fn telemetry_json(&mut self) -> String {
-        self.sent += 1;
-        let k = self.sent;
-        self.outstanding.push_back((k, Instant::now()));
-        let frame = &self.frames[k as usize % self.frames.len()];
-        telemetry_json(frame, Self::position_of(k) as f64)
-    }
-
-    fn apply(&mut self, command: Command) {
-        let Command::Drive { throttle, brake, .. } = command else {
-            self.other_events += 1;
-            return;
-        };
-        let now = Instant::now();
-        let position = (throttle * 1000.0).round() as u64;
-        let answered = self.outstanding.iter().position(|&(k, _)| Self::position_of(k) == position && throttle > 0.0);
-        let latency = match answered {
-            Some(index) => {
-                let (k, sent_at) = self.outstanding.remove(index).expect("index in range");
-                self.fresh_matches.push((k, brake));
-                now - sent_at
-            }
-            None => {
-                let (_, sent_at) = self.outstanding.pop_front().expect("a reply without outstanding telemetry");
-                now - sent_at
-            }
-        };
-        let reply = SeenReply { throttle, brake, latency, at: now };
-        if answered.is_none() {
-            self.unmatched.push(reply.clone());
-        }
-        self.replies.push(reply);
-        (self.on_reply)(self.replies.len());
-    }
-
-    fn finished(&self) -> bool {
-        self.replies.len() >= self.limit
-    }
-}
 
 fn start_bridge(domain: &Domain, extra: &[&str]) -> Process {
     let port = format!("port:={}", domain.port());
@@ -134,13 +21,6 @@ fn start_bridge(domain: &Domain, extra: &[&str]) -> Process {
     let bridge = Process::start(&rover(), &args, domain, "bridge");
     wait_for_port(domain.port(), Duration::from_secs(20));
     bridge
-}
-
-async fn run_fake_unity(simulation: &mut EchoCheckingSimulator, port: u16) -> rover_sim::wire::client::ClientStats {
-    let config = ClientConfig::unity("127.0.0.1", port);
-    tokio::time::timeout(Duration::from_secs(300), run_client(simulation, &config, std::future::pending()))
-        .await
-        .expect("the fake simulator finished within 5 minutes")
 }
 
 #[tokio::test(flavor = "multi_thread")]

@@ -194,7 +194,12 @@ impl<S: FrameSink> LockStep<S> {
     async fn decide(&self, waiting: Waiting) -> Reply {
         let config = self.config();
         let Waiting { frame, receiver, near_sample, picking_up, speed_mps } = waiting;
-        let fresh = tokio::time::timeout(config.policy.deadline, receiver).await.ok().and_then(Result::ok);
+        let fresh = if config.policy.deadline.is_zero() {
+            let mut receiver = receiver;
+            receiver.try_recv().ok()
+        } else {
+            tokio::time::timeout(config.policy.deadline, receiver).await.ok().and_then(Result::ok)
+        };
         lock(&self.waiting).remove(&frame);
         if self.pickup_requested.swap(false, Ordering::Relaxed) {
             if near_sample && !picking_up {

@@ -2,6 +2,7 @@
 //! the real Udacity frames and a DDS observer.
 #![allow(dead_code)]
 
+pub mod echo_sim;
 pub mod frames;
 
 use std::fs::File;

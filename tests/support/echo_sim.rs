@@ -1,0 +1,129 @@
+//! A fake simulator for the bridge tests and benchmark: it sends recorded frames in the Unity
+//! dialect and, with the echo node answering, checks which telemetry each reply answers.
+
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+
+use rover_sim::wire::client::{ClientConfig, ClientStats, Simulation, run_client};
+use rover_sim::wire::command::Command;
+use rover_sim::wire::telemetry::TelemetryValues;
+
+use super::frames::{RecordedFrame, load};
+use super::shared_dir;
+
+/// Positions cycle through 1..=997 so that the echo node's throttle (x / 1000) names the telemetry.
+const POSITION_CYCLE: u64 = 997;
+
+pub fn recorded_frames() -> Vec<RecordedFrame> {
+    load(&shared_dir().join("udacity/test_dataset"))
+}
+
+pub fn telemetry_json(frame: &RecordedFrame, x_m: f64) -> String {
+    TelemetryValues {
+        steering_angle_deg: 0.0,
+        throttle: 0.0,
+        brake: 0.0,
+        speed_mps: frame.speed_mps,
+        x_m,
+        y_m: frame.y_m,
+        pitch_deg: frame.pitch_deg,
+        yaw_deg: frame.yaw_deg,
+        roll_deg: frame.roll_deg,
+        near_sample: false,
+        picking_up: false,
+        samples: &[(97.44, 74.65), (122.28, 51.66)],
+        image_jpeg: &frame.jpeg,
+    }
+    .to_json()
+}
+
+/// One reply as the fake simulator saw it.
+#[derive(Debug, Clone)]
+pub struct SeenReply {
+    pub throttle: f64,
+    pub brake: f64,
+    pub latency: Duration,
+    pub at: Instant,
+}
+
+/// A fake simulator that sends recorded frames and checks which telemetry each reply answers.
+pub struct EchoCheckingSimulator {
+    pub frames: Vec<RecordedFrame>,
+    pub sent: u64,
+    pub outstanding: VecDeque<(u64, Instant)>,
+    pub replies: Vec<SeenReply>,
+    pub fresh_matches: Vec<(u64, f64)>,
+    pub unmatched: Vec<SeenReply>,
+    pub other_events: u64,
+    pub limit: usize,
+    pub on_reply: Box<dyn FnMut(usize) + Send>,
+}
+
+impl EchoCheckingSimulator {
+    pub fn new(limit: usize) -> Self {
+        EchoCheckingSimulator {
+            frames: recorded_frames(),
+            sent: 0,
+            outstanding: VecDeque::new(),
+            replies: Vec::new(),
+            fresh_matches: Vec::new(),
+            unmatched: Vec::new(),
+            other_events: 0,
+            limit,
+            on_reply: Box::new(|_| {}),
+        }
+    }
+
+    fn position_of(k: u64) -> u64 {
+        1 + k % POSITION_CYCLE
+    }
+}
+
+impl Simulation for EchoCheckingSimulator {
+    fn telemetry_json(&mut self) -> String {
+        self.sent += 1;
+        let k = self.sent;
+        self.outstanding.push_back((k, Instant::now()));
+        let frame = &self.frames[k as usize % self.frames.len()];
+        telemetry_json(frame, Self::position_of(k) as f64)
+    }
+
+    fn apply(&mut self, command: Command) {
+        let Command::Drive { throttle, brake, .. } = command else {
+            self.other_events += 1;
+            return;
+        };
+        let now = Instant::now();
+        let position = (throttle * 1000.0).round() as u64;
+        let answered = self.outstanding.iter().position(|&(k, _)| Self::position_of(k) == position && throttle > 0.0);
+        let latency = match answered {
+            Some(index) => {
+                let (k, sent_at) = self.outstanding.remove(index).expect("index in range");
+                self.fresh_matches.push((k, brake));
+                now - sent_at
+            }
+            None => {
+                let (_, sent_at) = self.outstanding.pop_front().expect("a reply without outstanding telemetry");
+                now - sent_at
+            }
+        };
+        let reply = SeenReply { throttle, brake, latency, at: now };
+        if answered.is_none() {
+            self.unmatched.push(reply.clone());
+        }
+        self.replies.push(reply);
+        (self.on_reply)(self.replies.len());
+    }
+
+    fn finished(&self) -> bool {
+        self.replies.len() >= self.limit
+    }
+}
+
+/// Runs the fake simulator against a bridge on `port` until it has seen its replies.
+pub async fn run_fake_unity(simulation: &mut EchoCheckingSimulator, port: u16) -> ClientStats {
+    let config = ClientConfig::unity("127.0.0.1", port);
+    tokio::time::timeout(Duration::from_secs(300), run_client(simulation, &config, std::future::pending()))
+        .await
+        .expect("the fake simulator finished within 5 minutes")
+}

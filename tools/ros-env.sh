@@ -1,0 +1,11 @@
+# Source this file (after tools/setup-ros) to use rclpy and the rover_msgs Python module:
+#   source tools/ros-env.sh
+_rover_repo=$(cd "$(dirname "${BASH_SOURCE[0]:-$0}")/.." && pwd)
+export VIRTUAL_ENV="$_rover_repo/.venv"
+export PATH="$VIRTUAL_ENV/bin:$PATH"
+export AMENT_PREFIX_PATH="$_rover_repo/target/ros_ws/install/rover_msgs:$VIRTUAL_ENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
+export PYTHONPATH="$_rover_repo/target/ros_ws/install/rover_msgs/lib/python3.11/site-packages${PYTHONPATH:+:$PYTHONPATH}"
+export LD_LIBRARY_PATH="$_rover_repo/target/ros_ws/install/rover_msgs/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
+export ROS_DISTRO=kilted
+unset _rover_repo
