@@ -281,3 +281,63 @@ async fn an_abrupt_disconnect_is_followed_by_a_working_reconnect() {
     drop(client);
     case.assert_handled("simulator connection lost", "problem_disconnect_transport_error").await;
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn raw_images_insets_params_file_and_clean_shutdown() {
+    let params = std::env::temp_dir().join(format!("rover-bridge-params-{}.yaml", std::process::id()));
+    std::fs::write(&params, "bridge:\n  ros__parameters:\n    publish_raw_image: true\n    inset_jpeg_quality: 50\n").unwrap();
+    support::assert_isolated();
+    let domain = Domain::reserve();
+    let port = format!("port:={}", domain.port());
+    let mut bridge = Process::start(
+        &rover(),
+        &["bridge", "--ros-args", "-p", &port, "--params-file", params.to_str().unwrap()],
+        &domain,
+        "bridge",
+    );
+    wait_for_port(domain.port(), Duration::from_secs(20));
+    let runtime = test_runtime(&domain);
+    let (mut node, _) = runtime.node::<support::NoParams>("observer").unwrap();
+    let raw = Latest::subscribe(&mut node, &rover_node::topics::CAMERA_RAW);
+    let map_image = node.publisher(&rover_node::topics::MAP_IMAGE).unwrap();
+    let inset = rover_msgs::sensor_msgs::Image {
+        header: rover_msgs::std_msgs::Header::now("map"),
+        height: 20,
+        width: 40,
+        encoding: "rgb8".into(),
+        is_bigendian: 0,
+        step: 120,
+        data: vec![200; 40 * 20 * 3],
+    };
+    let mut client = RawClient::connect(domain.port()).await;
+    let deadline = Instant::now() + Duration::from_secs(15);
+    let mut inset_seen = false;
+    while Instant::now() < deadline && !(inset_seen && raw.last().is_some()) {
+        map_image.publish(inset.clone()).unwrap();
+        let (_, data) = client.exchange(&valid_telemetry().to_string()).await.expect("a reply");
+        inset_seen |= data.as_ref().and_then(|d| d["inset_image1"].as_str()).is_some_and(|s| s.starts_with("/9j/"));
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert!(inset_seen, "map/image came back as a base64 JPEG in inset_image1");
+    let image = raw.last().expect("camera/image_raw was published");
+    assert_eq!((image.width, image.height, image.encoding.as_str(), image.step), (320, 160, "rgb8", 960));
+    assert_eq!(image.data.len(), 320 * 160 * 3);
+    let status = bridge.interrupt().expect("the bridge stops on SIGINT");
+    assert!(status.success(), "clean exit on SIGINT: {status}");
+    let _ = std::fs::remove_file(params);
+}
+
+#[test]
+fn a_bad_parameter_stops_the_bridge_with_a_message_naming_it() {
+    support::assert_isolated();
+    let output = std::process::Command::new(rover())
+        .args(["bridge", "--ros-args", "-p", "reply_deadline_ms:=soon"])
+        .output()
+        .expect("run rover bridge");
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("parameter `reply_deadline_ms` (from -p reply_deadline_ms:=soon) expects a finite number, got \"soon\""),
+        "{stderr}"
+    );
+}
