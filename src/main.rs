@@ -25,6 +25,9 @@ enum Command {
     /// drive and pickup commands back.
     #[command(after_help = ROS_ARGS_HELP)]
     Bridge,
+    /// Run the headless simulator: connects to the bridge as the Unity simulator does, renders the
+    /// camera, simulates the rover and prints a report at the end (or on Ctrl-C).
+    Sim(rover_sim::cli::SimArgs),
 }
 
 fn cli_command() -> clap::Command {
@@ -69,5 +72,6 @@ async fn run(command: Command, ros_args: rover_node::RosArgs) -> anyhow::Result<
     let shutdown = Shutdown::on_signals();
     match command {
         Command::Bridge => rover_bridge::node::run(&Runtime::new(ros_args, shutdown)?).await,
+        Command::Sim(args) => rover_sim::cli::run(&args, async move { shutdown.wait().await }).await.map(drop),
     }
 }

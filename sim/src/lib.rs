@@ -1,4 +1,13 @@
 //! The headless rover simulator: a stand-in for the Unity "Search and Sample Return" simulator
-//! that speaks its client's exact Socket.IO dialect ([`wire`]).
+//! that speaks its client's exact Socket.IO dialect ([`wire`]), renders the rover camera from a
+//! world map ([`camera`]), simulates the rover ([`physics`]) and reports each run.
 
+pub mod camera;
+pub mod cli;
+pub mod procgen;
+pub mod physics;
+pub mod random;
+pub mod render;
+pub mod sim;
 pub mod wire;
+pub mod world;

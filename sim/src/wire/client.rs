@@ -114,6 +114,10 @@ pub trait Simulation {
     fn apply(&mut self, command: Command);
     /// True when the run is over; the client then closes the connection and returns.
     fn finished(&self) -> bool;
+    /// When running in real time: the wall-clock instant the next telemetry is due.
+    fn due_at(&self) -> Option<std::time::Instant> {
+        None
+    }
 }
 
 /// Settings of the client loop.
@@ -236,6 +240,9 @@ async fn serve_connection<S: Simulation>(
                 Ok(Some(command)) => {
                     simulation.apply(command);
                     stats.commands_applied += 1;
+                    if let Some(due) = simulation.due_at() {
+                        tokio::time::sleep_until(due.into()).await;
+                    }
                     emit_telemetry(&mut connection, simulation, stats).await
                 }
                 Ok(None) => {

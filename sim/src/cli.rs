@@ -1,0 +1,94 @@
+//! `rover sim`: runs the headless simulator against a bridge, as the Unity simulator would.
+
+use std::path::PathBuf;
+
+use anyhow::Context as _;
+
+use crate::procgen::procedural_world;
+use crate::sim::{SimConfig, SimReport, Simulator};
+use crate::wire::client::{ClientConfig, run_client};
+use crate::world::World;
+
+/// Options of `rover sim`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SimArgs {
+    /// World map: a 200x200 PNG, navigable pixels > 0 (row = y, column = x), e.g.
+    /// ../shared/udacity/calibration_images/map_bw.png. Default: a procedural world.
+    #[arg(long, value_name = "PNG")]
+    pub map: Option<PathBuf>,
+    /// Seed of the procedural world, the sample choice and the start yaw.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Host of the bridge.
+    #[arg(long, default_value = "127.0.0.1")]
+    pub host: String,
+    /// Port of the bridge (the Unity simulator always uses 4567).
+    #[arg(long, default_value_t = 4567)]
+    pub port: u16,
+    /// Simulated time per command, seconds.
+    #[arg(long, default_value_t = 0.04, value_name = "SECONDS")]
+    pub step_seconds: f64,
+    /// Pace the simulation to the wall clock (default: as fast as the graph answers).
+    #[arg(long)]
+    pub realtime: bool,
+    /// End the run after this much simulated time.
+    #[arg(long, value_name = "SECONDS")]
+    pub max_sim_seconds: Option<f64>,
+    /// Draw the 1 m calibration grid on the floor.
+    #[arg(long)]
+    pub grid: bool,
+    /// Also write the final report as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+}
+
+impl SimArgs {
+    /// The world these options describe.
+    pub fn world(&self) -> anyhow::Result<World> {
+        match &self.map {
+            None => Ok(procedural_world(self.seed)),
+            Some(path) => {
+                let png = std::fs::read(path).with_context(|| format!("cannot read the map {}", path.display()))?;
+                World::from_map_png(&png, self.seed).with_context(|| format!("map {}", path.display()))
+            }
+        }
+    }
+
+    fn config(&self) -> anyhow::Result<SimConfig> {
+        anyhow::ensure!(
+            self.step_seconds > 0.0 && self.step_seconds <= 1.0,
+            "--step-seconds {} must be in (0, 1]",
+            self.step_seconds
+        );
+        if let Some(limit) = self.max_sim_seconds {
+            anyhow::ensure!(limit > 0.0, "--max-sim-seconds {limit} must be positive");
+        }
+        Ok(SimConfig { step_s: self.step_seconds, realtime: self.realtime, max_sim_seconds: self.max_sim_seconds, grid: self.grid })
+    }
+}
+
+/// Runs the simulator until its time limit or until `stop` resolves; prints and returns the report.
+pub async fn run(args: &SimArgs, stop: impl std::future::Future<Output = ()>) -> anyhow::Result<SimReport> {
+    let world = args.world()?;
+    let config = args.config()?;
+    let mut simulator = Simulator::new(world, config);
+    tracing::info!(
+        "simulating {} (seed {}), start ({:.2}, {:.2}) yaw {:.1} deg, {} samples",
+        args.map.as_ref().map_or("a procedural world".to_string(), |p| p.display().to_string()),
+        args.seed,
+        simulator.world().start.x_m,
+        simulator.world().start.y_m,
+        simulator.world().start.yaw_deg,
+        simulator.samples().len()
+    );
+    let client = ClientConfig::unity(&args.host, args.port);
+    let stats = run_client(&mut simulator, &client, stop).await;
+    let report = simulator.report();
+    tracing::info!("{} connections, {} commands dropped", stats.connections, stats.commands_dropped);
+    println!("{report}");
+    if let Some(path) = &args.report {
+        let json = serde_json::to_string_pretty(&report)?;
+        std::fs::write(path, json).with_context(|| format!("cannot write the report to {}", path.display()))?;
+    }
+    Ok(report)
+}

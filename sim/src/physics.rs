@@ -1,0 +1,462 @@
+//! The rover's dynamics (unity-sim-spec 3 and 5.4): throttle, brake and speed caps, steering that
+//! shrinks with speed, turning in place, collisions, body pitch and roll, the sample pickup.
+
+use crate::wire::command::Command;
+use crate::world::{Sample, World};
+
+/// Forward speed cap, m/s.
+pub const MAX_FORWARD_MPS: f64 = 5.0;
+/// Reverse speed cap, m/s.
+pub const MAX_REVERSE_MPS: f64 = 2.0;
+/// Steering limit, degrees.
+pub const MAX_STEER_DEG: f64 = 15.0;
+/// Yaw rate of a turn in place at full steering, degrees per second.
+pub const TURN_IN_PLACE_DPS: f64 = 45.0;
+/// Duration of a pickup, seconds.
+pub const PICKUP_SECONDS: f64 = 10.0;
+/// Physics step of the Unity project, seconds.
+pub const PHYSICS_STEP_S: f64 = 0.02;
+const WHEELBASE_M: f64 = 0.722;
+/// Drive acceleration per unit throttle and speed damping under throttle (fit to robot_log.csv).
+const THROTTLE_ACCEL: f64 = 0.944;
+const THROTTLE_DAMPING: f64 = 0.140;
+/// Coasting deceleration: proportional part and constant part.
+const COAST_DAMPING: f64 = 0.057;
+const COAST_FRICTION: f64 = 0.05;
+/// Braking deceleration per unit brake, and the friction limit.
+const BRAKE_ACCEL: f64 = 3.59;
+const BRAKE_LIMIT: f64 = 4.9;
+/// Turning in place starts below this speed, m/s.
+const TURN_IN_PLACE_BELOW_MPS: f64 = 0.316;
+/// Radius of the rover's footprint around its reported position, metres.
+pub const FOOTPRINT_RADIUS_M: f64 = 0.5;
+/// A contact ends only once the rover is this far from the obstacle, metres.
+const CONTACT_MARGIN_M: f64 = 0.05;
+/// The arm reaches samples around this point ahead of the position, metres.
+const REACH_AHEAD_M: f64 = 0.8435;
+const REACH_RADIUS_M: f64 = 0.5;
+/// Body pitch per m/s^2 of forward acceleration and roll per m/s^2 of lateral acceleration, degrees.
+const PITCH_PER_ACCEL: f64 = 1.7;
+const ROLL_PER_ACCEL: f64 = 1.4;
+const PITCH_LIMIT_DEG: f64 = 1.6;
+const ROLL_LIMIT_DEG: f64 = 5.0;
+const TILT_TIME_CONSTANT_S: f64 = 0.25;
+
+/// A turn in place started by `fixed_turn`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct FixedTurn {
+    remaining_deg: f64,
+    rate_dps: f64,
+}
+
+/// A pickup in progress.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Pickup {
+    elapsed_s: f64,
+    sample: usize,
+}
+
+/// What happened during one step.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StepEvents {
+    /// The rover ran into something it was not touching before.
+    pub collision: bool,
+    /// Throttle was applied but the rover could not move.
+    pub stuck: bool,
+    /// Distance driven, metres.
+    pub distance_m: f64,
+}
+
+/// The rover.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rover {
+    /// x, metres.
+    pub x_m: f64,
+    /// y, metres.
+    pub y_m: f64,
+    /// Yaw, degrees counter-clockwise from +x.
+    pub yaw_deg: f64,
+    /// Signed forward speed, m/s.
+    pub speed_mps: f64,
+    /// Pitch, degrees, positive nose down.
+    pub pitch_deg: f64,
+    /// Roll, degrees, positive right side down.
+    pub roll_deg: f64,
+    /// Last accepted throttle.
+    pub throttle: f64,
+    /// Last accepted brake.
+    pub brake: f64,
+    /// Steering angle applied, degrees, positive left.
+    pub steer_deg: f64,
+    /// A sample is within reach.
+    pub near_sample: bool,
+    /// A pickup is running (or just ended this frame).
+    pub picking_up: bool,
+    turning_in_place: bool,
+    reversing: bool,
+    in_contact: bool,
+    fixed_turn: Option<FixedTurn>,
+    pickup: Option<Pickup>,
+}
+
+impl Rover {
+    /// A rover at rest at (x, y) facing `yaw_deg`.
+    pub fn new(x_m: f64, y_m: f64, yaw_deg: f64) -> Self {
+        Rover {
+            x_m,
+            y_m,
+            yaw_deg,
+            speed_mps: 0.0,
+            pitch_deg: 0.0,
+            roll_deg: 0.0,
+            throttle: 0.0,
+            brake: 0.0,
+            steer_deg: 0.0,
+            near_sample: false,
+            picking_up: false,
+            turning_in_place: false,
+            reversing: false,
+            in_contact: false,
+            fixed_turn: None,
+            pickup: None,
+        }
+    }
+
+    fn motor_input(&self) -> bool {
+        self.throttle != 0.0 || self.brake != 0.0
+    }
+
+    fn frozen(&self) -> bool {
+        self.pickup.is_some() || self.fixed_turn.is_some()
+    }
+
+    /// Applies a command; drive commands are ignored while picking up or turning by `fixed_turn`.
+    /// A pickup with no sample within reach is ignored.
+    pub fn apply(&mut self, command: Command, samples: &[Sample]) {
+        match command {
+            Command::Drive { steering_deg, throttle, brake } if !self.frozen() => {
+                self.throttle = throttle;
+                self.brake = brake;
+                self.steer_deg = steering_deg.clamp(-MAX_STEER_DEG, MAX_STEER_DEG);
+                if self.steer_deg == 0.0 || self.motor_input() {
+                    self.turning_in_place = false;
+                }
+                if throttle != 0.0 {
+                    self.reversing = throttle < 0.0;
+                }
+            }
+            Command::Pickup if self.pickup.is_none() => {
+                if let Some(sample) = self.reachable_sample(samples) {
+                    self.pickup = Some(Pickup { elapsed_s: 0.0, sample });
+                    self.picking_up = true;
+                    self.speed_mps = 0.0;
+                }
+            }
+            Command::FixedTurn { angle_deg, time_s } => {
+                let idle = self.speed_mps == 0.0 && !self.motor_input() && self.steer_deg == 0.0;
+                if idle && !self.frozen() && angle_deg != 0.0 {
+                    let duration = if time_s == 0.0 { angle_deg.abs() / TURN_IN_PLACE_DPS } else { time_s.abs() };
+                    self.fixed_turn = Some(FixedTurn { remaining_deg: -angle_deg, rate_dps: -angle_deg / duration });
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Index of a sample within reach of the arm, if any.
+    pub fn reachable_sample(&self, samples: &[Sample]) -> Option<usize> {
+        let (s, c) = self.yaw_deg.to_radians().sin_cos();
+        let (rx, ry) = (self.x_m + REACH_AHEAD_M * c, self.y_m + REACH_AHEAD_M * s);
+        samples
+            .iter()
+            .position(|sample| (sample.x_m - rx).hypot(sample.y_m - ry) <= REACH_RADIUS_M + sample.radius_m)
+    }
+
+    /// Advances the rover by `dt` seconds in physics steps of 0.02 s. Returns the index of a sample
+    /// whose pickup finished (to be removed from the world) and what happened.
+    pub fn step(&mut self, dt: f64, world: &World, samples: &[Sample]) -> (Option<usize>, StepEvents) {
+        let mut events = StepEvents::default();
+        let mut picked = None;
+        if self.pickup.is_none() && self.picking_up {
+            self.picking_up = false;
+        }
+        let substeps = (dt / PHYSICS_STEP_S).round().max(1.0) as usize;
+        let h = dt / substeps as f64;
+        for _ in 0..substeps {
+            if self.pickup.is_some() {
+                picked = self.advance_pickup(h);
+                if picked.is_some() {
+                    break;
+                }
+            } else {
+                self.advance_motion(h, world, samples, &mut events);
+                self.near_sample = self.reachable_sample(samples).is_some();
+            }
+        }
+        (picked, events)
+    }
+
+    fn advance_pickup(&mut self, h: f64) -> Option<usize> {
+        let pickup = self.pickup.as_mut()?;
+        pickup.elapsed_s += h;
+        self.speed_mps = 0.0;
+        self.near_sample = true;
+        if pickup.elapsed_s + 1e-9 < PICKUP_SECONDS {
+            return None;
+        }
+        let sample = pickup.sample;
+        self.pickup = None;
+        self.near_sample = false;
+        Some(sample)
+    }
+
+    fn advance_motion(&mut self, h: f64, world: &World, samples: &[Sample], events: &mut StepEvents) {
+        if let Some(turn) = self.fixed_turn.as_mut() {
+            let step = (turn.rate_dps * h).clamp(-turn.remaining_deg.abs(), turn.remaining_deg.abs());
+            self.yaw_deg = wrap_degrees(self.yaw_deg + step);
+            turn.remaining_deg -= step;
+            if turn.remaining_deg.abs() < 1e-9 {
+                self.fixed_turn = None;
+            }
+            return;
+        }
+        let previous_speed = self.speed_mps;
+        self.speed_mps = self.next_speed(h);
+        let acceleration = (self.speed_mps - previous_speed) / h;
+        if self.steer_deg != 0.0 && !self.motor_input() && self.speed_mps.abs() < TURN_IN_PLACE_BELOW_MPS {
+            self.turning_in_place = true;
+        }
+        let yaw_rate_dps = if self.turning_in_place {
+            self.speed_mps = 0.0;
+            TURN_IN_PLACE_DPS * self.steer_deg / MAX_STEER_DEG
+        } else {
+            let fraction = (1.0 - self.speed_mps.abs() / MAX_FORWARD_MPS).clamp(0.0, 1.0);
+            let mut wheel_deg = (5.0 + 10.0 * fraction) * self.steer_deg / MAX_STEER_DEG;
+            if self.reversing {
+                wheel_deg *= 2.0;
+            }
+            (self.speed_mps * wheel_deg.to_radians().tan() / WHEELBASE_M).to_degrees()
+        };
+        self.yaw_deg = wrap_degrees(self.yaw_deg + yaw_rate_dps * h);
+        self.move_forward(h, world, samples, events);
+        self.settle_body(h, acceleration, self.speed_mps * yaw_rate_dps.to_radians());
+    }
+
+    fn next_speed(&self, h: f64) -> f64 {
+        let v = self.speed_mps;
+        let mut accel = if self.motor_input() {
+            THROTTLE_ACCEL * self.throttle - THROTTLE_DAMPING * v
+        } else {
+            -COAST_DAMPING * v - COAST_FRICTION * sign(v)
+        };
+        if self.brake > 0.0 {
+            accel -= (BRAKE_ACCEL * self.brake).min(BRAKE_LIMIT) * sign(v);
+        }
+        let next = v + accel * h;
+        let stopping = !self.motor_input() || self.brake > 0.0;
+        let next = if stopping && next * v < 0.0 { 0.0 } else { next };
+        let cap = if self.reversing { MAX_REVERSE_MPS } else { MAX_FORWARD_MPS };
+        if next.abs() < 1e-4 && self.throttle == 0.0 { 0.0 } else { next.clamp(-cap, cap) }
+    }
+
+    fn move_forward(&mut self, h: f64, world: &World, samples: &[Sample], events: &mut StepEvents) {
+        let (s, c) = self.yaw_deg.to_radians().sin_cos();
+        let (nx, ny) = (self.x_m + self.speed_mps * h * c, self.y_m + self.speed_mps * h * s);
+        let blocked = self.speed_mps != 0.0 && footprint_blocked(world, samples, nx, ny, FOOTPRINT_RADIUS_M);
+        if blocked {
+            if !self.in_contact {
+                events.collision = true;
+            }
+            let free = furthest_free_fraction(|f| {
+                footprint_blocked(world, samples, self.x_m + f * (nx - self.x_m), self.y_m + f * (ny - self.y_m), FOOTPRINT_RADIUS_M)
+            });
+            events.distance_m += free * (nx - self.x_m).hypot(ny - self.y_m);
+            self.x_m += free * (nx - self.x_m);
+            self.y_m += free * (ny - self.y_m);
+            self.in_contact = true;
+            self.speed_mps = 0.0;
+        } else {
+            events.distance_m += (nx - self.x_m).hypot(ny - self.y_m);
+            self.x_m = nx;
+            self.y_m = ny;
+            self.in_contact &= footprint_blocked(world, samples, nx, ny, FOOTPRINT_RADIUS_M + CONTACT_MARGIN_M);
+        }
+        if self.throttle.abs() > 0.05 && self.brake == 0.0 && self.speed_mps.abs() < 0.05 && !self.turning_in_place {
+            events.stuck = true;
+        }
+    }
+
+    fn settle_body(&mut self, h: f64, forward_accel: f64, lateral_accel: f64) {
+        let blend = 1.0 - (-h / TILT_TIME_CONSTANT_S).exp();
+        let pitch_target = (PITCH_PER_ACCEL * forward_accel).clamp(-PITCH_LIMIT_DEG, PITCH_LIMIT_DEG);
+        let roll_target = (ROLL_PER_ACCEL * lateral_accel).clamp(-ROLL_LIMIT_DEG, ROLL_LIMIT_DEG);
+        self.pitch_deg += (pitch_target - self.pitch_deg) * blend;
+        self.roll_deg += (roll_target - self.roll_deg) * blend;
+    }
+}
+
+/// The largest fraction of a move in [0, 1] that stays free, by bisection (`blocked(0)` is false).
+fn furthest_free_fraction(blocked: impl Fn(f64) -> bool) -> f64 {
+    let (mut free, mut hit) = (0.0, 1.0);
+    for _ in 0..12 {
+        let middle = (free + hit) / 2.0;
+        if blocked(middle) { hit = middle } else { free = middle }
+    }
+    free
+}
+
+/// True if a footprint of radius `r` at (x, y) overlaps a non-floor cell or a sample.
+pub fn footprint_blocked(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) -> bool {
+    for iy in (y - r).floor() as i64..=(y + r).floor() as i64 {
+        for ix in (x - r).floor() as i64..=(x + r).floor() as i64 {
+            if world.is_floor(ix, iy) {
+                continue;
+            }
+            let (qx, qy) = (x.clamp(ix as f64, ix as f64 + 1.0), y.clamp(iy as f64, iy as f64 + 1.0));
+            if (qx - x).hypot(qy - y) < r {
+                return true;
+            }
+        }
+    }
+    samples.iter().any(|s| (s.x_m - x).hypot(s.y_m - y) < r + s.radius_m)
+}
+
+/// -1, 0 or 1 (unlike `f64::signum`, 0 for 0).
+fn sign(value: f64) -> f64 {
+    if value > 0.0 {
+        1.0
+    } else if value < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+fn wrap_degrees(degrees: f64) -> f64 {
+    degrees.rem_euclid(360.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::world::{StartPose, WORLD_SIZE};
+
+    fn open_world() -> World {
+        let mut heights = vec![5.0f32; WORLD_SIZE * WORLD_SIZE];
+        for y in 20..180 {
+            for x in 20..180 {
+                heights[y * WORLD_SIZE + x] = 0.0;
+            }
+        }
+        World::from_heights(heights, vec![], StartPose { x_m: 100.0, y_m: 100.0, yaw_deg: 0.0 })
+    }
+
+    fn drive(throttle: f64, brake: f64, steering_deg: f64) -> Command {
+        Command::Drive { steering_deg, throttle, brake }
+    }
+
+    #[test]
+    fn full_throttle_from_rest_accelerates_about_0_8_and_caps_at_5() {
+        let world = open_world();
+        let mut rover = Rover::new(30.0, 100.0, 0.0);
+        rover.apply(drive(1.0, 0.0, 0.0), &[]);
+        rover.step(1.0, &world, &[]);
+        assert!((0.75..=0.9).contains(&rover.speed_mps), "speed after 1 s: {}", rover.speed_mps);
+        rover.step(30.0, &world, &[]);
+        assert!((rover.speed_mps - 5.0).abs() < 1e-9, "capped at {}", rover.speed_mps);
+        assert!(rover.pitch_deg.abs() < 0.2, "no pitch at constant speed: {}", rover.pitch_deg);
+    }
+
+    #[test]
+    fn turns_in_place_at_45_degrees_per_second_left_for_positive_steering() {
+        let world = open_world();
+        let mut rover = Rover::new(100.0, 100.0, 10.0);
+        rover.apply(drive(0.0, 0.0, 15.0), &[]);
+        rover.step(2.0, &world, &[]);
+        assert!((rover.yaw_deg - 100.0).abs() < 1e-6, "yaw {}", rover.yaw_deg);
+        assert_eq!((rover.x_m, rover.y_m), (100.0, 100.0));
+        rover.apply(drive(0.0, 0.0, -7.5), &[]);
+        rover.step(1.0, &world, &[]);
+        assert!((rover.yaw_deg - 77.5).abs() < 1e-6, "half steer turns at 22.5 deg/s: {}", rover.yaw_deg);
+    }
+
+    #[test]
+    fn steering_shrinks_with_speed() {
+        let world = open_world();
+        let mut rover = Rover::new(100.0, 60.0, 90.0);
+        rover.speed_mps = 4.3;
+        rover.apply(drive(0.14 * 4.3 / 0.944, 0.0, -15.0), &[]);
+        let before = rover.yaw_deg;
+        rover.step(0.2, &world, &[]);
+        let rate = (rover.yaw_deg - before) / 0.2;
+        assert!((-40.0..=-33.0).contains(&rate), "yaw rate {rate} deg/s at 4.3 m/s and full right steer");
+        assert!(rover.roll_deg < 0.0, "turning right rolls the left side down: {}", rover.roll_deg);
+    }
+
+    #[test]
+    fn accelerating_pitches_the_nose_down_and_braking_stops() {
+        let world = open_world();
+        let mut rover = Rover::new(30.0, 100.0, 0.0);
+        rover.apply(drive(1.0, 0.0, 0.0), &[]);
+        rover.step(0.8, &world, &[]);
+        assert!((0.8..=1.6).contains(&rover.pitch_deg), "pitch {}", rover.pitch_deg);
+        rover.step(3.0, &world, &[]);
+        rover.apply(drive(0.0, 10.0, 0.0), &[]);
+        rover.step(0.3, &world, &[]);
+        assert!(rover.pitch_deg < 0.0, "braking pitches the nose up: {}", rover.pitch_deg);
+        rover.step(1.0, &world, &[]);
+        assert_eq!(rover.speed_mps, 0.0);
+    }
+
+    #[test]
+    fn walls_and_samples_stop_the_rover() {
+        let world = open_world();
+        let mut rover = Rover::new(170.0, 100.0, 0.0);
+        rover.apply(drive(1.0, 0.0, 0.0), &[]);
+        let mut collisions = 0;
+        for _ in 0..400 {
+            collisions += rover.step(0.04, &world, &[]).1.collision as u32;
+        }
+        assert!(rover.x_m <= 180.0 - FOOTPRINT_RADIUS_M + 1e-9, "stopped at the wall: x = {}", rover.x_m);
+        assert_eq!(collisions, 1, "one collision while pushing against the wall");
+        let sample = [Sample { x_m: 110.0, y_m: 50.0, radius_m: 0.1 }];
+        let mut rover = Rover::new(100.0, 50.0, 0.0);
+        rover.apply(drive(1.0, 0.0, 0.0), &sample);
+        rover.step(20.0, &world, &sample);
+        assert!(rover.x_m < 110.0 - FOOTPRINT_RADIUS_M, "cannot drive through a sample: x = {}", rover.x_m);
+    }
+
+    #[test]
+    fn pickup_takes_ten_seconds_and_needs_a_sample_in_reach() {
+        let world = open_world();
+        let samples = [Sample { x_m: 100.7, y_m: 100.0, radius_m: 0.09 }];
+        let mut far = Rover::new(90.0, 100.0, 0.0);
+        far.apply(Command::Pickup, &samples);
+        assert!(!far.picking_up, "no sample near: pickup ignored");
+        let mut rover = Rover::new(100.0, 100.0, 0.0);
+        rover.step(0.04, &world, &samples);
+        assert!(rover.near_sample);
+        rover.apply(Command::Pickup, &samples);
+        assert!(rover.picking_up);
+        rover.apply(drive(1.0, 0.0, 0.0), &samples);
+        let (picked, _) = rover.step(9.96, &world, &samples);
+        assert_eq!(picked, None);
+        assert_eq!(rover.speed_mps, 0.0, "drive commands are ignored while picking up");
+        let (picked, _) = rover.step(0.04, &world, &samples);
+        assert_eq!(picked, Some(0), "done after 10 s");
+        assert!(rover.picking_up && !rover.near_sample, "picking_up clears one frame later");
+        rover.step(0.04, &world, &[]);
+        assert!(!rover.picking_up);
+    }
+
+    #[test]
+    fn fixed_turn_rotates_clockwise_when_idle() {
+        let world = open_world();
+        let mut rover = Rover::new(100.0, 100.0, 90.0);
+        rover.apply(Command::FixedTurn { angle_deg: 90.0, time_s: 0.0 }, &[]);
+        rover.apply(drive(1.0, 0.0, 0.0), &[]);
+        rover.step(2.0, &world, &[]);
+        assert!(rover.yaw_deg.abs() < 1e-6 || (rover.yaw_deg - 360.0).abs() < 1e-6, "yaw {}", rover.yaw_deg);
+        assert_eq!((rover.x_m, rover.y_m), (100.0, 100.0));
+    }
+}
