@@ -285,7 +285,8 @@ async fn an_abrupt_disconnect_is_followed_by_a_working_reconnect() {
 #[tokio::test(flavor = "multi_thread")]
 async fn raw_images_insets_params_file_and_clean_shutdown() {
     let params = std::env::temp_dir().join(format!("rover-bridge-params-{}.yaml", std::process::id()));
-    std::fs::write(&params, "bridge:\n  ros__parameters:\n    publish_raw_image: true\n    inset_jpeg_quality: 50\n").unwrap();
+    std::fs::write(&params, "bridge:\n  ros__parameters:\n    publish_raw_image: true\n    inset_jpeg_quality: 50\n")
+        .unwrap();
     support::assert_isolated();
     let domain = Domain::reserve();
     let port = format!("port:={}", domain.port());
@@ -337,7 +338,9 @@ fn a_bad_parameter_stops_the_bridge_with_a_message_naming_it() {
     assert!(!output.status.success());
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(
-        stderr.contains("parameter `reply_deadline_ms` (from -p reply_deadline_ms:=soon) expects a finite number, got \"soon\""),
+        stderr.contains(
+            "parameter `reply_deadline_ms` (from -p reply_deadline_ms:=soon) expects a finite number, got \"soon\""
+        ),
         "{stderr}"
     );
 }

@@ -63,7 +63,12 @@ impl SimArgs {
         if let Some(limit) = self.max_sim_seconds {
             anyhow::ensure!(limit > 0.0, "--max-sim-seconds {limit} must be positive");
         }
-        Ok(SimConfig { step_s: self.step_seconds, realtime: self.realtime, max_sim_seconds: self.max_sim_seconds, grid: self.grid })
+        Ok(SimConfig {
+            step_s: self.step_seconds,
+            realtime: self.realtime,
+            max_sim_seconds: self.max_sim_seconds,
+            grid: self.grid,
+        })
     }
 }
 

@@ -4,8 +4,8 @@
 
 pub mod camera;
 pub mod cli;
-pub mod procgen;
 pub mod physics;
+pub mod procgen;
 pub mod random;
 pub mod render;
 pub mod sim;

@@ -167,9 +167,7 @@ impl Rover {
     pub fn reachable_sample(&self, samples: &[Sample]) -> Option<usize> {
         let (s, c) = self.yaw_deg.to_radians().sin_cos();
         let (rx, ry) = (self.x_m + REACH_AHEAD_M * c, self.y_m + REACH_AHEAD_M * s);
-        samples
-            .iter()
-            .position(|sample| (sample.x_m - rx).hypot(sample.y_m - ry) <= REACH_RADIUS_M + sample.radius_m)
+        samples.iter().position(|sample| (sample.x_m - rx).hypot(sample.y_m - ry) <= REACH_RADIUS_M + sample.radius_m)
     }
 
     /// Advances the rover by `dt` seconds in physics steps of 0.02 s. Returns the index of a sample
@@ -268,7 +266,13 @@ impl Rover {
                 events.collision = true;
             }
             let free = furthest_free_fraction(|f| {
-                footprint_blocked(world, samples, self.x_m + f * (nx - self.x_m), self.y_m + f * (ny - self.y_m), FOOTPRINT_RADIUS_M)
+                footprint_blocked(
+                    world,
+                    samples,
+                    self.x_m + f * (nx - self.x_m),
+                    self.y_m + f * (ny - self.y_m),
+                    FOOTPRINT_RADIUS_M,
+                )
             });
             events.distance_m += free * (nx - self.x_m).hypot(ny - self.y_m);
             self.x_m += free * (nx - self.x_m);

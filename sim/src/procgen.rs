@@ -37,7 +37,8 @@ struct Walker {
 
 fn carve_canyons(floor: &mut [bool], rng: &mut SplitMix64, target: usize) {
     let centre = WORLD_SIZE as f64 / 2.0;
-    let mut walkers = vec![Walker { x: centre, y: centre, heading: rng.range(0.0, std::f64::consts::TAU), half_width: 2.0 }];
+    let mut walkers =
+        vec![Walker { x: centre, y: centre, heading: rng.range(0.0, std::f64::consts::TAU), half_width: 2.0 }];
     let mut carved = floor.iter().filter(|&&f| f).count();
     let mut steps = 0;
     while carved < target && steps < 200_000 {
@@ -125,12 +126,15 @@ fn place_boulders(floor: &mut [bool], rng: &mut SplitMix64, start: (f64, f64)) {
         }
         let (x, y) = (rng.below(WORLD_SIZE) as i64, rng.below(WORLD_SIZE) as i64);
         let far_from_start = ((x as f64 - start.0).powi(2) + (y as f64 - start.1).powi(2)).sqrt() > 8.0;
-        let open = (-2..=2).all(|dy| (-2..=2).all(|dx| inside(x + dx, y + dy) && floor[((y + dy) as usize) * WORLD_SIZE + (x + dx) as usize]));
+        let open = (-2..=2).all(|dy| {
+            (-2..=2).all(|dx| inside(x + dx, y + dy) && floor[((y + dy) as usize) * WORLD_SIZE + (x + dx) as usize])
+        });
         if !far_from_start || !open {
             continue;
         }
         let (w, h) = (1 + rng.below(2) as i64, 1 + rng.below(2) as i64);
-        let cells: Vec<usize> = (0..h).flat_map(|dy| (0..w).map(move |dx| ((y + dy) as usize) * WORLD_SIZE + (x + dx) as usize)).collect();
+        let cells: Vec<usize> =
+            (0..h).flat_map(|dy| (0..w).map(move |dx| ((y + dy) as usize) * WORLD_SIZE + (x + dx) as usize)).collect();
         let before = reachable(floor, start_cell);
         cells.iter().for_each(|&c| floor[c] = false);
         if reachable(floor, start_cell) == before - cells.len() {

@@ -44,7 +44,8 @@ pub fn mix64(mut z: u64) -> u64 {
 
 /// Hash of integer lattice coordinates to [0, 1).
 pub fn hash2(x: i64, y: i64, salt: u64) -> f32 {
-    let h = mix64((x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (y as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F) ^ salt);
+    let h =
+        mix64((x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (y as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F) ^ salt);
     (h >> 40) as f32 / (1u64 << 24) as f32
 }
 

@@ -31,7 +31,7 @@ const ROCK_RGB: [f32; 3] = [46.0, 31.0, 26.0];
 const SKY_TOP_RGB: [f32; 3] = [112.0, 104.0, 99.0];
 const SKY_HORIZON_RGB: [f32; 3] = [127.0, 118.0, 112.0];
 /// Albedo of the samples (Unity material colour 1.0, 0.848, 0.0 on a rock texture).
-const SAMPLE_RGB: [f32; 3] = [212.0, 178.0, 18.0];
+const SAMPLE_RGB: [f32; 3] = [232.0, 195.0, 20.0];
 /// Colour of the calibration grid lines.
 const GRID_RGB: [f32; 3] = [38.0, 36.0, 34.0];
 /// Half width of a grid line, metres.
@@ -47,6 +47,19 @@ const WALL_TEXEL_M: f64 = 0.12;
 /// Resolution of the floor shading field, metres.
 const SHADE_CELL_M: f64 = 0.25;
 
+/// What a pixel shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Surface {
+    /// Navigable floor.
+    Floor,
+    /// A wall or a boulder.
+    Rock,
+    /// The sky.
+    Sky,
+    /// A rock sample.
+    Sample,
+}
+
 /// Rendering options.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct RenderOptions {
@@ -56,9 +69,9 @@ pub struct RenderOptions {
 
 /// Precomputed textures and shading of one world.
 struct Appearance {
-    floor_detail: Vec<f32>,
-    wall_detail: Vec<f32>,
-    floor_shade: Vec<f32>,
+    floor_detail: Vec<u16>,
+    wall_detail: Vec<u16>,
+    floor_shade: Vec<u16>,
     shade_side: usize,
 }
 
@@ -72,7 +85,7 @@ impl Appearance {
                 let wall = world.wall_distance(x, y) as f64;
                 let near_wall = 1.0 - 0.42 * (-wall / 0.55).exp();
                 let patches = 1.0 + 0.07 * (value_noise(x, y, 3.0, 11) as f64 - 0.5) * 2.0;
-                floor_shade.push((near_wall * patches) as f32);
+                floor_shade.push(to_fixed(near_wall * patches));
             }
         }
         Appearance {
@@ -83,20 +96,43 @@ impl Appearance {
         }
     }
 
-    fn floor_factor(&self, x: f64, y: f64) -> f32 {
+    /// Brightness factor of the floor at (x, y), fixed point (256 = 1).
+    fn floor_factor(&self, x: f64, y: f64) -> u32 {
         let last = self.shade_side - 1;
         let sx = ((x * (1.0 / SHADE_CELL_M)).max(0.0) as usize).min(last);
         let sy = ((y * (1.0 / SHADE_CELL_M)).max(0.0) as usize).min(last);
-        self.floor_shade[sy * self.shade_side + sx] * texel(&self.floor_detail, x * (1.0 / FLOOR_TEXEL_M), y * (1.0 / FLOOR_TEXEL_M))
+        let detail = texel(&self.floor_detail, x * (1.0 / FLOOR_TEXEL_M), y * (1.0 / FLOOR_TEXEL_M));
+        (self.floor_shade[sy * self.shade_side + sx] as u32 * detail) >> FIXED_BITS
     }
 
-    fn wall_factor(&self, along: f64, z: f64) -> f32 {
+    /// Brightness factor of rock at a point of a wall, fixed point (256 = 1).
+    fn wall_factor(&self, along: f64, z: f64) -> u32 {
         texel(&self.wall_detail, along * (1.0 / WALL_TEXEL_M), z * (1.0 / WALL_TEXEL_M))
     }
 }
 
-/// A tileable texture of factors around 1 with amplitude `amplitude`, made of value noise.
-fn tileable_texture(amplitude: f32, salt: u64, features: f64) -> Vec<f32> {
+/// Fixed-point shift of the brightness factors (1.0 = 256).
+const FIXED_BITS: u32 = 8;
+
+fn to_fixed(factor: f64) -> u16 {
+    (factor * (1 << FIXED_BITS) as f64).round().clamp(0.0, u16::MAX as f64) as u16
+}
+
+/// `rgb` (0..255 per channel) times a fixed-point factor, plus `offset`, saturated to a pixel.
+fn shade(rgb: [u32; 3], factor: u32, offset: [u32; 3]) -> [u8; 3] {
+    [0, 1, 2].map(|k| (((rgb[k] * factor) >> FIXED_BITS) + offset[k]).min(255) as u8)
+}
+
+fn to_rgb8(rgb: [f32; 3]) -> [u8; 3] {
+    rgb.map(|c| (c + 0.5).clamp(0.0, 255.0) as u8)
+}
+
+fn to_rgb32(rgb: [f32; 3]) -> [u32; 3] {
+    rgb.map(|c| (c + 0.5).clamp(0.0, 255.0) as u32)
+}
+
+/// A tileable texture of fixed-point factors around 1 with amplitude `amplitude`, made of value noise.
+fn tileable_texture(amplitude: f32, salt: u64, features: f64) -> Vec<u16> {
     let side = TEXTURE_SIDE as f64;
     let mut texture = Vec::with_capacity(TEXTURE_SIDE * TEXTURE_SIDE);
     for ty in 0..TEXTURE_SIDE {
@@ -108,16 +144,16 @@ fn tileable_texture(amplitude: f32, salt: u64, features: f64) -> Vec<f32> {
                 value_noise(a * scale + c * scale * 0.37, b * scale + d * scale, 1.0, s)
             };
             let n = 0.6 * periodic(features, salt) + 0.4 * periodic(features * 3.1, salt + 1);
-            texture.push(1.0 + amplitude * (n - 0.5) * 2.0);
+            texture.push(to_fixed((1.0 + amplitude * (n - 0.5) * 2.0) as f64));
         }
     }
     texture
 }
 
-fn texel(texture: &[f32], u: f64, v: f64) -> f32 {
+fn texel(texture: &[u16], u: f64, v: f64) -> u32 {
     let mask = TEXTURE_SIDE as i64 - 1;
     let (x, y) = ((u as i64) & mask, (v as i64) & mask);
-    texture[(y * TEXTURE_SIDE as i64 + x) as usize]
+    texture[(y * TEXTURE_SIDE as i64 + x) as usize] as u32
 }
 
 /// Renders camera frames of one world.
@@ -131,6 +167,8 @@ pub struct Renderer {
     level_width: usize,
     level_height: usize,
     level: Vec<[u8; 3]>,
+    level_surface: Vec<Surface>,
+    surfaces: Vec<Surface>,
     depth: Vec<f32>,
     frame: u64,
 }
@@ -148,7 +186,7 @@ struct Window {
 #[derive(Debug, Clone, Copy, Default)]
 struct FloorRow {
     depth: f64,
-    rgb: [f32; 3],
+    rgb: [u32; 3],
 }
 
 /// The level camera of one frame: position and the horizontal axes.
@@ -190,9 +228,16 @@ impl Renderer {
             level_width,
             level_height,
             level: vec![[0; 3]; level_width * level_height],
+            level_surface: vec![Surface::Sky; level_width * level_height],
+            surfaces: vec![Surface::Sky; camera.width * camera.height],
             depth: vec![f32::INFINITY; level_width * level_height],
             frame: 0,
         }
+    }
+
+    /// What each pixel of the last frame shows, row-major like the image.
+    pub fn surfaces(&self) -> &[Surface] {
+        &self.surfaces
     }
 
     /// The camera being rendered.
@@ -235,7 +280,8 @@ impl Renderer {
         if rotation.is_identity() {
             return Window { u0: MARGIN_PX, u1: MARGIN_PX + width, v0: MARGIN_PX, v1: MARGIN_PX + height };
         }
-        let corners = [(0, 0), (width - 1, 0), (0, height - 1), (width - 1, height - 1)].map(|(u, v)| rotation.level_pixel(u, v));
+        let corners =
+            [(0, 0), (width - 1, 0), (0, height - 1), (width - 1, height - 1)].map(|(u, v)| rotation.level_pixel(u, v));
         let (min_u, max_u) = corners.iter().fold((f64::MAX, f64::MIN), |(lo, hi), c| (lo.min(c.0), hi.max(c.0)));
         let (min_v, max_v) = corners.iter().fold((f64::MAX, f64::MIN), |(lo, hi), c| (lo.min(c.1), hi.max(c.1)));
         Window {
@@ -282,7 +328,7 @@ impl Renderer {
         }
         for v in top..bottom {
             let t = v as f32 / view.cy as f32;
-            self.put(u, v, lerp3(SKY_TOP_RGB, SKY_HORIZON_RGB, t.min(1.0)), f32::INFINITY);
+            self.put(u, v, to_rgb8(lerp3(SKY_TOP_RGB, SKY_HORIZON_RGB, t.min(1.0))), f32::INFINITY, Surface::Sky);
         }
     }
 
@@ -293,7 +339,7 @@ impl Renderer {
             }
             let depth = view.focal * view.height / (v as f64 - view.cy);
             let near_far = 1.0 - (-depth / 2.5).exp() as f32;
-            *row = FloorRow { depth, rgb: fog(lerp3(FLOOR_NEAR_RGB, FLOOR_FAR_RGB, near_far), depth) };
+            *row = FloorRow { depth, rgb: to_rgb32(fog(lerp3(FLOOR_NEAR_RGB, FLOOR_FAR_RGB, near_far), depth)) };
         }
     }
 
@@ -303,11 +349,12 @@ impl Renderer {
         for v in first..bottom {
             let FloorRow { depth, rgb } = self.floor_rows[v];
             let (x, y) = (view.x + depth * dir[0], view.y + depth * dir[1]);
-            let mut rgb = scale3(rgb, self.appearance.floor_factor(x, y));
+            let mut pixel = shade(rgb, self.appearance.floor_factor(x, y), [0; 3]);
             if self.options.grid {
-                rgb = lerp3(rgb, GRID_RGB, grid_coverage(x, y, depth, view));
+                let rgb = pixel.map(f32::from);
+                pixel = to_rgb8(lerp3(rgb, GRID_RGB, grid_coverage(x, y, depth, view)));
             }
-            self.put(u, v, rgb, depth as f32);
+            self.put(u, v, pixel, depth as f32, Surface::Floor);
         }
         first.min(bottom)
     }
@@ -326,7 +373,7 @@ impl Renderer {
     ) -> usize {
         if t_in <= 0.0 {
             for v in self.window.v0..bottom {
-                self.put(u, v, ROCK_RGB, 0.0);
+                self.put(u, v, to_rgb8(ROCK_RGB), 0.0, Surface::Rock);
             }
             return self.window.v0;
         }
@@ -335,21 +382,21 @@ impl Renderer {
         let (hx, hy) = (view.x + t_in * dir[0], view.y + t_in * dir[1]);
         let along = if normal[0] != 0.0 { hy } else { hx };
         let (visible, haze) = fog_weights(t_in);
-        let face_rgb = scale3(ROCK_RGB, lit * visible);
+        let (face_rgb, haze) = (to_rgb32(scale3(ROCK_RGB, lit * visible)), to_rgb32(haze));
         for v in face_top..bottom {
             let z = view.height - (v as f64 - view.cy) * t_in / view.focal;
-            let rgb = scale3(face_rgb, self.appearance.wall_factor(along, z));
-            self.put(u, v, [rgb[0] + haze[0], rgb[1] + haze[1], rgb[2] + haze[2]], t_in as f32);
+            let pixel = shade(face_rgb, self.appearance.wall_factor(along, z), haze);
+            self.put(u, v, pixel, t_in as f32, Surface::Rock);
         }
         let mut top = face_top.min(bottom);
         if height < view.height {
             let surface_top = ceil_row(view.row(t_out, height)).max(self.window.v0);
-            let lit_top = 0.55 + 0.9 * SUN[2] as f32;
+            let top_rgb = to_rgb32(fog(scale3(ROCK_RGB, 0.55 + 0.9 * SUN[2] as f32), t_in));
             for v in surface_top..top {
                 let depth = view.focal * (view.height - height) / (v as f64 - view.cy);
                 let (x, y) = (view.x + depth * dir[0], view.y + depth * dir[1]);
-                let rgb = scale3(ROCK_RGB, lit_top * self.appearance.wall_factor(x + y, x - y));
-                self.put(u, v, fog(rgb, depth), depth as f32);
+                let pixel = shade(top_rgb, self.appearance.wall_factor(x + y, x - y), [0; 3]);
+                self.put(u, v, pixel, depth as f32, Surface::Rock);
             }
             top = top.min(surface_top);
         }
@@ -387,11 +434,13 @@ impl Renderer {
                 if t <= 0.0 || t as f32 >= self.depth[index] {
                     continue;
                 }
-                let normal = [(origin[0] + t * dx) / radius, (origin[1] + t * dy) / radius, (origin[2] + t * dz) / radius];
+                let normal =
+                    [(origin[0] + t * dx) / radius, (origin[1] + t * dy) / radius, (origin[2] + t * dz) / radius];
                 let light = normal[0] * SUN[0] + normal[1] * SUN[1] + normal[2] * SUN[2];
-                let texture = 0.85 + 0.3 * hash2((normal[0] * 9.0) as i64, (normal[1] * 9.0 + normal[2] * 5.0) as i64, 31);
-                let shade = (0.42 + 0.75 * light.max(0.0)) as f32 * texture;
-                self.put(u, v, scale3(SAMPLE_RGB, shade), t as f32);
+                let texture =
+                    0.85 + 0.3 * hash2((normal[0] * 9.0) as i64, (normal[1] * 9.0 + normal[2] * 5.0) as i64, 31);
+                let brightness = (0.55 + 0.5 * light.max(0.0)) as f32 * texture;
+                self.put(u, v, to_rgb8(scale3(SAMPLE_RGB, brightness)), t as f32, Surface::Sample);
             }
         }
     }
@@ -401,15 +450,16 @@ impl Renderer {
         u * self.level_height + v
     }
 
-    fn put(&mut self, u: usize, v: usize, rgb: [f32; 3], depth: f32) {
+    fn put(&mut self, u: usize, v: usize, rgb: [u8; 3], depth: f32, surface: Surface) {
         let index = self.level_index(u, v);
-        self.level[index] = [(rgb[0] + 0.5) as u8, (rgb[1] + 0.5) as u8, (rgb[2] + 0.5) as u8];
+        self.level_surface[index] = surface;
+        self.level[index] = rgb;
         self.depth[index] = depth;
     }
 
     /// Turns the level view into the camera image, rotating by the body's pitch and roll (nearest
     /// level pixel, as a native render would not blur), and adds the sensor noise.
-    fn resample(&self, rotation: &Rotation, out: &mut RgbImage) {
+    fn resample(&mut self, rotation: &Rotation, out: &mut RgbImage) {
         let (width, height) = (self.camera.width, self.camera.height);
         if out.width != width || out.height != height {
             *out = RgbImage::new(width, height);
@@ -421,13 +471,15 @@ impl Renderer {
             let mut ray = rotation.row_start(v);
             let row = &mut out.data[v * width * 3..(v + 1) * width * 3];
             for (u, pixel) in row.chunks_exact_mut(3).enumerate() {
-                let rgb = if untilted {
-                    self.level[self.level_index(u + MARGIN_PX, v + MARGIN_PX)]
+                let source = if untilted {
+                    self.level_index(u + MARGIN_PX, v + MARGIN_PX)
                 } else {
                     let (lu, lv) = rotation.project(ray);
                     ray = rotation.step_right(ray);
-                    self.level[self.level_index((lu + 0.5).clamp(0.0, max_u) as usize, (lv + 0.5).clamp(0.0, max_v) as usize)]
+                    self.level_index((lu + 0.5).clamp(0.0, max_u) as usize, (lv + 0.5).clamp(0.0, max_v) as usize)
                 };
+                let rgb = self.level[source];
+                self.surfaces[v * width + u] = self.level_surface[source];
                 let noise = self.noise[(noise_offset + v * width + u) & NOISE_MASK] as i16;
                 for k in 0..3 {
                     pixel[k] = (rgb[k] as i16 + noise).clamp(0, 255) as u8;

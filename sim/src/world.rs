@@ -110,7 +110,12 @@ impl World {
     }
 
     /// Builds a world whose scoring ground truth differs from its floor.
-    pub fn with_ground_truth(heights_m: Vec<f32>, ground_truth: Vec<bool>, samples: Vec<Sample>, start: StartPose) -> Self {
+    pub fn with_ground_truth(
+        heights_m: Vec<f32>,
+        ground_truth: Vec<bool>,
+        samples: Vec<Sample>,
+        start: StartPose,
+    ) -> Self {
         assert_eq!(heights_m.len(), WORLD_SIZE * WORLD_SIZE, "height field must be 200x200");
         assert_eq!(ground_truth.len(), WORLD_SIZE * WORLD_SIZE, "ground truth must be 200x200");
         let wall_distance = DistanceField::build(&heights_m);
@@ -188,7 +193,8 @@ pub fn terrain_from_mask(navigable: &[bool], rng: &mut SplitMix64) -> Vec<f32> {
             let (x, y) = ((index % WORLD_SIZE) as f64, (index / WORLD_SIZE) as f64);
             let roughness = crate::random::value_noise(x, y, 4.0, salt) as f64;
             let d = distance[index] as f64;
-            let ridge = 9.0 + (MAX_TERRAIN_HEIGHT_M as f64 - 9.0) * crate::random::value_noise(x, y, 9.0, ridge_salt) as f64;
+            let ridge =
+                9.0 + (MAX_TERRAIN_HEIGHT_M as f64 - 9.0) * crate::random::value_noise(x, y, 9.0, ridge_salt) as f64;
             (0.6 + 2.4 * d + 3.0 * roughness * d.sqrt()).min(ridge) as f32
         })
         .collect()
@@ -199,7 +205,9 @@ pub fn terrain_from_mask(navigable: &[bool], rng: &mut SplitMix64) -> Vec<f32> {
 /// mark navigable. The ground truth for scoring stays the map itself.
 fn carve_access(heights_m: &mut [f32], x_m: f64, y_m: f64) {
     let (sx, sy) = (x_m.floor() as i64, y_m.floor() as i64);
-    let index = |x: i64, y: i64| (y.clamp(0, WORLD_SIZE as i64 - 1) as usize) * WORLD_SIZE + x.clamp(0, WORLD_SIZE as i64 - 1) as usize;
+    let index = |x: i64, y: i64| {
+        (y.clamp(0, WORLD_SIZE as i64 - 1) as usize) * WORLD_SIZE + x.clamp(0, WORLD_SIZE as i64 - 1) as usize
+    };
     let mut came_from = vec![usize::MAX; heights_m.len()];
     let start = index(sx, sy);
     came_from[start] = start;
@@ -357,8 +365,9 @@ mod tests {
 
     #[test]
     fn the_unity_map_builds_with_six_samples_and_a_random_yaw() {
-        let png = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/udacity/calibration_images/map_bw.png"))
-            .expect("../shared/udacity/calibration_images/map_bw.png");
+        let png =
+            std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/udacity/calibration_images/map_bw.png"))
+                .expect("../shared/udacity/calibration_images/map_bw.png");
         let world = World::from_map_png(&png, 3).unwrap();
         assert_eq!(world.ground_truth().iter().filter(|&&n| n).count(), 1993);
         for &(x, y) in &UNITY_SAMPLE_CANDIDATES {

@@ -193,3 +193,30 @@ impl<M: rover_msgs::RosMessage> Latest<M> {
 pub fn diagnostic_value(latest: &Latest<rover_msgs::diagnostic_msgs::DiagnosticArray>, key: &str) -> Option<String> {
     latest.last()?.status.iter().flat_map(|s| s.values.iter()).find(|kv| kv.key == key).map(|kv| kv.value.clone())
 }
+
+/// A Python interpreter that can import `modules` (the project's `.venv` under `tools/test-all`).
+/// `None` means it is missing, which fails the test when `ROVER_REQUIRE_ROS` is set.
+pub fn python_with(modules: &[&str]) -> Option<PathBuf> {
+    let python = std::env::var_os("ROVER_PYTHON").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("python3"));
+    let imports = modules.iter().map(|m| format!("import {m}")).collect::<Vec<_>>().join("; ");
+    let ok = Command::new(&python)
+        .args(["-W", "ignore", "-c", &imports])
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if ok {
+        return Some(python);
+    }
+    assert!(
+        std::env::var_os("ROVER_REQUIRE_ROS").is_none(),
+        "{} cannot import {modules:?}: run through tools/test-all, which sets up .venv",
+        python.display()
+    );
+    eprintln!("skipped: {} cannot import {modules:?} (tools/test-all sets them up)", python.display());
+    None
+}
+
+/// A free TCP port on the loopback.
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map(|a| a.port()).expect("a free port")
+}

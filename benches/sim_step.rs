@@ -1,0 +1,64 @@
+//! One simulator step: physics, camera render, JPEG encode and the telemetry JSON, as the simulator
+//! does per command, while driving around the Unity world and a procedural one. Baseline in the
+//! same run: the JPEG encode alone of the same frames.
+//!
+//! Run: `cargo bench --bench sim_step`.
+
+use std::time::{Duration, Instant};
+
+use rover_sim::sim::{SimConfig, Simulator};
+use rover_sim::wire::command::Command;
+use rover_sim::world::World;
+
+const STEPS: usize = 3000;
+
+fn median(mut samples: Vec<Duration>) -> f64 {
+    samples.sort();
+    samples[samples.len() / 2].as_secs_f64() * 1000.0
+}
+
+/// Drives in long arcs, braking and turning in place now and then, so frames have motion, pitch and roll.
+fn command(step: usize) -> Command {
+    match step % 400 {
+        0..=299 => {
+            Command::Drive { steering_deg: if (step / 150) % 2 == 0 { 6.0 } else { -9.0 }, throttle: 0.6, brake: 0.0 }
+        }
+        300..=339 => Command::Drive { steering_deg: 0.0, throttle: 0.0, brake: 10.0 },
+        _ => Command::Drive { steering_deg: 15.0, throttle: 0.0, brake: 0.0 },
+    }
+}
+
+fn measure(name: &str, world: World) -> (f64, f64) {
+    let mut simulator = Simulator::new(world, SimConfig::default());
+    let (mut steps, mut encodes) = (Vec::with_capacity(STEPS), Vec::with_capacity(STEPS));
+    for step in 0..STEPS {
+        let started = Instant::now();
+        simulator.step(command(step));
+        let telemetry = simulator.telemetry();
+        steps.push(started.elapsed());
+        std::hint::black_box(telemetry);
+        let image = simulator.render().clone();
+        let started = Instant::now();
+        std::hint::black_box(rover_imaging::encode_jpeg(&image, 75).expect("encode"));
+        encodes.push(started.elapsed());
+    }
+    let report = simulator.report();
+    let (step_ms, jpeg_ms) = (median(steps), median(encodes));
+    println!(
+        "{name:<22} step median {step_ms:.3} ms   JPEG alone {jpeg_ms:.3} ms   ratio {:.2}x   ({:.0} m driven, {} collisions)",
+        step_ms / jpeg_ms,
+        report.distance_m,
+        report.collisions
+    );
+    (step_ms, jpeg_ms)
+}
+
+fn main() {
+    let map = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/udacity/calibration_images/map_bw.png");
+    let png = std::fs::read(&map).unwrap_or_else(|e| panic!("{}: {e}", map.display()));
+    println!("simulator step = physics + render + JPEG (q75, 4:2:0) + telemetry JSON, {STEPS} steps each");
+    let (unity, _) = measure("Unity world (seed 1)", World::from_map_png(&png, 1).expect("map"));
+    let (procedural, _) = measure("procedural (seed 1)", rover_sim::procgen::procedural_world(1));
+    let worst = unity.max(procedural);
+    println!("target: median <= 2 ms: {}", if worst <= 2.0 { "met" } else { "MISSED" });
+}
