@@ -25,6 +25,10 @@ enum Command {
     /// drive and pickup commands back.
     #[command(after_help = ROS_ARGS_HELP)]
     Bridge,
+    /// Replay a recorded dataset (robot_log.csv + IMG/) through perception and mapping and print
+    /// the Udacity scores. Parameters: -p perception:NAME:=VALUE, -p mapping:NAME:=VALUE.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Replay(rover::replay::ReplayArgs),
     /// Run the headless simulator: connects to the bridge as the Unity simulator does, renders the
     /// camera, simulates the rover and prints a report at the end (or on Ctrl-C).
     Sim(rover_sim::cli::SimArgs),
@@ -72,6 +76,11 @@ async fn run(command: Command, ros_args: rover_node::RosArgs) -> anyhow::Result<
     let shutdown = Shutdown::on_signals();
     match command {
         Command::Bridge => rover_bridge::node::run(&Runtime::new(ros_args, shutdown)?).await,
+        Command::Replay(args) => {
+            let perception = rover_node::resolve_params("perception", &ros_args)?;
+            let mapping = rover_node::resolve_params("mapping", &ros_args)?;
+            rover::replay::run(&args, &perception, &mapping).map(drop)
+        }
         Command::Sim(args) => rover_sim::cli::run(&args, async move { shutdown.wait().await }).await.map(drop),
     }
 }

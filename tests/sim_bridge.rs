@@ -37,9 +37,10 @@ async fn the_simulator_reconnects_after_the_bridge_restarts() {
         })
     };
     let client = ClientConfig::unity("127.0.0.1", domain.port());
-    let stats = tokio::time::timeout(Duration::from_secs(120), run_client(&mut simulator, &client, std::future::pending()))
-        .await
-        .expect("the run finished");
+    let stats =
+        tokio::time::timeout(Duration::from_secs(120), run_client(&mut simulator, &client, std::future::pending()))
+            .await
+            .expect("the run finished");
     restarter.await.unwrap();
     assert!(stats.connections >= 2, "reconnected: {stats:?}");
     assert!((simulator.report().sim_seconds - 40.0).abs() < 1e-6, "the run went on to its end");

@@ -62,6 +62,12 @@ pub fn wrapped_rad(degrees: f64) -> f64 {
     wrapped.to_radians()
 }
 
+/// Unity's roll (its `localEulerAngles.z`, about the forward axis of a left-handed frame) is
+/// positive with the right side up; REP-103 roll is positive with the right side down.
+pub fn rep103_roll_rad(unity_roll_deg: f64) -> f64 {
+    -wrapped_rad(unity_roll_deg)
+}
+
 /// The `rover/telemetry` message of frame `frame`.
 pub fn telemetry_message(t: &SimTelemetry, frame: u64, header: Header) -> Telemetry {
     Telemetry {
@@ -71,7 +77,7 @@ pub fn telemetry_message(t: &SimTelemetry, frame: u64, header: Header) -> Teleme
         y_m: t.y_m,
         yaw_rad: wrapped_rad(t.yaw_deg) as f32,
         pitch_rad: wrapped_rad(t.pitch_deg) as f32,
-        roll_rad: wrapped_rad(t.roll_deg) as f32,
+        roll_rad: rep103_roll_rad(t.roll_deg) as f32,
         speed_mps: t.speed_mps as f32,
         throttle: t.throttle as f32,
         brake: t.brake as f32,
@@ -85,7 +91,11 @@ pub fn telemetry_message(t: &SimTelemetry, frame: u64, header: Header) -> Teleme
 fn body_pose(t: &SimTelemetry) -> Pose {
     Pose {
         position: Point { x: t.x_m, y: t.y_m, z: 0.0 },
-        orientation: Quaternion::from_rpy(wrapped_rad(t.roll_deg), wrapped_rad(t.pitch_deg), wrapped_rad(t.yaw_deg)),
+        orientation: Quaternion::from_rpy(
+            rep103_roll_rad(t.roll_deg),
+            wrapped_rad(t.pitch_deg),
+            wrapped_rad(t.yaw_deg),
+        ),
     }
 }
 

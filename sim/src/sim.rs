@@ -206,7 +206,7 @@ impl Simulator {
             y_m: self.rover.y_m,
             pitch_deg: self.rover.pitch_deg,
             yaw_deg: self.rover.yaw_deg,
-            roll_deg: self.rover.roll_deg,
+            roll_deg: -self.rover.roll_deg,
             near_sample: self.rover.near_sample,
             picking_up: self.rover.picking_up,
             samples: &positions,

@@ -7,13 +7,14 @@
 pub mod logging;
 pub mod names;
 mod node;
+pub mod pairing;
 pub mod params;
 pub mod qos;
 pub mod ros_args;
 pub mod shutdown;
 pub mod topics;
 
-pub use node::{Params, RosNode, Runtime, domain_id_from_env, spawn_subscriber};
+pub use node::{Params, RosNode, Runtime, domain_id_from_env, messages, resolve_params, spawn_subscriber};
 pub use params::NodeParams;
 pub use ros_args::{RosArgs, split_ros_args};
 pub use ros2_client::{Publisher, Subscription};

@@ -64,10 +64,8 @@ impl Runtime {
     /// the defaults, `--params-file` files and `-p` overrides, and its spinner running.
     pub fn node<P: NodeParams>(&self, default_name: &str) -> anyhow::Result<(RosNode, Params<P>)> {
         let identity = NodeIdentity::resolve(default_name, &self.ros_args)?;
-        let specs = P::specs();
-        let assignments = self.assignments(default_name, &identity)?;
-        let values = params::resolve_values(&identity.fully_qualified(), &specs, &assignments)?;
-        let (params, options) = Params::<P>::with_services(values, specs);
+        let values = resolve_param_values::<P>(default_name, &identity, &self.ros_args)?;
+        let (params, options) = Params::<P>::with_services(values, P::specs());
         let node_name = NodeName::new(&identity.namespace, &identity.name)
             .map_err(|e| anyhow::anyhow!("node name {}: {e}", identity.fully_qualified()))?;
         let mut node = self
@@ -83,23 +81,34 @@ impl Runtime {
         crate::logging::register_rosout(&identity.fully_qualified(), node.logging_handle());
         Ok((RosNode { node, identity }, params))
     }
+}
 
-    fn assignments(&self, default_name: &str, identity: &NodeIdentity) -> anyhow::Result<Vec<Assignment>> {
-        let mut assignments = Vec::new();
-        for file in &self.ros_args.params_files {
-            assignments.extend(params::assignments_from_file(file, &identity.fully_qualified())?);
-        }
-        for p in self.ros_args.params_for(default_name) {
-            let value = params::parse_override(&p.value)
-                .map_err(|reason| anyhow::anyhow!("-p {}:={}: {reason}", p.name, p.value))?;
-            assignments.push(Assignment {
-                name: p.name.clone(),
-                value,
-                source_name: format!("-p {}:={}", p.name, p.value),
-            });
-        }
-        Ok(assignments)
+fn resolve_param_values<P: NodeParams>(
+    default_name: &str,
+    identity: &NodeIdentity,
+    ros_args: &RosArgs,
+) -> anyhow::Result<ParamValues> {
+    let mut assignments = Vec::new();
+    for file in &ros_args.params_files {
+        assignments.extend(params::assignments_from_file(file, &identity.fully_qualified())?);
     }
+    for p in ros_args.params_for(default_name) {
+        let value = params::parse_override(&p.value)
+            .map_err(|reason| anyhow::anyhow!("-p {}:={}: {reason}", p.name, p.value))?;
+        assignments.push(Assignment {
+            name: p.name.clone(),
+            value,
+            source_name: format!("-p {}:={}", p.name, p.value),
+        });
+    }
+    Ok(params::resolve_values(&identity.fully_qualified(), &P::specs(), &assignments)?)
+}
+
+/// The parameters of the node whose default name is `default_name`, from the ROS arguments alone
+/// (no DDS), for tools that run a node's library offline.
+pub fn resolve_params<P: NodeParams>(default_name: &str, ros_args: &RosArgs) -> anyhow::Result<P> {
+    let identity = NodeIdentity::resolve(default_name, ros_args)?;
+    Ok(P::from_values(&resolve_param_values::<P>(default_name, &identity, ros_args)?))
 }
 
 /// A ROS 2 node: creates publishers and subscriptions for the graph's [`Topic`]s, with the node's
@@ -154,6 +163,19 @@ impl Drop for RosNode {
     fn drop(&mut self) {
         crate::logging::unregister_rosout(&self.identity.fully_qualified());
     }
+}
+
+/// The messages of a subscription as a stream; messages that fail to deserialise are logged and skipped.
+pub fn messages<M: RosMessage>(subscription: &Subscription<M>) -> impl futures::Stream<Item = M> + '_ {
+    subscription.async_stream().filter_map(|received| async move {
+        match received {
+            Ok((message, _info)) => Some(message),
+            Err(e) => {
+                tracing::warn!("dropped a malformed {} message: {e:?}", M::type_name());
+                None
+            }
+        }
+    })
 }
 
 /// Spawns a task that calls `handler` for every message of `subscription` until the stream ends.

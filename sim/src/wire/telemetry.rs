@@ -24,7 +24,7 @@ pub struct TelemetryValues<'a> {
     pub pitch_deg: f64,
     /// Yaw, degrees counter-clockwise from +x (reported in [0, 360)).
     pub yaw_deg: f64,
-    /// Roll, degrees (reported in [0, 360)).
+    /// Roll as Unity reports it: degrees in [0, 360), positive with the right side up.
     pub roll_deg: f64,
     /// A sample is within reach.
     pub near_sample: bool,

@@ -1,0 +1,10 @@
+//! World mapping of the rover: terrain scans projected into a 200 m x 200 m evidence grid
+//! ([`map`]) with pitch and roll corrected through the camera model ([`projection`]), the exact
+//! Udacity scores ([`score`]), the map inset image ([`image`]) and the located rocks ([`rocks`]).
+
+pub mod map;
+pub mod node;
+pub mod params;
+pub mod projection;
+pub mod rocks;
+pub mod score;

@@ -1,0 +1,292 @@
+//! The world map: per-cell evidence of navigable ground, obstacles and rocks, gathered from terrain
+//! scans, each cell counted at most once per frame and class, and the decisions drawn from it.
+
+use crate::projection::{CameraMount, Pose, Projector};
+use crate::score::{MAP_SIDE, Scores, udacity_scores};
+
+/// Terrain-scan class codes (`rover_msgs/TerrainScan`).
+const NAVIGABLE: u8 = rover_msgs::msg::TerrainScan::NAVIGABLE;
+const ROCK: u8 = rover_msgs::msg::TerrainScan::ROCK;
+
+/// How scans become evidence and evidence becomes a map.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapConfig {
+    /// Scan cells farther than this from the rover are ignored, metres.
+    pub max_range_m: f64,
+    /// Frames whose pitch or roll exceeds this are skipped, degrees.
+    pub max_tilt_deg: f64,
+    /// Re-project scan cells through the tilted camera.
+    pub correct_tilt: bool,
+    /// A cell is navigable after this many navigable frames...
+    pub min_navigable_hits: u16,
+    /// ...and when its navigable frames are at least this many times its obstacle frames.
+    pub navigable_ratio: f32,
+    /// A cell that is not navigable is an obstacle after this many obstacle frames.
+    pub min_obstacle_hits: u16,
+    /// A cell holds a rock after this many rock frames.
+    pub min_rock_hits: u16,
+}
+
+impl Default for MapConfig {
+    fn default() -> Self {
+        MapConfig {
+            max_range_m: 8.0,
+            max_tilt_deg: 3.0,
+            correct_tilt: true,
+            min_navigable_hits: 1,
+            navigable_ratio: 0.2,
+            min_obstacle_hits: 2,
+            min_rock_hits: 2,
+        }
+    }
+}
+
+/// The rover-frame grid of one scan (see `rover_msgs/TerrainScan`).
+#[derive(Debug, Clone, Copy)]
+pub struct ScanGrid<'a> {
+    /// Rows (forward bins).
+    pub rows: usize,
+    /// Columns (lateral bins).
+    pub cols: usize,
+    /// Cell size, metres.
+    pub resolution_m: f64,
+    /// Near edge of the grid, metres ahead of the rover.
+    pub origin_x_m: f64,
+    /// Right edge of the grid, metres (left positive).
+    pub origin_y_m: f64,
+    /// Class codes, row-major.
+    pub cells: &'a [u8],
+}
+
+/// What a map update did with a frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Update {
+    /// The frame was used; this many scan cells landed in the map.
+    Used(usize),
+    /// The body was tilted more than the limit.
+    SkippedTilt,
+    /// The scan's size does not match its cells.
+    Malformed,
+}
+
+/// The evidence grid of the world.
+#[derive(Debug, Clone)]
+pub struct WorldMap {
+    config: MapConfig,
+    mount: CameraMount,
+    hits: [Vec<u16>; 3],
+    last_frame: [Vec<u32>; 3],
+    frame: u32,
+}
+
+impl WorldMap {
+    /// An empty map.
+    pub fn new(config: MapConfig) -> Self {
+        let cells = MAP_SIDE * MAP_SIDE;
+        WorldMap {
+            config,
+            mount: CameraMount::default(),
+            hits: [vec![0; cells], vec![0; cells], vec![0; cells]],
+            last_frame: [vec![u32::MAX; cells], vec![u32::MAX; cells], vec![u32::MAX; cells]],
+            frame: 0,
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &MapConfig {
+        &self.config
+    }
+
+    /// Replaces the configuration (decisions follow at once; evidence is kept).
+    pub fn set_config(&mut self, config: MapConfig) {
+        self.config = config;
+    }
+
+    /// Adds the evidence of one scan taken at `pose`.
+    pub fn update(&mut self, scan: &ScanGrid, pose: Pose) -> Update {
+        if scan.cells.len() != scan.rows * scan.cols || scan.resolution_m <= 0.0 {
+            return Update::Malformed;
+        }
+        let limit = self.config.max_tilt_deg.to_radians();
+        if pose.pitch_rad.abs() > limit || pose.roll_rad.abs() > limit {
+            return Update::SkippedTilt;
+        }
+        self.frame = self.frame.wrapping_add(1);
+        let projector = Projector::new(pose, self.mount, self.config.correct_tilt);
+        let max_range_sq = self.config.max_range_m * self.config.max_range_m;
+        let mut landed = 0;
+        for row in 0..scan.rows {
+            let x = scan.origin_x_m + (row as f64 + 0.5) * scan.resolution_m;
+            if x * x > max_range_sq {
+                break;
+            }
+            for (col, &class) in scan.cells[row * scan.cols..(row + 1) * scan.cols].iter().enumerate() {
+                if !(NAVIGABLE..=ROCK).contains(&class) {
+                    continue;
+                }
+                let y = scan.origin_y_m + (col as f64 + 0.5) * scan.resolution_m;
+                if x * x + y * y > max_range_sq {
+                    continue;
+                }
+                if let Some(cell) = projector.world(x, y).and_then(|(wx, wy)| cell_index(wx, wy)) {
+                    self.add(cell, (class - 1) as usize);
+                    landed += 1;
+                }
+            }
+        }
+        Update::Used(landed)
+    }
+
+    #[inline]
+    fn add(&mut self, cell: usize, class: usize) {
+        if self.last_frame[class][cell] != self.frame {
+            self.last_frame[class][cell] = self.frame;
+            self.hits[class][cell] = self.hits[class][cell].saturating_add(1);
+        }
+    }
+
+    /// Navigable frames, obstacle frames and rock frames of a cell.
+    pub fn evidence(&self, cell: usize) -> (u16, u16, u16) {
+        (self.hits[0][cell], self.hits[1][cell], self.hits[2][cell])
+    }
+
+    /// True if the map calls the cell navigable.
+    pub fn is_navigable(&self, cell: usize) -> bool {
+        let (nav, obs, _) = self.evidence(cell);
+        nav >= self.config.min_navigable_hits && nav as f32 >= self.config.navigable_ratio * obs as f32
+    }
+
+    /// True if the map calls the cell an obstacle.
+    pub fn is_obstacle(&self, cell: usize) -> bool {
+        let (nav, obs, _) = self.evidence(cell);
+        obs >= self.config.min_obstacle_hits && !self.is_navigable(cell) && obs >= nav
+    }
+
+    /// True if the map holds a rock in the cell.
+    pub fn is_rock(&self, cell: usize) -> bool {
+        self.hits[2][cell] >= self.config.min_rock_hits
+    }
+
+    /// The occupancy grid: 0 navigable, 100 obstacle, -1 unknown; row = y.
+    pub fn occupancy(&self) -> Vec<i8> {
+        (0..MAP_SIDE * MAP_SIDE)
+            .map(|cell| {
+                if self.is_navigable(cell) {
+                    0
+                } else if self.is_obstacle(cell) {
+                    100
+                } else {
+                    -1
+                }
+            })
+            .collect()
+    }
+
+    /// Counts of navigable and obstacle cells.
+    pub fn cell_counts(&self) -> (usize, usize) {
+        let navigable = (0..MAP_SIDE * MAP_SIDE).filter(|&c| self.is_navigable(c)).count();
+        let obstacle = (0..MAP_SIDE * MAP_SIDE).filter(|&c| self.is_obstacle(c)).count();
+        (navigable, obstacle)
+    }
+
+    /// The Udacity scores of the map against a ground-truth navigable mask.
+    pub fn scores(&self, ground_truth: &[bool]) -> Scores {
+        let channel = |test: &dyn Fn(usize) -> bool| {
+            (0..MAP_SIDE * MAP_SIDE).map(|c| if test(c) { 255.0 } else { 0.0 }).collect::<Vec<f32>>()
+        };
+        udacity_scores(&channel(&|c| self.is_obstacle(c)), &channel(&|c| self.is_navigable(c)), ground_truth)
+    }
+
+    /// Cells (x, y) holding a rock.
+    pub fn rock_cells(&self) -> Vec<(usize, usize)> {
+        (0..MAP_SIDE * MAP_SIDE).filter(|&c| self.is_rock(c)).map(|c| (c % MAP_SIDE, c / MAP_SIDE)).collect()
+    }
+
+    /// Forgets the rock evidence within `radius_m` of (x, y), e.g. once the sample there is picked up.
+    pub fn clear_rocks_near(&mut self, x_m: f64, y_m: f64, radius_m: f64) {
+        let reach = radius_m.ceil() as i64 + 1;
+        for iy in (y_m as i64 - reach)..=(y_m as i64 + reach) {
+            for ix in (x_m as i64 - reach)..=(x_m as i64 + reach) {
+                if let Some(cell) = cell_index(ix as f64 + 0.5, iy as f64 + 0.5)
+                    && (ix as f64 + 0.5 - x_m).hypot(iy as f64 + 0.5 - y_m) <= radius_m
+                {
+                    self.hits[2][cell] = 0;
+                }
+            }
+        }
+    }
+}
+
+/// The map cell containing world point (x, y), if it is on the map.
+#[inline]
+pub fn cell_index(x_m: f64, y_m: f64) -> Option<usize> {
+    if x_m < 0.0 || y_m < 0.0 || x_m >= MAP_SIDE as f64 || y_m >= MAP_SIDE as f64 {
+        return None;
+    }
+    Some(y_m as usize * MAP_SIDE + x_m as usize)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scan(cells: &[u8], rows: usize, cols: usize) -> ScanGrid<'_> {
+        ScanGrid { rows, cols, resolution_m: 0.5, origin_x_m: 1.0, origin_y_m: -0.5 * cols as f64 / 2.0, cells }
+    }
+
+    #[test]
+    fn a_cell_is_counted_once_per_frame_and_needs_two_frames() {
+        let cells = vec![NAVIGABLE; 4 * 4];
+        let pose = Pose { x_m: 100.0, y_m: 100.0, ..Pose::default() };
+        let mut map = WorldMap::new(MapConfig::default());
+        assert_eq!(map.update(&scan(&cells, 4, 4), pose), Update::Used(16));
+        let cell = cell_index(101.8, 100.2).unwrap();
+        assert_eq!(map.evidence(cell), (1, 0, 0), "four scan cells in one map cell count once");
+        assert!(!map.is_navigable(cell));
+        map.update(&scan(&cells, 4, 4), pose);
+        assert!(map.is_navigable(cell));
+        assert_eq!(map.occupancy()[cell], 0);
+    }
+
+    #[test]
+    fn obstacles_outvote_and_tilted_frames_are_skipped() {
+        let pose = Pose { x_m: 50.0, y_m: 50.0, ..Pose::default() };
+        let mut map = WorldMap::new(MapConfig::default());
+        for _ in 0..3 {
+            map.update(&scan(&[rover_msgs::msg::TerrainScan::OBSTACLE; 16], 4, 4), pose);
+        }
+        map.update(&scan(&[NAVIGABLE; 16], 4, 4), pose);
+        let cell = cell_index(51.8, 50.2).unwrap();
+        assert!(map.is_obstacle(cell) && !map.is_navigable(cell));
+        assert_eq!(map.occupancy()[cell], 100);
+        let tilted = Pose { pitch_rad: 5f64.to_radians(), ..pose };
+        assert_eq!(map.update(&scan(&[NAVIGABLE; 16], 4, 4), tilted), Update::SkippedTilt);
+        assert_eq!(map.update(&scan(&[NAVIGABLE; 3], 4, 4), pose), Update::Malformed);
+    }
+
+    #[test]
+    fn rocks_are_found_and_cleared() {
+        let pose = Pose { x_m: 20.0, y_m: 20.0, ..Pose::default() };
+        let mut cells = vec![NAVIGABLE; 16];
+        cells[5] = ROCK;
+        let mut map = WorldMap::new(MapConfig::default());
+        map.update(&scan(&cells, 4, 4), pose);
+        map.update(&scan(&cells, 4, 4), pose);
+        let rocks = map.rock_cells();
+        assert_eq!(rocks.len(), 1, "{rocks:?}");
+        map.clear_rocks_near(rocks[0].0 as f64 + 0.5, rocks[0].1 as f64 + 0.5, 1.0);
+        assert!(map.rock_cells().is_empty());
+    }
+
+    #[test]
+    fn range_limit_drops_far_cells() {
+        let config = MapConfig { max_range_m: 1.5, ..MapConfig::default() };
+        let mut map = WorldMap::new(config);
+        let Update::Used(landed) =
+            map.update(&scan(&[NAVIGABLE; 16], 4, 4), Pose { x_m: 9.0, y_m: 9.0, ..Pose::default() })
+        else {
+            panic!("frame used");
+        };
+        assert!(landed < 16, "{landed}");
+    }
+}

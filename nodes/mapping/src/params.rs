@@ -1,0 +1,44 @@
+//! The mapping node's parameters and the configuration they give.
+
+use crate::map::MapConfig;
+
+rover_node::node_params! {
+    /// Parameters of the mapping node.
+    pub struct MappingParams {
+        /// Scan cells farther than this from the rover are ignored, metres.
+        max_range_m: f64 [0.5, 20.0] = 8.0,
+        /// Frames whose pitch or roll exceeds this are skipped, degrees.
+        max_tilt_deg: f64 [0.0, 45.0] = 3.0,
+        /// Re-project scan cells through the tilted camera (pitch and roll correction).
+        correct_tilt: bool = true,
+        /// A cell becomes navigable after this many frames saw it navigable...
+        min_navigable_hits: i64 [1, 1000] = 1,
+        /// ...and when those frames are at least this many times the frames that saw an obstacle there.
+        navigable_ratio: f64 [0.0, 100.0] = 0.2,
+        /// A cell that is not navigable becomes an obstacle after this many obstacle frames.
+        min_obstacle_hits: i64 [1, 1000] = 2,
+        /// A cell holds a rock after this many rock frames.
+        min_rock_hits: i64 [1, 1000] = 2,
+        /// Rock cells closer than this are one rock, metres.
+        rock_merge_m: f64 [0.1, 20.0] = 2.0,
+        /// Ground-truth map (200x200 PNG, navigable > 0) for the Udacity scores; empty: none.
+        ground_truth_png: String = "",
+        /// Period of map, map/image and rover/map_stats, ms.
+        publish_period_ms: f64 [10.0, 60000.0] = 500.0,
+    }
+}
+
+impl MappingParams {
+    /// The map configuration these parameters describe.
+    pub fn map_config(&self) -> MapConfig {
+        MapConfig {
+            max_range_m: self.max_range_m,
+            max_tilt_deg: self.max_tilt_deg,
+            correct_tilt: self.correct_tilt,
+            min_navigable_hits: self.min_navigable_hits as u16,
+            navigable_ratio: self.navigable_ratio as f32,
+            min_obstacle_hits: self.min_obstacle_hits as u16,
+            min_rock_hits: self.min_rock_hits as u16,
+        }
+    }
+}

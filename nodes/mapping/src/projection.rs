@@ -1,0 +1,136 @@
+//! From the rover frame to the world: a terrain-scan cell's ground point, corrected for the body's
+//! pitch and roll with the camera model, then rotated by yaw and moved to the rover's position.
+
+/// The camera's mounting, as the warp calibration assumes it on level ground.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraMount {
+    /// Camera ahead of the reported position, metres.
+    pub forward_m: f64,
+    /// Camera above the body origin, metres.
+    pub above_origin_m: f64,
+    /// Body origin below the floor, metres.
+    pub origin_below_floor_m: f64,
+}
+
+impl Default for CameraMount {
+    fn default() -> Self {
+        CameraMount { forward_m: 0.4287, above_origin_m: 0.2391, origin_below_floor_m: 0.0247 }
+    }
+}
+
+/// The body's attitude and position for one frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Pose {
+    /// x, metres.
+    pub x_m: f64,
+    /// y, metres.
+    pub y_m: f64,
+    /// Yaw, radians counter-clockwise from +x.
+    pub yaw_rad: f64,
+    /// Pitch, radians, positive nose down.
+    pub pitch_rad: f64,
+    /// Roll, radians, positive right side down.
+    pub roll_rad: f64,
+}
+
+/// Projects rover-frame ground points of one frame into the world.
+#[derive(Debug, Clone, Copy)]
+pub struct Projector {
+    pose: Pose,
+    sin_yaw: f64,
+    cos_yaw: f64,
+    /// Level camera position (rover frame) and the tilted one, and the tilt rotation.
+    level_camera: [f64; 3],
+    camera: [f64; 3],
+    tilt: Option<[[f64; 3]; 3]>,
+}
+
+/// Rotation by roll about x, then pitch about y (positive nose down).
+fn tilt_matrix(pitch_rad: f64, roll_rad: f64) -> [[f64; 3]; 3] {
+    let (sp, cp) = pitch_rad.sin_cos();
+    let (sr, cr) = roll_rad.sin_cos();
+    [[cp, sp * sr, sp * cr], [0.0, cr, -sr], [-sp, cp * sr, cp * cr]]
+}
+
+fn rotate(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|r| m[r][0] * v[0] + m[r][1] * v[1] + m[r][2] * v[2])
+}
+
+impl Projector {
+    /// A projector for `pose`; with `correct_tilt` the ground points are re-projected through the
+    /// tilted camera, otherwise the level-ground points are used as they are.
+    pub fn new(pose: Pose, mount: CameraMount, correct_tilt: bool) -> Self {
+        let level_camera = [mount.forward_m, 0.0, mount.above_origin_m - mount.origin_below_floor_m];
+        let tilt = correct_tilt.then(|| tilt_matrix(pose.pitch_rad, pose.roll_rad));
+        let camera = match &tilt {
+            Some(m) => {
+                let c = rotate(m, [mount.forward_m, 0.0, mount.above_origin_m]);
+                [c[0], c[1], c[2] - mount.origin_below_floor_m]
+            }
+            None => level_camera,
+        };
+        let (sin_yaw, cos_yaw) = pose.yaw_rad.sin_cos();
+        Projector { pose, sin_yaw, cos_yaw, level_camera, camera, tilt }
+    }
+
+    /// The world position of the level-ground point (x, y) of the rover frame, or `None` when the
+    /// tilted camera's ray through it does not reach the ground.
+    #[inline]
+    pub fn world(&self, x: f64, y: f64) -> Option<(f64, f64)> {
+        let (gx, gy) = match &self.tilt {
+            None => (x, y),
+            Some(m) => {
+                let ray = rotate(m, [x - self.level_camera[0], y - self.level_camera[1], -self.level_camera[2]]);
+                if ray[2] >= -1e-9 {
+                    return None;
+                }
+                let t = -self.camera[2] / ray[2];
+                (self.camera[0] + t * ray[0], self.camera[1] + t * ray[1])
+            }
+        };
+        Some((
+            self.pose.x_m + gx * self.cos_yaw - gy * self.sin_yaw,
+            self.pose.y_m + gx * self.sin_yaw + gy * self.cos_yaw,
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn level_points_rotate_with_yaw_and_move_with_position() {
+        let pose = Pose { x_m: 10.0, y_m: 20.0, yaw_rad: std::f64::consts::FRAC_PI_2, ..Pose::default() };
+        let (x, y) = Projector::new(pose, CameraMount::default(), true).world(2.0, 1.0).unwrap();
+        assert!((x - 9.0).abs() < 1e-12 && (y - 22.0).abs() < 1e-12, "({x}, {y})");
+    }
+
+    #[test]
+    fn nose_down_pulls_far_points_closer() {
+        let level = Projector::new(Pose::default(), CameraMount::default(), true).world(5.0, 0.0).unwrap();
+        assert!((level.0 - 5.0).abs() < 1e-12);
+        let pitched = Pose { pitch_rad: 1f64.to_radians(), ..Pose::default() };
+        let (x, _) = Projector::new(pitched, CameraMount::default(), true).world(5.0, 0.0).unwrap();
+        assert!(x < 4.0 && x > 2.5, "a 1 degree nose-down pitch puts the 5 m point at {x}");
+        let uncorrected = Projector::new(pitched, CameraMount::default(), false).world(5.0, 0.0).unwrap();
+        assert_eq!(uncorrected.0, 5.0);
+    }
+
+    #[test]
+    fn nose_up_makes_far_rays_miss_the_ground() {
+        let up = Pose { pitch_rad: -3f64.to_radians(), ..Pose::default() };
+        assert!(Projector::new(up, CameraMount::default(), true).world(15.0, 0.0).is_none());
+    }
+
+    #[test]
+    fn roll_right_side_down_pushes_left_points_away_and_right_points_closer() {
+        let rolled =
+            Projector::new(Pose { roll_rad: 2f64.to_radians(), ..Pose::default() }, CameraMount::default(), true);
+        let (left_x, _) = rolled.world(3.0, 2.0).unwrap();
+        let (right_x, _) = rolled.world(3.0, -2.0).unwrap();
+        let (ahead_x, ahead_y) = rolled.world(3.0, 0.0).unwrap();
+        assert!(left_x > 3.8 && right_x < 2.6, "left {left_x}, right {right_x}");
+        assert!((ahead_x - 3.0).abs() < 0.05 && ahead_y.abs() < 0.01, "straight ahead stays: ({ahead_x}, {ahead_y})");
+    }
+}

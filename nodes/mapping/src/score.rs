@@ -1,0 +1,113 @@
+//! The Udacity scores, exactly as the starter's `create_output_images` computes them
+//! (unity-sim-spec 6.2): mapped % and fidelity % of a world map against the ground truth, and
+//! which samples count as located.
+
+/// Side of the world map, cells.
+pub const MAP_SIDE: usize = 200;
+
+/// Mapped and fidelity percentages, rounded to one decimal like the starter.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Scores {
+    /// 100 * good navigable cells / ground-truth navigable cells.
+    pub mapped_pct: f64,
+    /// 100 * good navigable cells / navigable cells of the map (0 when there are none).
+    pub fidelity_pct: f64,
+    /// Navigable cells of the map that are navigable in the ground truth.
+    pub good_cells: usize,
+    /// Navigable cells of the map.
+    pub navigable_cells: usize,
+}
+
+fn normalised(channel: &[f32]) -> Vec<f32> {
+    let max = channel.iter().cloned().fold(0.0f32, f32::max);
+    if max <= 0.0 {
+        return channel.to_vec();
+    }
+    let positive: Vec<f32> = channel.iter().cloned().filter(|&v| v > 0.0).collect();
+    let mean = positive.iter().map(|&v| v as f64).sum::<f64>() / positive.len() as f64;
+    channel.iter().map(|&v| (v as f64 * 255.0 / mean) as f32).collect()
+}
+
+/// Scores a Udacity world map given as its obstacle and navigable channels (row = y) against the
+/// ground-truth navigable mask.
+pub fn udacity_scores(obstacle: &[f32], navigable: &[f32], ground_truth: &[bool]) -> Scores {
+    let nav = normalised(navigable);
+    let mut obs = normalised(obstacle);
+    for (o, n) in obs.iter_mut().zip(&nav) {
+        if *n >= *o {
+            *o = 0.0;
+        }
+    }
+    let plot_nav: Vec<f32> = nav.iter().map(|v| v.clamp(0.0, 255.0)).collect();
+    let navigable_cells = plot_nav.iter().filter(|&&v| v != 0.0).count();
+    let good_cells = plot_nav.iter().zip(ground_truth).filter(|(v, gt)| **v > 0.0 && **gt).count();
+    let truth = ground_truth.iter().filter(|&&g| g).count();
+    let round1 = |v: f64| (v * 10.0).round() / 10.0;
+    Scores {
+        mapped_pct: if truth > 0 { round1(100.0 * good_cells as f64 / truth as f64) } else { 0.0 },
+        fidelity_pct: if navigable_cells > 0 {
+            round1(100.0 * good_cells as f64 / navigable_cells as f64)
+        } else {
+            0.0
+        },
+        good_cells,
+        navigable_cells,
+    }
+}
+
+/// Samples counted as located: a rock cell (x, y) lies within 3 cells of the sample's truncated
+/// position. As in the starter, nothing is located when every rock cell is in row 0.
+pub fn samples_located(rock_cells: &[(usize, usize)], samples: &[(f64, f64)]) -> usize {
+    if !rock_cells.iter().any(|&(_, y)| y != 0) {
+        return 0;
+    }
+    samples
+        .iter()
+        .filter(|&&(sx, sy)| {
+            let (sx, sy) = (sx as i64 as f64, sy as i64 as f64);
+            rock_cells.iter().any(|&(x, y)| (x as f64 - sx).hypot(y as f64 - sy) < 3.0)
+        })
+        .count()
+}
+
+/// The ground-truth navigable mask of a 200x200 PNG (pixel > 0 is navigable).
+pub fn ground_truth_from_png(png: &[u8]) -> Result<Vec<bool>, String> {
+    let image = rover_imaging::decode_png(png).map_err(|e| e.to_string())?;
+    if (image.width, image.height) != (MAP_SIDE, MAP_SIDE) {
+        return Err(format!("ground truth is {}x{}, expected 200x200", image.width, image.height));
+    }
+    Ok(image.data.chunks_exact(3).map(|p| p[1] > 0).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scores_follow_the_starter() {
+        let mut truth = vec![false; 16];
+        truth[..8].fill(true);
+        let mut navigable = vec![0.0f32; 16];
+        navigable[..4].fill(3.0);
+        navigable[8..10].fill(1.0);
+        let obstacle = vec![0.0f32; 16];
+        let scores = udacity_scores(&obstacle, &navigable, &truth);
+        assert_eq!((scores.good_cells, scores.navigable_cells), (4, 6));
+        assert_eq!(scores.mapped_pct, 50.0);
+        assert_eq!(scores.fidelity_pct, 66.7);
+    }
+
+    #[test]
+    fn empty_maps_score_zero() {
+        let scores = udacity_scores(&[0.0; 4], &[0.0; 4], &[true; 4]);
+        assert_eq!((scores.mapped_pct, scores.fidelity_pct), (0.0, 0.0));
+    }
+
+    #[test]
+    fn located_samples_need_a_rock_cell_within_three() {
+        let samples = [(97.44, 74.65), (122.28, 51.66)];
+        assert_eq!(samples_located(&[(98, 76)], &samples), 1);
+        assert_eq!(samples_located(&[(100, 74)], &samples), 0);
+        assert_eq!(samples_located(&[(97, 0)], &[(97.5, 0.5)]), 0, "row-0 quirk");
+    }
+}

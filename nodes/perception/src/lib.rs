@@ -1,0 +1,179 @@
+//! Camera perception of the rover: the calibrated bird's-eye warp as a lookup table ([`warp`]),
+//! colour classification ([`classify`]) and the rover-frame terrain scan ([`scan`]).
+//!
+//! Nothing is warped per frame: the table built once from the calibration lists, for each warped
+//! pixel inside the camera's view, the source pixels and weights OpenCV's `warpPerspective` would
+//! use; a frame is decoded, those entries are interpolated and classified, and that is all.
+
+pub mod classify;
+pub mod homography;
+pub mod node;
+pub mod scan;
+pub mod warp;
+
+use rover_imaging::{ImageError, RgbImage};
+
+use crate::classify::{Class, Thresholds};
+use crate::homography::Matrix3;
+use crate::warp::{WarpTable, padded};
+
+/// The calibration of the warp (the Udacity starter's values by default).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Calibration {
+    /// Corners of the 1 m grid cell in the camera image: near left, near right, far right, far left.
+    pub source_px: [[f32; 2]; 4],
+    /// Half the side of that cell in the warped image, pixels (10 px per metre gives 5).
+    pub destination_half_size_px: f32,
+    /// Rows between the bottom of the warped image and the cell's near edge.
+    pub bottom_offset_px: f32,
+    /// Warped pixels per metre.
+    pub pixels_per_metre: f32,
+    /// Image width, pixels.
+    pub width: usize,
+    /// Image height, pixels.
+    pub height: usize,
+    /// Distance from the rover's reported position to the cell's near edge, metres
+    /// (0.4287 m camera offset + 0.3992 m, unity-sim-spec 4.2).
+    pub near_edge_ahead_m: f64,
+}
+
+impl Default for Calibration {
+    fn default() -> Self {
+        Calibration {
+            source_px: [[14.0, 140.0], [301.0, 140.0], [200.0, 96.0], [118.0, 96.0]],
+            destination_half_size_px: 5.0,
+            bottom_offset_px: 6.0,
+            pixels_per_metre: 10.0,
+            width: 320,
+            height: 160,
+            near_edge_ahead_m: 0.4287 + 0.3992,
+        }
+    }
+}
+
+impl Calibration {
+    /// The destination points of the starter: a square at the bottom centre of the warped image.
+    pub fn destination_px(&self) -> [[f32; 2]; 4] {
+        let (w, h) = (self.width as f32, self.height as f32);
+        let (d, bottom) = (self.destination_half_size_px, self.bottom_offset_px);
+        [
+            [w / 2.0 - d, h - bottom],
+            [w / 2.0 + d, h - bottom],
+            [w / 2.0 + d, h - 2.0 * d - bottom],
+            [w / 2.0 - d, h - 2.0 * d - bottom],
+        ]
+    }
+
+    /// The homography from camera pixels to warped pixels.
+    pub fn homography(&self) -> Option<Matrix3> {
+        homography::perspective_transform(&self.source_px, &self.destination_px())
+    }
+
+    /// Rover-frame position (x forward, y left, metres from the reported position) of warped pixel (x, y).
+    pub fn rover_position(&self, warped_x: f64, warped_y: f64) -> (f64, f64) {
+        let near_edge_row = self.height as f64 - self.bottom_offset_px as f64;
+        let ppm = self.pixels_per_metre as f64;
+        (self.near_edge_ahead_m + (near_edge_row - warped_y) / ppm, (self.width as f64 / 2.0 - warped_x) / ppm)
+    }
+}
+
+/// Errors of the perception pipeline.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum PerceptionError {
+    /// The calibration points do not define a perspective transform.
+    #[error("the calibration points are degenerate (three of them on a line?)")]
+    DegenerateCalibration,
+    /// The image could not be decoded or has the wrong size.
+    #[error(transparent)]
+    Image(#[from] ImageError),
+}
+
+/// Perception of one camera: the table, the thresholds and reusable buffers.
+pub struct Perception {
+    calibration: Calibration,
+    thresholds: Thresholds,
+    table: WarpTable,
+    image: RgbImage,
+    padded: Vec<u8>,
+    classes: Vec<Class>,
+}
+
+impl Perception {
+    /// Builds the lookup table for `calibration`.
+    pub fn new(calibration: Calibration, thresholds: Thresholds) -> Result<Self, PerceptionError> {
+        let matrix = calibration.homography().ok_or(PerceptionError::DegenerateCalibration)?;
+        let table = WarpTable::new(&matrix, calibration.width, calibration.height)
+            .ok_or(PerceptionError::DegenerateCalibration)?;
+        let classes = vec![Class::Unknown; table.entries.len()];
+        Ok(Perception { calibration, thresholds, table, image: RgbImage::default(), padded: Vec::new(), classes })
+    }
+
+    /// The calibration.
+    pub fn calibration(&self) -> &Calibration {
+        &self.calibration
+    }
+
+    /// The warp table.
+    pub fn table(&self) -> &WarpTable {
+        &self.table
+    }
+
+    /// The classes of the last frame, one per table entry.
+    pub fn classes(&self) -> &[Class] {
+        &self.classes
+    }
+
+    /// Decodes a camera JPEG and classifies it.
+    pub fn process_jpeg(&mut self, jpeg: &[u8]) -> Result<&[Class], PerceptionError> {
+        let mut image = std::mem::take(&mut self.image);
+        let decoded = rover_imaging::decode_jpeg_into(jpeg, &mut image);
+        self.image = image;
+        decoded?;
+        self.check_size()?;
+        padded(&self.image.data, &mut self.padded);
+        self.classify();
+        Ok(&self.classes)
+    }
+
+    /// Classifies an already decoded image.
+    pub fn process_rgb(&mut self, image: &RgbImage) -> Result<&[Class], PerceptionError> {
+        if (image.width, image.height) != (self.calibration.width, self.calibration.height) {
+            return Err(self.wrong_size(image.width, image.height));
+        }
+        padded(&image.data, &mut self.padded);
+        self.classify();
+        Ok(&self.classes)
+    }
+
+    fn check_size(&self) -> Result<(), PerceptionError> {
+        if (self.image.width, self.image.height) != (self.calibration.width, self.calibration.height) {
+            return Err(self.wrong_size(self.image.width, self.image.height));
+        }
+        Ok(())
+    }
+
+    fn wrong_size(&self, width: usize, height: usize) -> PerceptionError {
+        PerceptionError::Image(ImageError::WrongSize {
+            width,
+            height,
+            expected_width: self.calibration.width,
+            expected_height: self.calibration.height,
+        })
+    }
+
+    fn classify(&mut self) {
+        for (class, entry) in self.classes.iter_mut().zip(&self.table.entries) {
+            let rgb = WarpTable::sample(entry, &self.padded);
+            *class = self.thresholds.classify(rgb, entry.in_view);
+        }
+    }
+
+    /// The warped colour image of the last frame (the full `warpPerspective` output), for checks.
+    pub fn warped_image(&self) -> RgbImage {
+        let mut warped = RgbImage::new(self.calibration.width, self.calibration.height);
+        for entry in &self.table.entries {
+            warped.set_pixel(entry.x as usize, entry.y as usize, WarpTable::sample(entry, &self.padded));
+        }
+        warped
+    }
+}

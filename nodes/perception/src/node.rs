@@ -1,0 +1,212 @@
+//! The perception node (`rover perception`): camera JPEGs and telemetry in, terrain scans and the
+//! classified bird's-eye view out.
+
+use futures::StreamExt;
+use rover_msgs::builtin_interfaces::Time;
+use rover_msgs::msg::{Telemetry, TerrainScan};
+use rover_msgs::sensor_msgs::{CompressedImage, Image};
+use rover_msgs::std_msgs::Header;
+use rover_node::pairing::Pairer;
+use rover_node::{Publisher, Runtime, messages, topics};
+
+use crate::classify::{RockRule, Thresholds};
+use crate::scan::{ScanGeometry, vision_image};
+use crate::{Calibration, Perception};
+
+rover_node::node_params! {
+    /// Parameters of the perception node.
+    pub struct PerceptionParams {
+        /// Calibration corners in the camera image: near-left x, y, near-right x, y, far-right x, y, far-left x, y (pixels).
+        source_points_px: Vec<f64> = vec![14.0, 140.0, 301.0, 140.0, 200.0, 96.0, 118.0, 96.0],
+        /// Half the side of the calibration cell in the warped image, pixels.
+        destination_half_size_px: f64 [1.0, 50.0] = 5.0,
+        /// Warped rows between the bottom of the image and the calibration cell.
+        bottom_offset_px: f64 [0.0, 100.0] = 6.0,
+        /// Warped pixels per metre.
+        pixels_per_metre: f64 [1.0, 100.0] = 10.0,
+        /// Distance from the rover's position to the calibration cell's near edge, metres.
+        near_edge_ahead_m: f64 [0.0, 5.0] = 0.8279,
+        /// Navigable when red, green and blue all exceed these values.
+        navigable_rgb_min: Vec<i64> = vec![160i64, 160, 160],
+        /// Rock rule: "rgb" (red > r, green > g, blue < b) or "hsv" (OpenCV HSV within bounds).
+        rock_rule: String = "rgb",
+        /// RGB rock rule: red above, green above, blue below.
+        rock_rgb: Vec<i64> = vec![110i64, 110, 50],
+        /// HSV rock rule, lower bounds (H 0..180, S, V).
+        rock_hsv_lower: Vec<i64> = vec![0i64, 120, 120],
+        /// HSV rock rule, upper bounds.
+        rock_hsv_upper: Vec<i64> = vec![40i64, 255, 255],
+        /// Terrain scans keep warped pixels up to this distance ahead, metres.
+        max_range_m: f64 [0.5, 20.0] = 8.0,
+        /// Publish the classified bird's-eye view on rover/vision every this many frames (0: never).
+        vision_every_frames: i64 [0, 100000] = 10,
+    }
+}
+
+fn bytes<const N: usize>(name: &str, values: &[i64]) -> anyhow::Result<[u8; N]> {
+    anyhow::ensure!(values.len() == N, "parameter {name} needs {N} values, got {}", values.len());
+    let mut out = [0u8; N];
+    for (slot, &value) in out.iter_mut().zip(values) {
+        *slot = u8::try_from(value).map_err(|_| anyhow::anyhow!("parameter {name}: {value} is not in 0..=255"))?;
+    }
+    Ok(out)
+}
+
+impl PerceptionParams {
+    /// The calibration these parameters describe.
+    pub fn calibration(&self) -> anyhow::Result<Calibration> {
+        let p = &self.source_points_px;
+        anyhow::ensure!(p.len() == 8, "parameter source_points_px needs 8 numbers (4 corners), got {}", p.len());
+        Ok(Calibration {
+            source_px: [
+                [p[0] as f32, p[1] as f32],
+                [p[2] as f32, p[3] as f32],
+                [p[4] as f32, p[5] as f32],
+                [p[6] as f32, p[7] as f32],
+            ],
+            destination_half_size_px: self.destination_half_size_px as f32,
+            bottom_offset_px: self.bottom_offset_px as f32,
+            pixels_per_metre: self.pixels_per_metre as f32,
+            near_edge_ahead_m: self.near_edge_ahead_m,
+            ..Calibration::default()
+        })
+    }
+
+    /// The colour rules these parameters describe.
+    pub fn thresholds(&self) -> anyhow::Result<Thresholds> {
+        let rock = match self.rock_rule.as_str() {
+            "rgb" => {
+                let [min_red, min_green, max_blue] = bytes("rock_rgb", &self.rock_rgb)?;
+                RockRule::Rgb { min_red, min_green, max_blue }
+            }
+            "hsv" => RockRule::Hsv {
+                lower: bytes("rock_hsv_lower", &self.rock_hsv_lower)?,
+                upper: bytes("rock_hsv_upper", &self.rock_hsv_upper)?,
+            },
+            other => anyhow::bail!("parameter rock_rule = {other:?}: expected \"rgb\" or \"hsv\""),
+        };
+        Ok(Thresholds { navigable: bytes("navigable_rgb_min", &self.navigable_rgb_min)?, rock })
+    }
+
+    /// The perception pipeline and its scan geometry.
+    pub fn pipeline(&self) -> anyhow::Result<(Perception, ScanGeometry)> {
+        let calibration = self.calibration()?;
+        let perception = Perception::new(calibration, self.thresholds()?)?;
+        let geometry = ScanGeometry::new(&calibration, perception.table(), self.max_range_m);
+        Ok((perception, geometry))
+    }
+}
+
+/// How many unmatched camera frames or telemetry messages are kept while waiting for a partner.
+const PAIRING_BACKLOG: usize = 16;
+
+/// Runs the perception node until shutdown.
+pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
+    let (mut node, params) = runtime.node::<PerceptionParams>("perception")?;
+    let span = node.span();
+    let settings = params.get();
+    let (perception, geometry) = settings.pipeline()?;
+    let mut worker = Worker {
+        perception,
+        geometry,
+        terrain: node.publisher(&topics::TERRAIN)?,
+        vision: node.publisher(&topics::VISION)?,
+        settings,
+        frames: 0,
+        rejected: 0,
+        cells: Vec::new(),
+    };
+    let telemetry_subscription = node.subscription(&topics::TELEMETRY)?;
+    let camera_subscription = node.subscription(&topics::CAMERA_COMPRESSED)?;
+    let mut telemetry = std::pin::pin!(messages(&telemetry_subscription));
+    let mut camera = std::pin::pin!(messages(&camera_subscription));
+    let mut pairs: Pairer<Time, CompressedImage, Telemetry> = Pairer::new(PAIRING_BACKLOG);
+    let shutdown = runtime.shutdown();
+    loop {
+        let pair = tokio::select! {
+            () = shutdown.wait() => break,
+            Some(image) = camera.next() => pairs.push_first(image.header.stamp.clone(), image),
+            Some(pose) = telemetry.next() => pairs.push_second(pose.header.stamp.clone(), pose),
+            else => break,
+        };
+        if let Some((image, pose)) = pair {
+            let _entered = span.enter();
+            worker.handle(image.header, &image.data, pose);
+        }
+    }
+    tracing::info!(parent: &span, "perception: {} frames, {} rejected, {} unpaired", worker.frames, worker.rejected, pairs.dropped());
+    Ok(())
+}
+
+struct Worker {
+    perception: Perception,
+    geometry: ScanGeometry,
+    terrain: Publisher<TerrainScan>,
+    vision: Publisher<Image>,
+    settings: PerceptionParams,
+    frames: u64,
+    rejected: u64,
+    cells: Vec<u8>,
+}
+
+impl Worker {
+    fn handle(&mut self, header: Header, jpeg: &[u8], pose: Telemetry) {
+        if ![pose.x_m, pose.y_m].iter().all(|v| v.is_finite())
+            || ![pose.yaw_rad, pose.pitch_rad, pose.roll_rad].iter().all(|v| v.is_finite())
+        {
+            self.rejected += 1;
+            tracing::warn!(frame = pose.frame, "telemetry pose is not finite: frame skipped");
+            return;
+        }
+        if let Err(e) = self.perception.process_jpeg(jpeg) {
+            self.rejected += 1;
+            tracing::warn!(frame = pose.frame, "camera image rejected: {e}");
+            return;
+        }
+        self.frames += 1;
+        let classes = self.perception.classes();
+        let summary = self.geometry.summarize(classes);
+        self.geometry.fill(classes, &mut self.cells);
+        let (rock_bearing, rock_distance) = summary.rock.unwrap_or((0.0, 0.0));
+        let scan = TerrainScan {
+            header: Header { frame_id: "base_link".to_string(), ..header.clone() },
+            frame: pose.frame,
+            x_m: pose.x_m,
+            y_m: pose.y_m,
+            yaw_rad: pose.yaw_rad,
+            pitch_rad: pose.pitch_rad,
+            roll_rad: pose.roll_rad,
+            resolution_m: self.geometry.resolution_m as f32,
+            origin_x_m: self.geometry.origin_x_m as f32,
+            origin_y_m: self.geometry.origin_y_m as f32,
+            rows: self.geometry.rows as u32,
+            cols: self.geometry.cols as u32,
+            cells: self.cells.clone(),
+            navigable_count: summary.navigable_count,
+            navigable_bearing_rad: summary.navigable_bearing_rad,
+            navigable_distance_m: summary.navigable_distance_m,
+            rock_seen: summary.rock.is_some(),
+            rock_bearing_rad: rock_bearing,
+            rock_distance_m: rock_distance,
+        };
+        if let Err(e) = self.terrain.publish(scan) {
+            tracing::warn!("cannot publish rover/terrain: {e:?}");
+        }
+        let every = self.settings.vision_every_frames as u64;
+        if every > 0 && self.frames.is_multiple_of(every) {
+            let image = vision_image(self.perception.table(), self.perception.classes());
+            let message = Image {
+                header,
+                height: image.height as u32,
+                width: image.width as u32,
+                encoding: "rgb8".to_string(),
+                is_bigendian: 0,
+                step: image.width as u32 * 3,
+                data: image.data,
+            };
+            if let Err(e) = self.vision.publish(message) {
+                tracing::warn!("cannot publish rover/vision: {e:?}");
+            }
+        }
+    }
+}

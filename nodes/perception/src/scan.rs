@@ -1,0 +1,163 @@
+//! The rover-frame terrain scan of a frame: the classified warped pixels as a grid (x forward,
+//! y left), summaries for steering, and the classified bird's-eye image for the simulator inset.
+
+use rover_imaging::RgbImage;
+
+use crate::Calibration;
+use crate::classify::Class;
+use crate::warp::WarpTable;
+
+/// Where the table entries fall in the rover-frame grid.
+#[derive(Debug, Clone)]
+pub struct ScanGeometry {
+    /// Grid rows (forward bins).
+    pub rows: usize,
+    /// Grid columns (lateral bins).
+    pub cols: usize,
+    /// Cell size, metres.
+    pub resolution_m: f64,
+    /// x of the grid's near edge, metres ahead of the rover position.
+    pub origin_x_m: f64,
+    /// y of the grid's right edge, metres (left positive).
+    pub origin_y_m: f64,
+    /// Grid cell of each table entry, or `None` beyond the range limit.
+    pub cell_of_entry: Vec<Option<u32>>,
+    /// Rover-frame position (x, y) of each table entry, metres.
+    pub position_of_entry: Vec<(f32, f32)>,
+}
+
+impl ScanGeometry {
+    /// The grid for `table`, keeping entries up to `max_range_m` ahead.
+    pub fn new(calibration: &Calibration, table: &WarpTable, max_range_m: f64) -> Self {
+        let resolution_m = 1.0 / calibration.pixels_per_metre as f64;
+        let (w, h) = (calibration.width, calibration.height);
+        let (near_x, right_y) = calibration.rover_position((w - 1) as f64, (h - 1) as f64);
+        let rows = (((max_range_m - near_x) / resolution_m).floor() as usize + 1).min(h);
+        let mut cell_of_entry = Vec::with_capacity(table.entries.len());
+        let mut position_of_entry = Vec::with_capacity(table.entries.len());
+        for entry in &table.entries {
+            let (x, y) = calibration.rover_position(entry.x as f64, entry.y as f64);
+            position_of_entry.push((x as f32, y as f32));
+            let (row, col) = (h - 1 - entry.y as usize, w - 1 - entry.x as usize);
+            cell_of_entry.push((row < rows).then_some((row * w + col) as u32));
+        }
+        ScanGeometry {
+            rows,
+            cols: w,
+            resolution_m,
+            origin_x_m: near_x - resolution_m / 2.0,
+            origin_y_m: right_y - resolution_m / 2.0,
+            cell_of_entry,
+            position_of_entry,
+        }
+    }
+
+    /// Writes the class codes of a frame into `cells` (rows * cols, row-major).
+    pub fn fill(&self, classes: &[Class], cells: &mut Vec<u8>) {
+        cells.clear();
+        cells.resize(self.rows * self.cols, Class::Unknown as u8);
+        for (class, cell) in classes.iter().zip(&self.cell_of_entry) {
+            if let Some(cell) = cell {
+                cells[*cell as usize] = *class as u8;
+            }
+        }
+    }
+
+    /// Summaries of a frame for steering: the navigable pixels' mean bearing and distance, and the
+    /// nearest rock pixels' bearing and distance.
+    pub fn summarize(&self, classes: &[Class]) -> ScanSummary {
+        let mut summary = ScanSummary::default();
+        let (mut bearing_sum, mut distance_sum) = (0.0f64, 0.0f64);
+        let mut rock: Option<(f32, f32)> = None;
+        for (class, &(x, y)) in classes.iter().zip(&self.position_of_entry) {
+            match class {
+                Class::Navigable => {
+                    summary.navigable_count += 1;
+                    bearing_sum += (y as f64).atan2(x as f64);
+                    distance_sum += (x as f64).hypot(y as f64);
+                }
+                Class::Rock => {
+                    let distance = x.hypot(y);
+                    if rock.is_none_or(|(_, d)| distance < d) {
+                        rock = Some((y.atan2(x), distance));
+                    }
+                }
+                _ => {}
+            }
+        }
+        if summary.navigable_count > 0 {
+            summary.navigable_bearing_rad = (bearing_sum / summary.navigable_count as f64) as f32;
+            summary.navigable_distance_m = (distance_sum / summary.navigable_count as f64) as f32;
+        }
+        summary.rock = rock;
+        summary
+    }
+}
+
+/// What a frame shows, in a few numbers.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ScanSummary {
+    /// Navigable pixels in view.
+    pub navigable_count: u32,
+    /// Their mean bearing, radians, positive left.
+    pub navigable_bearing_rad: f32,
+    /// Their mean distance, metres.
+    pub navigable_distance_m: f32,
+    /// Bearing (radians, positive left) and distance (m) of the nearest rock pixel, if any.
+    pub rock: Option<(f32, f32)>,
+}
+
+/// The classified bird's-eye view: obstacles red, rocks white, navigable blue (the starter's inset).
+pub fn vision_image(table: &WarpTable, classes: &[Class]) -> RgbImage {
+    let mut image = RgbImage::new(table.width, table.height);
+    for (entry, class) in table.entries.iter().zip(classes) {
+        let rgb = match class {
+            Class::Unknown => continue,
+            Class::Navigable => [0, 0, 255],
+            Class::Obstacle => [255, 0, 0],
+            Class::Rock => [255, 255, 255],
+        };
+        image.set_pixel(entry.x as usize, entry.y as usize, rgb);
+    }
+    image
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Perception;
+    use crate::classify::Thresholds;
+
+    #[test]
+    fn geometry_puts_the_calibration_cell_0_83_m_ahead() {
+        let calibration = Calibration::default();
+        let (x, y) = calibration.rover_position(160.0, 154.0);
+        assert!((x - 0.8279).abs() < 1e-9 && y.abs() < 1e-9);
+        let perception = Perception::new(calibration, Thresholds::default()).unwrap();
+        let geometry = ScanGeometry::new(&calibration, perception.table(), 8.0);
+        assert_eq!(geometry.cols, 320);
+        assert!((geometry.origin_x_m - (0.3279 - 0.05)).abs() < 1e-9, "{}", geometry.origin_x_m);
+        let last_row_x = geometry.origin_x_m + (geometry.rows as f64 - 0.5) * geometry.resolution_m;
+        assert!(last_row_x <= 8.0 + 1e-9 && last_row_x > 7.85, "{last_row_x}");
+        let in_range = geometry.cell_of_entry.iter().filter(|c| c.is_some()).count();
+        assert!(in_range > 5000 && in_range < perception.table().entries.len(), "{in_range}");
+    }
+
+    #[test]
+    fn all_white_ground_is_navigable_straight_ahead() {
+        let calibration = Calibration::default();
+        let mut perception = Perception::new(calibration, Thresholds::default()).unwrap();
+        let mut white = RgbImage::new(320, 160);
+        white.data.fill(230);
+        let classes = perception.process_rgb(&white).unwrap().to_vec();
+        let geometry = ScanGeometry::new(&calibration, perception.table(), 100.0);
+        let summary = geometry.summarize(&classes);
+        assert!(summary.navigable_count > 30_000, "{summary:?}");
+        assert!(summary.navigable_bearing_rad.abs() < 0.01, "{summary:?}");
+        assert!(summary.rock.is_none());
+        let mut cells = Vec::new();
+        geometry.fill(&classes, &mut cells);
+        assert_eq!(cells.len(), geometry.rows * geometry.cols);
+        assert!(cells.iter().filter(|&&c| c == Class::Navigable as u8).count() > 30_000);
+    }
+}

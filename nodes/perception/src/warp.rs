@@ -1,0 +1,178 @@
+//! The bird's-eye warp as a lookup table: for every warped pixel whose source neighbourhood touches
+//! the camera image, the source pixels and the fixed-point bilinear weights that OpenCV's
+//! `warpPerspective` (INTER_LINEAR, constant black border) would use, so that interpolating only
+//! these entries gives the same bytes as warping the whole image.
+//!
+//! The source coordinates come from the inverse homography evaluated in double precision in blocks
+//! of 64x16 warped pixels (the row terms are computed at the block's first column), scaled to
+//! 1/32 pixel and rounded half to even. Weights are 15-bit products of the 1/32 fractions; the
+//! whole-pixel entry keeps OpenCV's 32767 + 1 split, which is invisible on 8-bit images.
+
+use crate::homography::{Matrix3, invert};
+
+/// Sub-pixel resolution of the source coordinates (OpenCV's INTER_BITS).
+const INTER_BITS: u32 = 5;
+const INTER_TAB_SIZE: i32 = 1 << INTER_BITS;
+/// Fixed-point scale of the weights (OpenCV's INTER_REMAP_COEF_BITS).
+pub const WEIGHT_BITS: u32 = 15;
+/// OpenCV's warp block: 64 columns by 16 rows.
+const BLOCK_COLUMNS: usize = 64;
+const BLOCK_ROWS: usize = 16;
+
+/// One warped pixel: where it is, and how it is interpolated from the camera image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WarpEntry {
+    /// Column in the warped image.
+    pub x: u16,
+    /// Row in the warped image.
+    pub y: u16,
+    /// Source pixel indices (row-major) of the four taps; taps outside the image point at the
+    /// black pixel one past the end of the image.
+    pub taps: [u32; 4],
+    /// Fixed-point weights of the taps (sum 2^15).
+    pub weights: [i32; 4],
+    /// The warped pixel is inside the camera's field of view (the warped all-ones mask is 1).
+    pub in_view: bool,
+}
+
+/// The warp of a `width` x `height` image onto a warped image of the same size.
+#[derive(Debug, Clone)]
+pub struct WarpTable {
+    /// Image width, pixels.
+    pub width: usize,
+    /// Image height, pixels.
+    pub height: usize,
+    /// Warped pixels that see any of the image, in row-major order of the warped image.
+    pub entries: Vec<WarpEntry>,
+}
+
+/// The bilinear weights of OpenCV's 32x32 interpolation table for fractions (fx, fy) in 1/32 px.
+fn weights(fx: i32, fy: i32) -> [i32; 4] {
+    let one = 1 << WEIGHT_BITS;
+    let product = |a: i32, b: i32| a * b * (one / (INTER_TAB_SIZE * INTER_TAB_SIZE));
+    let (gx, gy) = (INTER_TAB_SIZE - fx, INTER_TAB_SIZE - fy);
+    let mut w = [product(gy, gx), product(gy, fx), product(fy, gx), product(fy, fx)];
+    if w[0] == one {
+        w = [one - 1, 0, 0, 1];
+    }
+    w
+}
+
+/// Rounds half to even and saturates to `i32`, like OpenCV's `saturate_cast<int>(double)`.
+fn round_to_int(value: f64) -> i32 {
+    value.clamp(i32::MIN as f64, i32::MAX as f64).round_ties_even() as i32
+}
+
+impl WarpTable {
+    /// Builds the table of the warp by `matrix` (source to warped) for `width` x `height` images.
+    pub fn new(matrix: &Matrix3, width: usize, height: usize) -> Option<Self> {
+        let m = invert(matrix)?;
+        let black = (width * height) as u32;
+        let mut entries = Vec::new();
+        let mut rows: Vec<Vec<WarpEntry>> = vec![Vec::new(); height];
+        for block_y in (0..height).step_by(BLOCK_ROWS) {
+            for block_x in (0..width).step_by(BLOCK_COLUMNS) {
+                let columns = BLOCK_COLUMNS.min(width - block_x);
+                for y in block_y..(block_y + BLOCK_ROWS).min(height) {
+                    let (bx, fy) = (block_x as f64, y as f64);
+                    let x0 = m[0] * bx + m[1] * fy + m[2];
+                    let y0 = m[3] * bx + m[4] * fy + m[5];
+                    let w0 = m[6] * bx + m[7] * fy + m[8];
+                    for column in 0..columns {
+                        let c = column as f64;
+                        let w = w0 + m[6] * c;
+                        let w = if w != 0.0 { INTER_TAB_SIZE as f64 / w } else { 0.0 };
+                        let sx_fixed = round_to_int((x0 + m[0] * c) * w);
+                        let sy_fixed = round_to_int((y0 + m[3] * c) * w);
+                        let entry = Self::entry((block_x + column, y), (sx_fixed, sy_fixed), (width, height), black);
+                        rows[y].extend(entry);
+                    }
+                }
+            }
+        }
+        for mut row in rows {
+            row.sort_by_key(|e| e.x);
+            entries.extend(row);
+        }
+        Some(WarpTable { width, height, entries })
+    }
+
+    fn entry(
+        (x, y): (usize, usize),
+        (sx_fixed, sy_fixed): (i32, i32),
+        (width, height): (usize, usize),
+        black: u32,
+    ) -> Option<WarpEntry> {
+        let sx = (sx_fixed >> INTER_BITS).clamp(i16::MIN as i32, i16::MAX as i32);
+        let sy = (sy_fixed >> INTER_BITS).clamp(i16::MIN as i32, i16::MAX as i32);
+        let (w, h) = (width as i32, height as i32);
+        if sx >= w || sx + 1 < 0 || sy >= h || sy + 1 < 0 {
+            return None;
+        }
+        let weights = weights(sx_fixed & (INTER_TAB_SIZE - 1), sy_fixed & (INTER_TAB_SIZE - 1));
+        let positions = [(sx, sy), (sx + 1, sy), (sx, sy + 1), (sx + 1, sy + 1)];
+        let inside = positions.map(|(px, py)| px >= 0 && py >= 0 && px < w && py < h);
+        let taps = [0, 1, 2, 3].map(|i| if inside[i] { (positions[i].1 * w + positions[i].0) as u32 } else { black });
+        let coverage: i32 = (0..4).filter(|&i| inside[i]).map(|i| weights[i]).sum();
+        let in_view = (coverage + (1 << (WEIGHT_BITS - 1))) >> WEIGHT_BITS >= 1;
+        Some(WarpEntry { x: x as u16, y: y as u16, taps, weights, in_view })
+    }
+
+    /// Interpolates one entry from an RGB image that has a black pixel appended (see [`padded`]).
+    #[inline]
+    pub fn sample(entry: &WarpEntry, rgb: &[u8]) -> [u8; 3] {
+        let mut out = [0u8; 3];
+        for (k, value) in out.iter_mut().enumerate() {
+            let mut sum = 1 << (WEIGHT_BITS - 1);
+            for tap in 0..4 {
+                sum += rgb[entry.taps[tap] as usize * 3 + k] as i32 * entry.weights[tap];
+            }
+            *value = (sum >> WEIGHT_BITS).clamp(0, 255) as u8;
+        }
+        out
+    }
+}
+
+/// Copies `rgb` into `buffer` followed by one black pixel, the target of taps outside the image.
+pub fn padded(rgb: &[u8], buffer: &mut Vec<u8>) {
+    buffer.clear();
+    buffer.extend_from_slice(rgb);
+    buffer.extend_from_slice(&[0, 0, 0]);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::homography::perspective_transform;
+
+    #[test]
+    fn weights_are_exact_bilinear_with_the_whole_pixel_quirk() {
+        assert_eq!(weights(0, 0), [32767, 0, 0, 1]);
+        assert_eq!(weights(16, 0), [16384, 16384, 0, 0]);
+        assert_eq!(weights(8, 24), [6144, 2048, 18432, 6144]);
+        for fx in 0..32 {
+            for fy in 0..32 {
+                assert_eq!(weights(fx, fy).iter().sum::<i32>(), 32768);
+            }
+        }
+    }
+
+    #[test]
+    fn an_identity_warp_copies_the_image() {
+        let identity = perspective_transform(
+            &[[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]],
+            &[[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]],
+        )
+        .unwrap();
+        let table = WarpTable::new(&identity, 20, 10).unwrap();
+        assert_eq!(table.entries.len(), 200);
+        let rgb: Vec<u8> = (0..600).map(|i| (i * 7 % 256) as u8).collect();
+        let mut buffer = Vec::new();
+        padded(&rgb, &mut buffer);
+        for entry in &table.entries {
+            let at = (entry.y as usize * 20 + entry.x as usize) * 3;
+            assert_eq!(WarpTable::sample(entry, &buffer), [rgb[at], rgb[at + 1], rgb[at + 2]]);
+            assert!(entry.in_view);
+        }
+    }
+}

@@ -1,0 +1,5 @@
+//! The `rover` application: the subcommands that combine the libraries of the graph (replaying
+//! recorded datasets, the demo, the evaluation).
+
+pub mod dataset;
+pub mod replay;

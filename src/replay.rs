@@ -1,0 +1,163 @@
+//! `rover replay`: a recorded Udacity dataset through perception and mapping, scored the Udacity way.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use rover_bridge::convert::{rep103_roll_rad, wrapped_rad};
+use rover_mapping::map::{ScanGrid, Update, WorldMap};
+use rover_mapping::params::MappingParams;
+use rover_mapping::projection::Pose;
+use rover_mapping::rocks::rock_positions;
+use rover_mapping::score::ground_truth_from_png;
+use rover_perception::node::PerceptionParams;
+use serde::Serialize;
+
+use crate::dataset::{RecordedFrame, read_log};
+
+/// Options of `rover replay`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ReplayArgs {
+    /// Dataset folder with robot_log.csv and IMG/ (e.g. ../shared/udacity/test_dataset).
+    pub dataset: PathBuf,
+    /// Ground-truth map for the scores (200x200 PNG, navigable > 0).
+    #[arg(long, value_name = "MAP_PNG")]
+    pub ground_truth: Option<PathBuf>,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What a replay measured.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ReplayReport {
+    /// Frames in the dataset.
+    pub frames: usize,
+    /// Frames the map used.
+    pub frames_mapped: usize,
+    /// Frames skipped for pitch or roll.
+    pub frames_skipped_tilt: usize,
+    /// Frames whose image could not be used.
+    pub frames_rejected: usize,
+    /// Udacity mapped %, if a ground truth was given.
+    pub mapped_pct: Option<f64>,
+    /// Udacity fidelity %, if a ground truth was given.
+    pub fidelity_pct: Option<f64>,
+    /// Distinct rocks located.
+    pub rocks_located: usize,
+    /// Navigable cells of the map.
+    pub navigable_cells: usize,
+    /// Median time of perception per frame (JPEG decode, table, classes, scan grid), ms.
+    pub perception_ms_median: f64,
+    /// Median time of a map update per frame, ms.
+    pub mapping_ms_median: f64,
+}
+
+fn median_ms(mut samples: Vec<Duration>) -> f64 {
+    if samples.is_empty() {
+        return 0.0;
+    }
+    samples.sort();
+    samples[samples.len() / 2].as_secs_f64() * 1000.0
+}
+
+/// The pose of a recorded frame in REP-103 angles, converted like the bridge converts telemetry.
+pub fn frame_pose(frame: &RecordedFrame) -> Pose {
+    Pose {
+        x_m: frame.x_m,
+        y_m: frame.y_m,
+        yaw_rad: wrapped_rad(frame.yaw_deg),
+        pitch_rad: wrapped_rad(frame.pitch_deg),
+        roll_rad: rep103_roll_rad(frame.roll_deg),
+    }
+}
+
+/// Replays `frames` through the perception and mapping libraries.
+pub fn replay_frames(
+    frames: &[RecordedFrame],
+    perception: &PerceptionParams,
+    mapping: &MappingParams,
+    ground_truth: Option<&[bool]>,
+) -> anyhow::Result<(ReplayReport, WorldMap)> {
+    let (mut pipeline, geometry) = perception.pipeline()?;
+    let mut map = WorldMap::new(mapping.map_config());
+    let (mut perception_times, mut mapping_times) = (Vec::new(), Vec::new());
+    let (mut mapped, mut skipped, mut rejected) = (0, 0, 0);
+    let mut cells = Vec::new();
+    for frame in frames {
+        let jpeg = frame.jpeg()?;
+        let started = Instant::now();
+        let classes = match pipeline.process_jpeg(&jpeg) {
+            Ok(classes) => classes,
+            Err(e) => {
+                tracing::warn!("{}: {e}", frame.image.display());
+                rejected += 1;
+                continue;
+            }
+        };
+        geometry.fill(classes, &mut cells);
+        perception_times.push(started.elapsed());
+        let scan = ScanGrid {
+            rows: geometry.rows,
+            cols: geometry.cols,
+            resolution_m: geometry.resolution_m,
+            origin_x_m: geometry.origin_x_m,
+            origin_y_m: geometry.origin_y_m,
+            cells: &cells,
+        };
+        let started = Instant::now();
+        let update = map.update(&scan, frame_pose(frame));
+        mapping_times.push(started.elapsed());
+        match update {
+            Update::Used(_) => mapped += 1,
+            Update::SkippedTilt => skipped += 1,
+            Update::Malformed => rejected += 1,
+        }
+    }
+    let scores = ground_truth.map(|truth| map.scores(truth));
+    let report = ReplayReport {
+        frames: frames.len(),
+        frames_mapped: mapped,
+        frames_skipped_tilt: skipped,
+        frames_rejected: rejected,
+        mapped_pct: scores.map(|s| s.mapped_pct),
+        fidelity_pct: scores.map(|s| s.fidelity_pct),
+        rocks_located: rock_positions(&map.rock_cells(), mapping.rock_merge_m).len(),
+        navigable_cells: map.cell_counts().0,
+        perception_ms_median: median_ms(perception_times),
+        mapping_ms_median: median_ms(mapping_times),
+    };
+    Ok((report, map))
+}
+
+/// Reads a ground-truth PNG.
+pub fn read_ground_truth(path: &Path) -> anyhow::Result<Vec<bool>> {
+    let png = std::fs::read(path).map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
+    ground_truth_from_png(&png).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}
+
+/// Runs `rover replay` and prints the report.
+pub fn run(args: &ReplayArgs, perception: &PerceptionParams, mapping: &MappingParams) -> anyhow::Result<ReplayReport> {
+    let frames = read_log(&args.dataset)?;
+    let truth = args.ground_truth.as_deref().map(read_ground_truth).transpose()?;
+    let (report, _) = replay_frames(&frames, perception, mapping, truth.as_deref())?;
+    if args.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print_table(&report);
+    }
+    Ok(report)
+}
+
+fn print_table(report: &ReplayReport) {
+    let percent = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1} %"));
+    println!(
+        "frames                {:>8}  (mapped {}, skipped for tilt {}, rejected {})",
+        report.frames, report.frames_mapped, report.frames_skipped_tilt, report.frames_rejected
+    );
+    println!("mapped                {:>8}", percent(report.mapped_pct));
+    println!("fidelity              {:>8}", percent(report.fidelity_pct));
+    println!("rocks located         {:>8}", report.rocks_located);
+    println!("navigable cells       {:>8}", report.navigable_cells);
+    println!("perception per frame  {:>6.3} ms (median)", report.perception_ms_median);
+    println!("map update per frame  {:>6.3} ms (median)", report.mapping_ms_median);
+}
