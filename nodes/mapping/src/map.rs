@@ -230,6 +230,17 @@ pub fn cell_index(x_m: f64, y_m: f64) -> Option<usize> {
 mod tests {
     use super::*;
 
+    /// Needs two navigable frames and twice as many navigable as obstacle frames.
+    const STRICT: MapConfig = MapConfig {
+        max_range_m: 8.0,
+        max_tilt_deg: 3.0,
+        correct_tilt: true,
+        min_navigable_hits: 2,
+        navigable_ratio: 2.0,
+        min_obstacle_hits: 2,
+        min_rock_hits: 2,
+    };
+
     fn scan(cells: &[u8], rows: usize, cols: usize) -> ScanGrid<'_> {
         ScanGrid { rows, cols, resolution_m: 0.5, origin_x_m: 1.0, origin_y_m: -0.5 * cols as f64 / 2.0, cells }
     }
@@ -238,7 +249,7 @@ mod tests {
     fn a_cell_is_counted_once_per_frame_and_needs_two_frames() {
         let cells = vec![NAVIGABLE; 4 * 4];
         let pose = Pose { x_m: 100.0, y_m: 100.0, ..Pose::default() };
-        let mut map = WorldMap::new(MapConfig::default());
+        let mut map = WorldMap::new(STRICT);
         assert_eq!(map.update(&scan(&cells, 4, 4), pose), Update::Used(16));
         let cell = cell_index(101.8, 100.2).unwrap();
         assert_eq!(map.evidence(cell), (1, 0, 0), "four scan cells in one map cell count once");
@@ -251,7 +262,7 @@ mod tests {
     #[test]
     fn obstacles_outvote_and_tilted_frames_are_skipped() {
         let pose = Pose { x_m: 50.0, y_m: 50.0, ..Pose::default() };
-        let mut map = WorldMap::new(MapConfig::default());
+        let mut map = WorldMap::new(STRICT);
         for _ in 0..3 {
             map.update(&scan(&[rover_msgs::msg::TerrainScan::OBSTACLE; 16], 4, 4), pose);
         }
