@@ -25,6 +25,12 @@ enum Command {
     /// drive and pickup commands back.
     #[command(after_help = ROS_ARGS_HELP)]
     Bridge,
+    /// Run the perception node: camera JPEGs to rover-frame terrain scans and the bird's-eye view.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Perception,
+    /// Run the mapping node: terrain scans to the world map, its image, statistics and rocks.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Mapping,
     /// Replay a recorded dataset (robot_log.csv + IMG/) through perception and mapping and print
     /// the Udacity scores. Parameters: -p perception:NAME:=VALUE, -p mapping:NAME:=VALUE.
     #[command(after_help = ROS_ARGS_HELP)]
@@ -35,7 +41,10 @@ enum Command {
 }
 
 fn cli_command() -> clap::Command {
-    Cli::command().mut_subcommand("bridge", |c| c.after_long_help(node_help::<rover_bridge::node::BridgeParams>()))
+    Cli::command()
+        .mut_subcommand("bridge", |c| c.after_long_help(node_help::<rover_bridge::node::BridgeParams>()))
+        .mut_subcommand("perception", |c| c.after_long_help(node_help::<rover_perception::node::PerceptionParams>()))
+        .mut_subcommand("mapping", |c| c.after_long_help(node_help::<rover_mapping::params::MappingParams>()))
 }
 
 fn node_help<P: NodeParams>() -> String {
@@ -63,7 +72,12 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    match runtime.block_on(run(cli.command, ros_args)) {
+    let mut participant = None;
+    let result = runtime.block_on(run(cli.command, ros_args, &mut participant));
+    // The tasks that own subscriptions and spinners go first, the DDS participant they use last.
+    drop(runtime);
+    drop(participant);
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             tracing::error!("{e:#}");
@@ -72,10 +86,17 @@ fn main() -> ExitCode {
     }
 }
 
-async fn run(command: Command, ros_args: rover_node::RosArgs) -> anyhow::Result<()> {
+/// The DDS runtime of the process, kept in `slot` so that it outlives the async tasks.
+fn dds<'a>(slot: &'a mut Option<Runtime>, ros_args: rover_node::RosArgs, shutdown: Shutdown) -> anyhow::Result<&'a Runtime> {
+    Ok(slot.insert(Runtime::new(ros_args, shutdown)?))
+}
+
+async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut Option<Runtime>) -> anyhow::Result<()> {
     let shutdown = Shutdown::on_signals();
     match command {
-        Command::Bridge => rover_bridge::node::run(&Runtime::new(ros_args, shutdown)?).await,
+        Command::Bridge => rover_bridge::node::run(dds(participant, ros_args, shutdown)?).await,
+        Command::Perception => rover_perception::node::run(dds(participant, ros_args, shutdown)?).await,
+        Command::Mapping => rover_mapping::node::run(dds(participant, ros_args, shutdown)?).await,
         Command::Replay(args) => {
             let perception = rover_node::resolve_params("perception", &ros_args)?;
             let mapping = rover_node::resolve_params("mapping", &ros_args)?;

@@ -30,6 +30,9 @@ const BRAKE_LIMIT: f64 = 4.9;
 const TURN_IN_PLACE_BELOW_MPS: f64 = 0.316;
 /// Radius of the rover's footprint around its reported position, metres.
 pub const FOOTPRINT_RADIUS_M: f64 = 0.5;
+/// A blocked move slides along the obstacle when at least this fraction of it is left; otherwise
+/// the rover stops (a head-on collision).
+const SLIDE_MIN_FRACTION: f64 = 0.2;
 /// A contact ends only once the rover is this far from the obstacle, metres.
 const CONTACT_MARGIN_M: f64 = 0.05;
 /// The arm reaches samples around this point ahead of the position, metres.
@@ -259,32 +262,46 @@ impl Rover {
 
     fn move_forward(&mut self, h: f64, world: &World, samples: &[Sample], events: &mut StepEvents) {
         let (s, c) = self.yaw_deg.to_radians().sin_cos();
-        let (nx, ny) = (self.x_m + self.speed_mps * h * c, self.y_m + self.speed_mps * h * s);
-        let blocked = self.speed_mps != 0.0 && footprint_blocked(world, samples, nx, ny, FOOTPRINT_RADIUS_M);
-        if blocked {
-            if !self.in_contact {
+        let step = [self.speed_mps * h * c, self.speed_mps * h * s];
+        let free_at = |dx: f64, dy: f64| !footprint_blocked(world, samples, self.x_m + dx, self.y_m + dy, FOOTPRINT_RADIUS_M);
+        let (moved, speed_kept) = if self.speed_mps == 0.0 || free_at(step[0], step[1]) {
+            (step, 1.0)
+        } else {
+            let slide = contact_normal(world, samples, self.x_m + step[0], self.y_m + step[1], FOOTPRINT_RADIUS_M)
+                .map(|normal| {
+                    let into = step[0] * normal[0] + step[1] * normal[1];
+                    [step[0] - into * normal[0], step[1] - into * normal[1]]
+                })
+                .filter(|slide| free_at(slide[0], slide[1]));
+            let length = step[0].hypot(step[1]);
+            match slide {
+                Some(slide) if slide[0].hypot(slide[1]) > SLIDE_MIN_FRACTION * length => {
+                    (slide, slide[0].hypot(slide[1]) / length)
+                }
+                _ => {
+                    let free = furthest_free_fraction(|f| !free_at(f * step[0], f * step[1]));
+                    ([free * step[0], free * step[1]], 0.0)
+                }
+            }
+        };
+        if speed_kept < 1.0 {
+            if !self.in_contact && speed_kept < SLIDE_MIN_FRACTION.max(0.5) {
                 events.collision = true;
             }
-            let free = furthest_free_fraction(|f| {
-                footprint_blocked(
-                    world,
-                    samples,
-                    self.x_m + f * (nx - self.x_m),
-                    self.y_m + f * (ny - self.y_m),
-                    FOOTPRINT_RADIUS_M,
-                )
-            });
-            events.distance_m += free * (nx - self.x_m).hypot(ny - self.y_m);
-            self.x_m += free * (nx - self.x_m);
-            self.y_m += free * (ny - self.y_m);
             self.in_contact = true;
-            self.speed_mps = 0.0;
+            self.speed_mps *= speed_kept;
         } else {
-            events.distance_m += (nx - self.x_m).hypot(ny - self.y_m);
-            self.x_m = nx;
-            self.y_m = ny;
-            self.in_contact &= footprint_blocked(world, samples, nx, ny, FOOTPRINT_RADIUS_M + CONTACT_MARGIN_M);
+            self.in_contact &= footprint_blocked(
+                world,
+                samples,
+                self.x_m + moved[0],
+                self.y_m + moved[1],
+                FOOTPRINT_RADIUS_M + CONTACT_MARGIN_M,
+            );
         }
+        events.distance_m += moved[0].hypot(moved[1]);
+        self.x_m += moved[0];
+        self.y_m += moved[1];
         if self.throttle.abs() > 0.05 && self.brake == 0.0 && self.speed_mps.abs() < 0.05 && !self.turning_in_place {
             events.stuck = true;
         }
@@ -297,6 +314,31 @@ impl Rover {
         self.pitch_deg += (pitch_target - self.pitch_deg) * blend;
         self.roll_deg += (roll_target - self.roll_deg) * blend;
     }
+}
+
+/// The unit vector from the nearest blocking point to (x, y), for a footprint of radius `r` that
+/// overlaps a wall cell or a sample there.
+fn contact_normal(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) -> Option<[f64; 2]> {
+    let mut nearest: Option<(f64, [f64; 2])> = None;
+    let mut consider = |qx: f64, qy: f64, clearance: f64| {
+        let distance = (x - qx).hypot(y - qy) - clearance;
+        if distance < r && nearest.is_none_or(|(d, _)| distance < d) {
+            nearest = Some((distance, [qx, qy]));
+        }
+    };
+    for iy in (y - r).floor() as i64..=(y + r).floor() as i64 {
+        for ix in (x - r).floor() as i64..=(x + r).floor() as i64 {
+            if !world.is_floor(ix, iy) {
+                consider(x.clamp(ix as f64, ix as f64 + 1.0), y.clamp(iy as f64, iy as f64 + 1.0), 0.0);
+            }
+        }
+    }
+    for sample in samples {
+        consider(sample.x_m, sample.y_m, sample.radius_m);
+    }
+    let (_, [qx, qy]) = nearest?;
+    let length = (x - qx).hypot(y - qy);
+    (length > 1e-9).then(|| [(x - qx) / length, (y - qy) / length])
 }
 
 /// The largest fraction of a move in [0, 1] that stays free, by bisection (`blocked(0)` is false).
@@ -423,6 +465,15 @@ mod tests {
         }
         assert!(rover.x_m <= 180.0 - FOOTPRINT_RADIUS_M + 1e-9, "stopped at the wall: x = {}", rover.x_m);
         assert_eq!(collisions, 1, "one collision while pushing against the wall");
+        let mut glancing = Rover::new(100.0, 179.3, 10.0);
+        glancing.apply(drive(1.0, 0.0, 0.0), &[]);
+        let mut glancing_collisions = 0;
+        for _ in 0..200 {
+            glancing_collisions += glancing.step(0.04, &world, &[]).1.collision as u32;
+        }
+        assert!(glancing.x_m > 102.0, "slides along a wall it meets at a shallow angle: x = {}", glancing.x_m);
+        assert!(glancing.y_m < 180.0 - FOOTPRINT_RADIUS_M + 1e-9);
+        assert_eq!(glancing_collisions, 0, "a glancing contact is not a collision");
         let sample = [Sample { x_m: 110.0, y_m: 50.0, radius_m: 0.1 }];
         let mut rover = Rover::new(100.0, 50.0, 0.0);
         rover.apply(drive(1.0, 0.0, 0.0), &sample);

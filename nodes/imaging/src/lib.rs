@@ -3,6 +3,8 @@
 //! JPEGs are written the way Unity's `EncodeToJPG()` writes the simulator's camera frames
 //! (JFIF, IJG quality 75, 4:2:0) and read with `zune-jpeg` into RGB buffers.
 
+pub mod text;
+
 use zune_jpeg::JpegDecoder;
 use zune_jpeg::zune_core::bytestream::ZCursor;
 use zune_jpeg::zune_core::colorspace::ColorSpace;

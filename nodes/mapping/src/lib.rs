@@ -2,6 +2,7 @@
 //! ([`map`]) with pitch and roll corrected through the camera model ([`projection`]), the exact
 //! Udacity scores ([`score`]), the map inset image ([`image`]) and the located rocks ([`rocks`]).
 
+pub mod image;
 pub mod map;
 pub mod node;
 pub mod params;

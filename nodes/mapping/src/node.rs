@@ -1,2 +1,279 @@
 //! The mapping node (`rover mapping`): terrain scans in; the map, its image, statistics and the
 //! located rocks out.
+
+use std::time::{Duration, Instant};
+
+use futures::StreamExt;
+use rover_msgs::geometry_msgs::{Point, Pose as PoseMsg, PoseArray, Quaternion};
+use rover_msgs::msg::{MapStats, Telemetry, TerrainScan};
+use rover_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
+use rover_msgs::sensor_msgs::Image;
+use rover_msgs::std_msgs::Header;
+use rover_node::{Publisher, Runtime, messages, topics};
+use tracing::Instrument as _;
+
+use crate::image::{InsetStats, map_inset};
+use crate::map::{ScanGrid, Update, WorldMap};
+use crate::params::MappingParams;
+use crate::projection::Pose;
+use crate::rocks::rock_positions;
+use crate::score::{MAP_SIDE, ground_truth_from_png, samples_located};
+
+/// The arm reaches this far ahead of the rover's position, metres.
+const REACH_AHEAD_M: f64 = 0.84;
+/// Rock evidence within this distance of a finished pickup is forgotten, metres.
+const PICKED_RADIUS_M: f64 = 1.5;
+/// A frame number this far below the last one means the bridge restarted.
+const RESTART_GAP: u64 = 1000;
+
+/// Counts of rejected scans, by reason.
+#[derive(Debug, Default)]
+struct Rejections {
+    out_of_order: u64,
+    bad_pose: u64,
+    malformed: u64,
+    tilted: u64,
+}
+
+/// The mapping node's state: the map and what it knows about samples.
+struct Mapping {
+    map: WorldMap,
+    params: MappingParams,
+    ground_truth: Option<Vec<bool>>,
+    samples_truth: Option<Vec<(f64, f64)>>,
+    first_remaining: Option<u8>,
+    last_remaining: Option<u8>,
+    collected: usize,
+    last_frame: Option<u64>,
+    rejections: Rejections,
+    started: Instant,
+    frames: u64,
+}
+
+impl Mapping {
+    fn new(params: MappingParams) -> anyhow::Result<Self> {
+        let ground_truth = if params.ground_truth_png.is_empty() {
+            None
+        } else {
+            let png = std::fs::read(&params.ground_truth_png)
+                .map_err(|e| anyhow::anyhow!("parameter ground_truth_png = {:?}: {e}", params.ground_truth_png))?;
+            Some(ground_truth_from_png(&png).map_err(|e| anyhow::anyhow!("parameter ground_truth_png: {e}"))?)
+        };
+        Ok(Mapping {
+            map: WorldMap::new(params.map_config()),
+            params,
+            ground_truth,
+            samples_truth: None,
+            first_remaining: None,
+            last_remaining: None,
+            collected: 0,
+            last_frame: None,
+            rejections: Rejections::default(),
+            started: Instant::now(),
+            frames: 0,
+        })
+    }
+
+    fn add_scan(&mut self, scan: &TerrainScan) {
+        if let Some(last) = self.last_frame
+            && scan.frame <= last
+            && scan.frame + RESTART_GAP > last
+        {
+            self.rejections.out_of_order += 1;
+            log_rejection(
+                self.rejections.out_of_order,
+                &format!("scan of frame {} arrived after frame {last}", scan.frame),
+            );
+            return;
+        }
+        let pose = Pose {
+            x_m: scan.x_m,
+            y_m: scan.y_m,
+            yaw_rad: scan.yaw_rad as f64,
+            pitch_rad: scan.pitch_rad as f64,
+            roll_rad: scan.roll_rad as f64,
+        };
+        if ![pose.x_m, pose.y_m, pose.yaw_rad, pose.pitch_rad, pose.roll_rad].iter().all(|v| v.is_finite()) {
+            self.rejections.bad_pose += 1;
+            log_rejection(self.rejections.bad_pose, &format!("scan of frame {} has a non-finite pose", scan.frame));
+            return;
+        }
+        self.last_frame = Some(scan.frame);
+        let grid = ScanGrid {
+            rows: scan.rows as usize,
+            cols: scan.cols as usize,
+            resolution_m: scan.resolution_m as f64,
+            origin_x_m: scan.origin_x_m as f64,
+            origin_y_m: scan.origin_y_m as f64,
+            cells: &scan.cells,
+        };
+        match self.map.update(&grid, pose) {
+            Update::Used(_) => self.frames += 1,
+            Update::SkippedTilt => self.rejections.tilted += 1,
+            Update::Malformed => {
+                self.rejections.malformed += 1;
+                log_rejection(
+                    self.rejections.malformed,
+                    &format!(
+                        "scan of frame {}: {} cells for {}x{}",
+                        scan.frame,
+                        scan.cells.len(),
+                        scan.rows,
+                        scan.cols
+                    ),
+                );
+            }
+        }
+    }
+
+    fn on_telemetry(&mut self, telemetry: &Telemetry) {
+        let remaining = telemetry.samples_remaining;
+        let first = *self.first_remaining.get_or_insert(remaining);
+        if self.last_remaining.is_some_and(|last| remaining < last) {
+            let (s, c) = (telemetry.yaw_rad as f64).sin_cos();
+            self.map.clear_rocks_near(
+                telemetry.x_m + REACH_AHEAD_M * c,
+                telemetry.y_m + REACH_AHEAD_M * s,
+                PICKED_RADIUS_M,
+            );
+        }
+        self.last_remaining = Some(remaining);
+        self.collected = first.saturating_sub(remaining) as usize;
+    }
+
+    fn rocks(&self) -> Vec<(f64, f64)> {
+        rock_positions(&self.map.rock_cells(), self.params.rock_merge_m)
+    }
+
+    fn stats(&self, header: Header) -> MapStats {
+        let (navigable_cells, obstacle_cells) = self.map.cell_counts();
+        let scores = self.ground_truth.as_deref().map(|truth| self.map.scores(truth));
+        let rocks_located = match &self.samples_truth {
+            Some(samples) => samples_located(&self.map.rock_cells(), samples),
+            None => self.rocks().len(),
+        };
+        MapStats {
+            header,
+            navigable_cells: navigable_cells as u32,
+            obstacle_cells: obstacle_cells as u32,
+            mapped_pct: scores.map_or(f32::NAN, |s| s.mapped_pct as f32),
+            fidelity_pct: scores.map_or(f32::NAN, |s| s.fidelity_pct as f32),
+            rocks_located: rocks_located as u32,
+        }
+    }
+}
+
+fn log_rejection(count: u64, problem: &str) {
+    if count.is_power_of_two() {
+        tracing::warn!("skipped a terrain scan: {problem} ({count} such so far)");
+    }
+}
+
+struct Outputs {
+    map: Publisher<OccupancyGrid>,
+    image: Publisher<Image>,
+    stats: Publisher<MapStats>,
+    rocks: Publisher<PoseArray>,
+    last_rocks: Vec<(f64, f64)>,
+}
+
+impl Outputs {
+    fn publish(&mut self, mapping: &Mapping) {
+        let header = Header::now("map");
+        let grid = OccupancyGrid {
+            header: header.clone(),
+            info: MapMetaData {
+                map_load_time: header.stamp.clone(),
+                resolution: 1.0,
+                width: MAP_SIDE as u32,
+                height: MAP_SIDE as u32,
+                origin: PoseMsg { position: Point::default(), orientation: Quaternion::from_yaw(0.0) },
+            },
+            data: mapping.map.occupancy(),
+        };
+        warn_on_error("map", self.map.publish(grid));
+        let stats = mapping.stats(header.clone());
+        let rocks = mapping.rocks();
+        let inset = InsetStats {
+            time_s: mapping.started.elapsed().as_secs_f64(),
+            mapped_pct: stats.mapped_pct.is_finite().then_some(stats.mapped_pct as f64),
+            fidelity_pct: stats.fidelity_pct.is_finite().then_some(stats.fidelity_pct as f64),
+            rocks_located: stats.rocks_located as usize,
+            collected: mapping.collected,
+        };
+        let image = map_inset(&mapping.map, mapping.ground_truth.as_deref(), &rocks, &inset);
+        let message = Image {
+            header: header.clone(),
+            height: image.height as u32,
+            width: image.width as u32,
+            encoding: "rgb8".to_string(),
+            is_bigendian: 0,
+            step: image.width as u32 * 3,
+            data: image.data,
+        };
+        warn_on_error("map/image", self.image.publish(message));
+        warn_on_error("rover/map_stats", self.stats.publish(stats));
+        if rocks != self.last_rocks {
+            let poses = rocks
+                .iter()
+                .map(|&(x, y)| PoseMsg { position: Point { x, y, z: 0.0 }, orientation: Quaternion::from_yaw(0.0) })
+                .collect();
+            warn_on_error("rover/rocks", self.rocks.publish(PoseArray { header, poses }));
+            self.last_rocks = rocks;
+        }
+    }
+}
+
+fn warn_on_error<E: std::fmt::Debug>(topic: &str, result: Result<(), E>) {
+    if let Err(e) = result {
+        tracing::warn!("cannot publish on {topic}: {e:?}");
+    }
+}
+
+/// Runs the mapping node until shutdown.
+pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
+    let (mut node, params) = runtime.node::<MappingParams>("mapping")?;
+    let span = node.span();
+    let settings = params.get();
+    let period = Duration::from_secs_f64(settings.publish_period_ms / 1000.0);
+    let mut mapping = Mapping::new(settings)?;
+    let mut outputs = Outputs {
+        map: node.publisher(&topics::MAP)?,
+        image: node.publisher(&topics::MAP_IMAGE)?,
+        stats: node.publisher(&topics::MAP_STATS)?,
+        rocks: node.publisher(&topics::ROCKS)?,
+        last_rocks: Vec::new(),
+    };
+    let terrain_subscription = node.subscription(&topics::TERRAIN)?;
+    let telemetry_subscription = node.subscription(&topics::TELEMETRY)?;
+    let truth_subscription = node.subscription(&topics::SAMPLE_TRUTH)?;
+    let mut scans = std::pin::pin!(messages(&terrain_subscription));
+    let mut telemetry = std::pin::pin!(messages(&telemetry_subscription));
+    let mut truth = std::pin::pin!(messages(&truth_subscription));
+    let mut changes = params.watch();
+    let mut ticks = tokio::time::interval(period);
+    let shutdown = runtime.shutdown();
+    async {
+    loop {
+        tokio::select! {
+            () = shutdown.wait() => break,
+            Some(scan) = scans.next() => mapping.add_scan(&scan),
+            Some(t) = telemetry.next() => mapping.on_telemetry(&t),
+            Some(samples) = truth.next() => {
+                mapping.samples_truth.get_or_insert_with(|| samples.poses.iter().map(|p| (p.position.x, p.position.y)).collect());
+            }
+            _ = ticks.tick() => outputs.publish(&mapping),
+            Ok(()) = changes.changed() => {
+                let updated = changes.borrow_and_update().clone();
+                mapping.map.set_config(updated.map_config());
+                mapping.params = updated;
+            }
+        }
+    }
+    outputs.publish(&mapping);
+    tracing::info!("mapping: {} frames mapped, rejected {:?}", mapping.frames, mapping.rejections);
+    }
+    .instrument(span)
+    .await;
+    Ok(())
+}

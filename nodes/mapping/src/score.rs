@@ -55,6 +55,12 @@ pub fn udacity_scores(obstacle: &[f32], navigable: &[f32], ground_truth: &[bool]
     }
 }
 
+/// Scores an occupancy grid (0 free, 100 occupied, -1 unknown; row = y) like a Udacity world map.
+pub fn occupancy_scores(occupancy: &[i8], ground_truth: &[bool]) -> Scores {
+    let channel = |value: i8| occupancy.iter().map(|&v| if v == value { 255.0 } else { 0.0 }).collect::<Vec<f32>>();
+    udacity_scores(&channel(100), &channel(0), ground_truth)
+}
+
 /// Samples counted as located: a rock cell (x, y) lies within 3 cells of the sample's truncated
 /// position. As in the starter, nothing is located when every rock cell is in row 0.
 pub fn samples_located(rock_cells: &[(usize, usize)], samples: &[(f64, f64)]) -> usize {
@@ -95,6 +101,14 @@ mod tests {
         assert_eq!((scores.good_cells, scores.navigable_cells), (4, 6));
         assert_eq!(scores.mapped_pct, 50.0);
         assert_eq!(scores.fidelity_pct, 66.7);
+    }
+
+    #[test]
+    fn occupancy_grids_score_their_free_cells() {
+        let occupancy = [0i8, 0, 100, -1];
+        let scores = occupancy_scores(&occupancy, &[true, false, true, true]);
+        assert_eq!((scores.good_cells, scores.navigable_cells), (1, 2));
+        assert_eq!((scores.mapped_pct, scores.fidelity_pct), (33.3, 50.0));
     }
 
     #[test]
