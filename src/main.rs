@@ -87,7 +87,11 @@ fn main() -> ExitCode {
 }
 
 /// The DDS runtime of the process, kept in `slot` so that it outlives the async tasks.
-fn dds<'a>(slot: &'a mut Option<Runtime>, ros_args: rover_node::RosArgs, shutdown: Shutdown) -> anyhow::Result<&'a Runtime> {
+fn dds<'a>(
+    slot: &'a mut Option<Runtime>,
+    ros_args: rover_node::RosArgs,
+    shutdown: Shutdown,
+) -> anyhow::Result<&'a Runtime> {
     Ok(slot.insert(Runtime::new(ros_args, shutdown)?))
 }
 

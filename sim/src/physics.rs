@@ -263,7 +263,8 @@ impl Rover {
     fn move_forward(&mut self, h: f64, world: &World, samples: &[Sample], events: &mut StepEvents) {
         let (s, c) = self.yaw_deg.to_radians().sin_cos();
         let step = [self.speed_mps * h * c, self.speed_mps * h * s];
-        let free_at = |dx: f64, dy: f64| !footprint_blocked(world, samples, self.x_m + dx, self.y_m + dy, FOOTPRINT_RADIUS_M);
+        let free_at =
+            |dx: f64, dy: f64| !footprint_blocked(world, samples, self.x_m + dx, self.y_m + dy, FOOTPRINT_RADIUS_M);
         let (moved, speed_kept) = if self.speed_mps == 0.0 || free_at(step[0], step[1]) {
             (step, 1.0)
         } else {

@@ -15,7 +15,7 @@ use rover_imaging::{ImageError, RgbImage};
 
 use crate::classify::{Class, Thresholds};
 use crate::homography::Matrix3;
-use crate::warp::{WarpTable, padded};
+use crate::warp::{BorderedImage, WarpTable};
 
 /// The calibration of the warp (the Udacity starter's values by default).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -94,7 +94,7 @@ pub struct Perception {
     thresholds: Thresholds,
     table: WarpTable,
     image: RgbImage,
-    padded: Vec<u8>,
+    source: BorderedImage,
     classes: Vec<Class>,
 }
 
@@ -105,7 +105,14 @@ impl Perception {
         let table = WarpTable::new(&matrix, calibration.width, calibration.height)
             .ok_or(PerceptionError::DegenerateCalibration)?;
         let classes = vec![Class::Unknown; table.entries.len()];
-        Ok(Perception { calibration, thresholds, table, image: RgbImage::default(), padded: Vec::new(), classes })
+        Ok(Perception {
+            calibration,
+            thresholds,
+            table,
+            image: RgbImage::default(),
+            source: BorderedImage::default(),
+            classes,
+        })
     }
 
     /// The calibration.
@@ -130,7 +137,7 @@ impl Perception {
         self.image = image;
         decoded?;
         self.check_size()?;
-        padded(&self.image.data, &mut self.padded);
+        self.source.fill(&self.image.data, self.image.width, self.image.height);
         self.classify();
         Ok(&self.classes)
     }
@@ -140,7 +147,7 @@ impl Perception {
         if (image.width, image.height) != (self.calibration.width, self.calibration.height) {
             return Err(self.wrong_size(image.width, image.height));
         }
-        padded(&image.data, &mut self.padded);
+        self.source.fill(&image.data, image.width, image.height);
         self.classify();
         Ok(&self.classes)
     }
@@ -163,8 +170,7 @@ impl Perception {
 
     fn classify(&mut self) {
         for (class, entry) in self.classes.iter_mut().zip(&self.table.entries) {
-            let rgb = WarpTable::sample(entry, &self.padded);
-            *class = self.thresholds.classify(rgb, entry.in_view);
+            *class = self.thresholds.classify(self.table.sample(entry, &self.source), entry.in_view);
         }
     }
 
@@ -172,7 +178,7 @@ impl Perception {
     pub fn warped_image(&self) -> RgbImage {
         let mut warped = RgbImage::new(self.calibration.width, self.calibration.height);
         for entry in &self.table.entries {
-            warped.set_pixel(entry.x as usize, entry.y as usize, WarpTable::sample(entry, &self.padded));
+            warped.set_pixel(entry.x as usize, entry.y as usize, self.table.sample(entry, &self.source));
         }
         warped
     }

@@ -22,8 +22,8 @@ pub struct ScanGeometry {
     pub origin_y_m: f64,
     /// Grid cell of each table entry, or `None` beyond the range limit.
     pub cell_of_entry: Vec<Option<u32>>,
-    /// Rover-frame position (x, y) of each table entry, metres.
-    pub position_of_entry: Vec<(f32, f32)>,
+    /// Bearing (radians, positive left) and distance (metres) of each table entry from the rover.
+    pub polar_of_entry: Vec<(f32, f32)>,
 }
 
 impl ScanGeometry {
@@ -34,10 +34,10 @@ impl ScanGeometry {
         let (near_x, right_y) = calibration.rover_position((w - 1) as f64, (h - 1) as f64);
         let rows = (((max_range_m - near_x) / resolution_m).floor() as usize + 1).min(h);
         let mut cell_of_entry = Vec::with_capacity(table.entries.len());
-        let mut position_of_entry = Vec::with_capacity(table.entries.len());
+        let mut polar_of_entry = Vec::with_capacity(table.entries.len());
         for entry in &table.entries {
             let (x, y) = calibration.rover_position(entry.x as f64, entry.y as f64);
-            position_of_entry.push((x as f32, y as f32));
+            polar_of_entry.push((y.atan2(x) as f32, x.hypot(y) as f32));
             let (row, col) = (h - 1 - entry.y as usize, w - 1 - entry.x as usize);
             cell_of_entry.push((row < rows).then_some((row * w + col) as u32));
         }
@@ -48,7 +48,7 @@ impl ScanGeometry {
             origin_x_m: near_x - resolution_m / 2.0,
             origin_y_m: right_y - resolution_m / 2.0,
             cell_of_entry,
-            position_of_entry,
+            polar_of_entry,
         }
     }
 
@@ -63,24 +63,23 @@ impl ScanGeometry {
         }
     }
 
-    /// Summaries of a frame for steering: the navigable pixels' mean bearing and distance, and the
-    /// nearest rock pixels' bearing and distance.
+    /// Summaries of a frame for steering: the mean bearing and distance of the navigable pixels
+    /// and of the rock pixels.
     pub fn summarize(&self, classes: &[Class]) -> ScanSummary {
         let mut summary = ScanSummary::default();
         let (mut bearing_sum, mut distance_sum) = (0.0f64, 0.0f64);
-        let mut rock: Option<(f32, f32)> = None;
-        for (class, &(x, y)) in classes.iter().zip(&self.position_of_entry) {
+        let (mut rock_bearing_sum, mut rock_distance_sum, mut rock_count) = (0.0f64, 0.0f64, 0u32);
+        for (class, &(bearing, distance)) in classes.iter().zip(&self.polar_of_entry) {
             match class {
                 Class::Navigable => {
                     summary.navigable_count += 1;
-                    bearing_sum += (y as f64).atan2(x as f64);
-                    distance_sum += (x as f64).hypot(y as f64);
+                    bearing_sum += bearing as f64;
+                    distance_sum += distance as f64;
                 }
                 Class::Rock => {
-                    let distance = x.hypot(y);
-                    if rock.is_none_or(|(_, d)| distance < d) {
-                        rock = Some((y.atan2(x), distance));
-                    }
+                    rock_count += 1;
+                    rock_bearing_sum += bearing as f64;
+                    rock_distance_sum += distance as f64;
                 }
                 _ => {}
             }
@@ -89,7 +88,10 @@ impl ScanGeometry {
             summary.navigable_bearing_rad = (bearing_sum / summary.navigable_count as f64) as f32;
             summary.navigable_distance_m = (distance_sum / summary.navigable_count as f64) as f32;
         }
-        summary.rock = rock;
+        if rock_count > 0 {
+            let n = rock_count as f64;
+            summary.rock = Some(((rock_bearing_sum / n) as f32, (rock_distance_sum / n) as f32));
+        }
         summary
     }
 }
@@ -103,7 +105,7 @@ pub struct ScanSummary {
     pub navigable_bearing_rad: f32,
     /// Their mean distance, metres.
     pub navigable_distance_m: f32,
-    /// Bearing (radians, positive left) and distance (m) of the nearest rock pixel, if any.
+    /// Mean bearing (radians, positive left) and distance (m) of the rock pixels, if any.
     pub rock: Option<(f32, f32)>,
 }
 

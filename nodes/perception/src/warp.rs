@@ -26,11 +26,11 @@ pub struct WarpEntry {
     pub x: u16,
     /// Row in the warped image.
     pub y: u16,
-    /// Source pixel indices (row-major) of the four taps; taps outside the image point at the
-    /// black pixel one past the end of the image.
-    pub taps: [u32; 4],
-    /// Fixed-point weights of the taps (sum 2^15).
-    pub weights: [i32; 4],
+    /// Byte offset, in the black-bordered source (see [`BorderedImage`]), of the top-left tap; the
+    /// others are the pixel to its right and the two below them.
+    pub offset: u32,
+    /// Fixed-point weights of the four taps (sum 2^15): top-left, top-right, bottom-left, bottom-right.
+    pub weights: [u16; 4],
     /// The warped pixel is inside the camera's field of view (the warped all-ones mask is 1).
     pub in_view: bool,
 }
@@ -44,6 +44,8 @@ pub struct WarpTable {
     pub height: usize,
     /// Warped pixels that see any of the image, in row-major order of the warped image.
     pub entries: Vec<WarpEntry>,
+    /// Bytes per row of the black-bordered source.
+    pub stride: usize,
 }
 
 /// The bilinear weights of OpenCV's 32x32 interpolation table for fractions (fx, fy) in 1/32 px.
@@ -67,7 +69,7 @@ impl WarpTable {
     /// Builds the table of the warp by `matrix` (source to warped) for `width` x `height` images.
     pub fn new(matrix: &Matrix3, width: usize, height: usize) -> Option<Self> {
         let m = invert(matrix)?;
-        let black = (width * height) as u32;
+        let stride = (width + 2) * 3;
         let mut entries = Vec::new();
         let mut rows: Vec<Vec<WarpEntry>> = vec![Vec::new(); height];
         for block_y in (0..height).step_by(BLOCK_ROWS) {
@@ -84,7 +86,7 @@ impl WarpTable {
                         let w = if w != 0.0 { INTER_TAB_SIZE as f64 / w } else { 0.0 };
                         let sx_fixed = round_to_int((x0 + m[0] * c) * w);
                         let sy_fixed = round_to_int((y0 + m[3] * c) * w);
-                        let entry = Self::entry((block_x + column, y), (sx_fixed, sy_fixed), (width, height), black);
+                        let entry = Self::entry((block_x + column, y), (sx_fixed, sy_fixed), (width, height), stride);
                         rows[y].extend(entry);
                     }
                 }
@@ -94,14 +96,14 @@ impl WarpTable {
             row.sort_by_key(|e| e.x);
             entries.extend(row);
         }
-        Some(WarpTable { width, height, entries })
+        Some(WarpTable { width, height, entries, stride })
     }
 
     fn entry(
         (x, y): (usize, usize),
         (sx_fixed, sy_fixed): (i32, i32),
         (width, height): (usize, usize),
-        black: u32,
+        stride: usize,
     ) -> Option<WarpEntry> {
         let sx = (sx_fixed >> INTER_BITS).clamp(i16::MIN as i32, i16::MAX as i32);
         let sy = (sy_fixed >> INTER_BITS).clamp(i16::MIN as i32, i16::MAX as i32);
@@ -112,32 +114,50 @@ impl WarpTable {
         let weights = weights(sx_fixed & (INTER_TAB_SIZE - 1), sy_fixed & (INTER_TAB_SIZE - 1));
         let positions = [(sx, sy), (sx + 1, sy), (sx, sy + 1), (sx + 1, sy + 1)];
         let inside = positions.map(|(px, py)| px >= 0 && py >= 0 && px < w && py < h);
-        let taps = [0, 1, 2, 3].map(|i| if inside[i] { (positions[i].1 * w + positions[i].0) as u32 } else { black });
         let coverage: i32 = (0..4).filter(|&i| inside[i]).map(|i| weights[i]).sum();
         let in_view = (coverage + (1 << (WEIGHT_BITS - 1))) >> WEIGHT_BITS >= 1;
-        Some(WarpEntry { x: x as u16, y: y as u16, taps, weights, in_view })
+        let offset = ((sy + 1) as usize * stride + (sx + 1) as usize * 3) as u32;
+        Some(WarpEntry { x: x as u16, y: y as u16, offset, weights: weights.map(|w| w as u16), in_view })
     }
 
-    /// Interpolates one entry from an RGB image that has a black pixel appended (see [`padded`]).
+    /// Interpolates one entry from the black-bordered source.
     #[inline]
-    pub fn sample(entry: &WarpEntry, rgb: &[u8]) -> [u8; 3] {
-        let mut out = [0u8; 3];
-        for (k, value) in out.iter_mut().enumerate() {
-            let mut sum = 1 << (WEIGHT_BITS - 1);
-            for tap in 0..4 {
-                sum += rgb[entry.taps[tap] as usize * 3 + k] as i32 * entry.weights[tap];
-            }
-            *value = (sum >> WEIGHT_BITS).clamp(0, 255) as u8;
-        }
-        out
+    pub fn sample(&self, entry: &WarpEntry, source: &BorderedImage) -> [u8; 3] {
+        let at = entry.offset as usize;
+        let top: &[u8; 6] = source.data[at..at + 6].try_into().expect("six bytes");
+        let bottom: &[u8; 6] = source.data[at + self.stride..at + self.stride + 6].try_into().expect("six bytes");
+        let [w0, w1, w2, w3] = entry.weights;
+        let (w0, w1, w2, w3) = (w0 as u32, w1 as u32, w2 as u32, w3 as u32);
+        let channel = |k: usize| {
+            let sum = (1 << (WEIGHT_BITS - 1))
+                + top[k] as u32 * w0
+                + top[k + 3] as u32 * w1
+                + bottom[k] as u32 * w2
+                + bottom[k + 3] as u32 * w3;
+            (sum >> WEIGHT_BITS).min(255) as u8
+        };
+        [channel(0), channel(1), channel(2)]
     }
 }
 
-/// Copies `rgb` into `buffer` followed by one black pixel, the target of taps outside the image.
-pub fn padded(rgb: &[u8], buffer: &mut Vec<u8>) {
-    buffer.clear();
-    buffer.extend_from_slice(rgb);
-    buffer.extend_from_slice(&[0, 0, 0]);
+/// An RGB image inside a one-pixel black border: the taps of OpenCV's constant border that fall
+/// outside the image read black, without any test in the loop.
+#[derive(Debug, Clone, Default)]
+pub struct BorderedImage {
+    data: Vec<u8>,
+}
+
+impl BorderedImage {
+    /// Copies the `width` x `height` RGB pixels `rgb` into the bordered buffer.
+    pub fn fill(&mut self, rgb: &[u8], width: usize, height: usize) {
+        let stride = (width + 2) * 3;
+        self.data.clear();
+        self.data.resize(stride * (height + 2), 0);
+        for (row, pixels) in rgb.chunks_exact(width * 3).take(height).enumerate() {
+            let start = (row + 1) * stride + 3;
+            self.data[start..start + width * 3].copy_from_slice(pixels);
+        }
+    }
 }
 
 #[cfg(test)]
@@ -167,11 +187,11 @@ mod tests {
         let table = WarpTable::new(&identity, 20, 10).unwrap();
         assert_eq!(table.entries.len(), 200);
         let rgb: Vec<u8> = (0..600).map(|i| (i * 7 % 256) as u8).collect();
-        let mut buffer = Vec::new();
-        padded(&rgb, &mut buffer);
+        let mut source = BorderedImage::default();
+        source.fill(&rgb, 20, 10);
         for entry in &table.entries {
             let at = (entry.y as usize * 20 + entry.x as usize) * 3;
-            assert_eq!(WarpTable::sample(entry, &buffer), [rgb[at], rgb[at + 1], rgb[at + 2]]);
+            assert_eq!(table.sample(entry, &source), [rgb[at], rgb[at + 1], rgb[at + 2]]);
             assert!(entry.in_view);
         }
     }
