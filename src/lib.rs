@@ -3,3 +3,4 @@
 
 pub mod dataset;
 pub mod replay;
+pub mod replay_dds;

@@ -101,6 +101,9 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
         Command::Bridge => rover_bridge::node::run(dds(participant, ros_args, shutdown)?).await,
         Command::Perception => rover_perception::node::run(dds(participant, ros_args, shutdown)?).await,
         Command::Mapping => rover_mapping::node::run(dds(participant, ros_args, shutdown)?).await,
+        Command::Replay(args) if args.via_dds => {
+            rover::replay::run_via_dds(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
+        }
         Command::Replay(args) => {
             let perception = rover_node::resolve_params("perception", &ros_args)?;
             let mapping = rover_node::resolve_params("mapping", &ros_args)?;

@@ -8,17 +8,26 @@ use rover_sim::wire::client::{ClientConfig, ClientStats, Simulation, run_client}
 use rover_sim::wire::command::Command;
 use rover_sim::wire::telemetry::TelemetryValues;
 
-use super::frames::{RecordedFrame, load};
+use rover::dataset::{RecordedFrame, read_log};
+
 use super::shared_dir;
 
 /// Positions cycle through 1..=997 so that the echo node's throttle (x / 1000) names the telemetry.
 const POSITION_CYCLE: u64 = 997;
 
-pub fn recorded_frames() -> Vec<RecordedFrame> {
-    load(&shared_dir().join("udacity/test_dataset"))
+/// A recorded frame with its JPEG loaded.
+pub struct LoadedFrame {
+    pub frame: RecordedFrame,
+    pub jpeg: Vec<u8>,
 }
 
-pub fn telemetry_json(frame: &RecordedFrame, x_m: f64) -> String {
+pub fn recorded_frames() -> Vec<LoadedFrame> {
+    let frames = read_log(&shared_dir().join("udacity/test_dataset")).expect("the recorded dataset");
+    frames.into_iter().map(|frame| LoadedFrame { jpeg: frame.jpeg().expect("a recorded JPEG"), frame }).collect()
+}
+
+pub fn telemetry_json(loaded: &LoadedFrame, x_m: f64) -> String {
+    let frame = &loaded.frame;
     TelemetryValues {
         steering_angle_deg: 0.0,
         throttle: 0.0,
@@ -32,7 +41,7 @@ pub fn telemetry_json(frame: &RecordedFrame, x_m: f64) -> String {
         near_sample: false,
         picking_up: false,
         samples: &[(97.44, 74.65), (122.28, 51.66)],
-        image_jpeg: &frame.jpeg,
+        image_jpeg: &loaded.jpeg,
     }
     .to_json()
 }
@@ -48,7 +57,7 @@ pub struct SeenReply {
 
 /// A fake simulator that sends recorded frames and checks which telemetry each reply answers.
 pub struct EchoCheckingSimulator {
-    pub frames: Vec<RecordedFrame>,
+    pub frames: Vec<LoadedFrame>,
     pub sent: u64,
     pub outstanding: VecDeque<(u64, Instant)>,
     pub replies: Vec<SeenReply>,

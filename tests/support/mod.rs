@@ -3,7 +3,6 @@
 #![allow(dead_code)]
 
 pub mod echo_sim;
-pub mod frames;
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -91,7 +90,10 @@ impl Process {
 
     /// Sends SIGINT and waits up to 5 s for the exit status.
     pub fn interrupt(&mut self) -> Option<std::process::ExitStatus> {
-        let _ = Command::new("kill").args(["-INT", &self.child.id().to_string()]).status();
+        if let Ok(Some(status)) = self.child.try_wait() {
+            return Some(status);
+        }
+        let _ = Command::new("kill").args(["-INT", &self.child.id().to_string()]).stderr(Stdio::null()).status();
         let deadline = Instant::now() + Duration::from_secs(5);
         while Instant::now() < deadline {
             if let Ok(Some(status)) = self.child.try_wait() {

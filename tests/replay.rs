@@ -1,0 +1,147 @@
+//! Perception and mapping on the 283 recorded Udacity frames: the scores of the libraries, the same
+//! scores from the real nodes over DDS, and the nodes' handling of bad input.
+
+mod support;
+
+use std::time::{Duration, Instant};
+
+use rover_msgs::builtin_interfaces::Time;
+use rover_msgs::msg::{Telemetry, TerrainScan};
+use rover_msgs::sensor_msgs::CompressedImage;
+use rover_msgs::std_msgs::Header;
+use support::{Domain, Latest, Process, eventually, rover, shared_dir, test_runtime};
+
+fn ground_truth() -> String {
+    shared_dir().join("udacity/calibration_images/map_bw.png").display().to_string()
+}
+
+fn dataset() -> String {
+    shared_dir().join("udacity/test_dataset").display().to_string()
+}
+
+fn replay_json(args: &[&str], domain: Option<&Domain>) -> serde_json::Value {
+    let mut command = std::process::Command::new(rover());
+    command.arg("replay").arg(dataset()).args(args).arg("--json");
+    if let Some(domain) = domain {
+        command.env("ROS_DOMAIN_ID", domain.id.to_string());
+    }
+    let output = command.output().expect("run rover replay");
+    assert!(output.status.success(), "rover replay failed: {}", String::from_utf8_lossy(&output.stderr));
+    serde_json::from_slice(&output.stdout).expect("one JSON object")
+}
+
+#[test]
+fn the_libraries_map_the_test_dataset_with_at_least_85_percent_fidelity_and_20_percent_mapped() {
+    let report = replay_json(&["--ground-truth", &ground_truth()], None);
+    eprintln!("{report}");
+    assert_eq!(report["frames"], 283);
+    let (mapped, fidelity) = (report["mapped_pct"].as_f64().unwrap(), report["fidelity_pct"].as_f64().unwrap());
+    assert!(fidelity >= 85.0, "fidelity {fidelity}");
+    assert!(mapped >= 20.0, "mapped {mapped}");
+    assert!(report["perception_ms_median"].as_f64().unwrap() > 0.0);
+    assert!(report["rocks_located"].as_u64().is_some());
+}
+
+fn start_nodes(domain: &Domain) -> (Process, Process) {
+    let perception = Process::start(&rover(), &["perception"], domain, "perception");
+    let mapping = Process::start(
+        &rover(),
+        &[
+            "mapping",
+            "--ros-args",
+            "-p",
+            &format!("ground_truth_png:={}", ground_truth()),
+            "-p",
+            "publish_period_ms:=100.0",
+        ],
+        domain,
+        "mapping",
+    );
+    (perception, mapping)
+}
+
+#[test]
+fn the_nodes_over_dds_give_the_same_map_as_the_libraries() {
+    support::assert_isolated();
+    let offline = replay_json(&["--ground-truth", &ground_truth()], None);
+    let domain = Domain::reserve();
+    let (_perception, _mapping) = start_nodes(&domain);
+    let over_dds = replay_json(&["--via-dds"], Some(&domain));
+    eprintln!("offline {offline}\nover DDS {over_dds}");
+    assert_eq!(over_dds["frames_rejected"], 0, "every frame got its terrain scan");
+    assert_eq!(over_dds["mapped_pct"], offline["mapped_pct"]);
+    assert_eq!(over_dds["fidelity_pct"], offline["fidelity_pct"]);
+    assert_eq!(over_dds["navigable_cells"], offline["navigable_cells"]);
+}
+
+fn stamp(sec: i32) -> Header {
+    Header { stamp: Time { sec, nanosec: 0 }, frame_id: "odom".into() }
+}
+
+fn telemetry(frame: u64, sec: i32, x_m: f64) -> Telemetry {
+    Telemetry { header: stamp(sec), frame, x_m, y_m: 85.6, yaw_rad: 1.0, ..Telemetry::default() }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn bad_frames_are_logged_counted_and_skipped() {
+    support::assert_isolated();
+    let domain = Domain::reserve();
+    let (mut perception, mut mapping) = start_nodes(&domain);
+    let runtime = test_runtime(&domain);
+    let (mut node, _) = runtime.node::<support::NoParams>("tester").unwrap();
+    let camera = node.publisher(&rover_node::topics::CAMERA_COMPRESSED).unwrap();
+    let telemetry_out = node.publisher(&rover_node::topics::TELEMETRY).unwrap();
+    let scans_out = node.publisher(&rover_node::topics::TERRAIN).unwrap();
+    let scans = Latest::subscribe(&mut node, &rover_node::topics::TERRAIN);
+    let good =
+        std::fs::read(rover::dataset::read_log(std::path::Path::new(&dataset())).unwrap()[20].image.clone()).unwrap();
+    let small = rover_imaging::encode_jpeg(&rover_imaging::RgbImage::new(64, 32), 75).unwrap();
+    let send = |sec: i32, frame: u64, jpeg: Vec<u8>, x_m: f64| {
+        camera.publish(CompressedImage { header: stamp(sec), format: "jpeg".into(), data: jpeg }).unwrap();
+        telemetry_out.publish(telemetry(frame, sec, x_m)).unwrap();
+    };
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let mut sec = 1;
+    while scans.last().is_none() && Instant::now() < deadline {
+        send(sec, sec as u64, good.clone(), 99.7);
+        sec += 1;
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert!(scans.last().is_some(), "the perception node answers good frames");
+    let mut corrupt = good.clone();
+    corrupt.truncate(good.len() / 2);
+    send(1001, 1001, corrupt, 99.7);
+    send(1002, 1002, small, 99.7);
+    send(1003, 1003, good.clone(), f64::NAN);
+    send(1004, 1004, good.clone(), 99.7);
+    assert!(
+        eventually(Duration::from_secs(10), || scans.all().iter().any(|s| s.frame == 1004)),
+        "a good frame after the bad ones is processed"
+    );
+    assert!(!scans.all().iter().any(|s| (1001..=1003).contains(&s.frame)), "bad frames produce no scan");
+    let scan = scans.all().into_iter().find(|s| s.frame == 1004).unwrap();
+    scans_out.publish(TerrainScan { frame: 1000, ..scan.clone() }).unwrap();
+    scans_out.publish(TerrainScan { frame: 1005, x_m: f64::NAN, ..scan.clone() }).unwrap();
+    scans_out.publish(TerrainScan { frame: 1006, rows: 3, cells: vec![1; 5], ..scan }).unwrap();
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    perception.interrupt();
+    mapping.interrupt();
+    let perception_log = perception.log_text();
+    let mapping_log = mapping.log_text();
+    for needle in [
+        "camera image rejected: corrupt JPEG",
+        "camera image rejected: image is 64x32, expected 320x160",
+        "telemetry pose is not finite",
+        "3 rejected",
+    ] {
+        assert!(perception_log.contains(needle), "perception log lacks {needle:?}:\n{perception_log}");
+    }
+    for needle in [
+        "arrived after frame 1004",
+        "non-finite pose",
+        "5 cells for 3x320",
+        "out_of_order: 1, bad_pose: 1, malformed: 1",
+    ] {
+        assert!(mapping_log.contains(needle), "mapping log lacks {needle:?}:\n{mapping_log}");
+    }
+}
