@@ -2,5 +2,7 @@
 //! recorded datasets, the demo, the evaluation).
 
 pub mod dataset;
+pub mod eval;
+pub mod mission;
 pub mod replay;
 pub mod replay_dds;

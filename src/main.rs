@@ -31,10 +31,21 @@ enum Command {
     /// Run the mapping node: terrain scans to the world map, its image, statistics and rocks.
     #[command(after_help = ROS_ARGS_HELP)]
     Mapping,
+    /// Run the decision node: the state machine that explores, approaches samples, recovers and
+    /// returns home; one drive command per frame.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Decision,
+    /// Run the pickup node: one pickup request when a sample is in reach and the rover has stopped.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Pickup,
     /// Replay a recorded dataset (robot_log.csv + IMG/) through perception and mapping and print
     /// the Udacity scores. Parameters: -p perception:NAME:=VALUE, -p mapping:NAME:=VALUE.
     #[command(after_help = ROS_ARGS_HELP)]
     Replay(rover::replay::ReplayArgs),
+    /// Run one full mission per seed and print a table of the scores (mapped and fidelity against
+    /// the simulator's true world, samples, distance home, time, frames per second).
+    #[command(after_help = ROS_ARGS_HELP)]
+    Eval(rover::eval::EvalArgs),
     /// Run the headless simulator: connects to the bridge as the Unity simulator does, renders the
     /// camera, simulates the rover and prints a report at the end (or on Ctrl-C).
     Sim(rover_sim::cli::SimArgs),
@@ -45,6 +56,8 @@ fn cli_command() -> clap::Command {
         .mut_subcommand("bridge", |c| c.after_long_help(node_help::<rover_bridge::node::BridgeParams>()))
         .mut_subcommand("perception", |c| c.after_long_help(node_help::<rover_perception::node::PerceptionParams>()))
         .mut_subcommand("mapping", |c| c.after_long_help(node_help::<rover_mapping::params::MappingParams>()))
+        .mut_subcommand("decision", |c| c.after_long_help(node_help::<rover_decision::params::DecisionParams>()))
+        .mut_subcommand("pickup", |c| c.after_long_help(node_help::<rover_pickup::PickupParams>()))
 }
 
 fn node_help<P: NodeParams>() -> String {
@@ -101,6 +114,8 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
         Command::Bridge => rover_bridge::node::run(dds(participant, ros_args, shutdown)?).await,
         Command::Perception => rover_perception::node::run(dds(participant, ros_args, shutdown)?).await,
         Command::Mapping => rover_mapping::node::run(dds(participant, ros_args, shutdown)?).await,
+        Command::Decision => rover_decision::node::run(dds(participant, ros_args, shutdown)?).await,
+        Command::Pickup => rover_pickup::node::run(dds(participant, ros_args, shutdown)?).await,
         Command::Replay(args) if args.via_dds => {
             rover::replay::run_via_dds(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
         }
@@ -108,6 +123,22 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
             let perception = rover_node::resolve_params("perception", &ros_args)?;
             let mapping = rover_node::resolve_params("mapping", &ros_args)?;
             rover::replay::run(&args, &perception, &mapping).map(drop)
+        }
+        Command::Eval(args) => {
+            let settings = rover::mission::NodeSettings {
+                perception: rover_node::resolve_params("perception", &ros_args)?,
+                mapping: rover_node::resolve_params("mapping", &ros_args)?,
+                decision: rover_node::resolve_params("decision", &ros_args)?,
+                pickup: rover_node::resolve_params("pickup", &ros_args)?,
+            };
+            anyhow::ensure!(args.in_process, "only --in-process is built so far");
+            let results = rover::eval::run_in_process_eval(&args, &settings)?;
+            if args.json {
+                println!("{}", serde_json::to_string_pretty(&results)?);
+            } else {
+                print!("{}", rover::eval::table(&results));
+            }
+            Ok(())
         }
         Command::Sim(args) => rover_sim::cli::run(&args, async move { shutdown.wait().await }).await.map(drop),
     }

@@ -7,6 +7,7 @@
 //! [`ros2_client::Message`], so it can be published and subscribed with `ros2-client`.
 
 pub mod idl;
+pub mod tally;
 #[macro_use]
 mod macros;
 mod fixed_array;

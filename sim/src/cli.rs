@@ -45,11 +45,16 @@ pub struct SimArgs {
 impl SimArgs {
     /// The world these options describe.
     pub fn world(&self) -> anyhow::Result<World> {
-        match &self.map {
-            None => Ok(procedural_world(self.seed)),
+        Self::world_for(self.map.as_deref(), self.seed)
+    }
+
+    /// The world of map `map` (procedural when `None`) and `seed`.
+    pub fn world_for(map: Option<&std::path::Path>, seed: u64) -> anyhow::Result<World> {
+        match map {
+            None => Ok(procedural_world(seed)),
             Some(path) => {
                 let png = std::fs::read(path).with_context(|| format!("cannot read the map {}", path.display()))?;
-                World::from_map_png(&png, self.seed).with_context(|| format!("map {}", path.display()))
+                World::from_map_png(&png, seed).with_context(|| format!("map {}", path.display()))
             }
         }
     }

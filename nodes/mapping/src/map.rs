@@ -8,6 +8,11 @@ use crate::score::{MAP_SIDE, Scores, udacity_scores};
 const NAVIGABLE: u8 = rover_msgs::msg::TerrainScan::NAVIGABLE;
 const ROCK: u8 = rover_msgs::msg::TerrainScan::ROCK;
 
+/// The arm reaches this far ahead of the rover's position, metres.
+const REACH_AHEAD_M: f64 = 0.84;
+/// Rock evidence within this distance of a finished pickup is forgotten, metres.
+const PICKED_RADIUS_M: f64 = 2.0;
+
 /// How scans become evidence and evidence becomes a map.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MapConfig {
@@ -56,6 +61,20 @@ pub struct ScanGrid<'a> {
     pub origin_y_m: f64,
     /// Class codes, row-major.
     pub cells: &'a [u8],
+}
+
+impl<'a> ScanGrid<'a> {
+    /// The grid of a `rover_msgs/TerrainScan`.
+    pub fn of(scan: &'a rover_msgs::msg::TerrainScan) -> Self {
+        ScanGrid {
+            rows: scan.rows as usize,
+            cols: scan.cols as usize,
+            resolution_m: scan.resolution_m as f64,
+            origin_x_m: scan.origin_x_m as f64,
+            origin_y_m: scan.origin_y_m as f64,
+            cells: &scan.cells,
+        }
+    }
 }
 
 /// What a map update did with a frame.
@@ -115,6 +134,7 @@ impl WorldMap {
         let projector = Projector::new(pose, self.mount, self.config.correct_tilt);
         let max_range_sq = self.config.max_range_m * self.config.max_range_m;
         let mut landed = 0;
+        let mut nearest_rock: Option<(f64, f64, f64)> = None;
         for row in 0..scan.rows {
             let x = scan.origin_x_m + (row as f64 + 0.5) * scan.resolution_m;
             if x * x > max_range_sq {
@@ -125,7 +145,14 @@ impl WorldMap {
                     continue;
                 }
                 let y = scan.origin_y_m + (col as f64 + 0.5) * scan.resolution_m;
-                if x * x + y * y > max_range_sq {
+                let range_sq = x * x + y * y;
+                if range_sq > max_range_sq {
+                    continue;
+                }
+                if class == ROCK {
+                    if nearest_rock.is_none_or(|(r, ..)| range_sq < r) {
+                        nearest_rock = Some((range_sq, x, y));
+                    }
                     continue;
                 }
                 if let Some(cell) = projector.world(x, y).and_then(|(wx, wy)| cell_index(wx, wy)) {
@@ -133,6 +160,12 @@ impl WorldMap {
                     landed += 1;
                 }
             }
+        }
+        let rock_cell =
+            nearest_rock.and_then(|(_, x, y)| projector.world(x, y)).and_then(|(wx, wy)| cell_index(wx, wy));
+        if let Some(cell) = rock_cell {
+            self.add(cell, (ROCK - 1) as usize);
+            landed += 1;
         }
         Update::Used(landed)
     }
@@ -200,6 +233,13 @@ impl WorldMap {
     /// Cells (x, y) holding a rock.
     pub fn rock_cells(&self) -> Vec<(usize, usize)> {
         (0..MAP_SIDE * MAP_SIDE).filter(|&c| self.is_rock(c)).map(|c| (c % MAP_SIDE, c / MAP_SIDE)).collect()
+    }
+
+    /// Forgets the rock the arm just picked up: the rock evidence around the arm of a rover at
+    /// (x, y) facing `yaw_rad`.
+    pub fn forget_picked_rock(&mut self, x_m: f64, y_m: f64, yaw_rad: f64) {
+        let (s, c) = yaw_rad.sin_cos();
+        self.clear_rocks_near(x_m + REACH_AHEAD_M * c, y_m + REACH_AHEAD_M * s, PICKED_RADIUS_M);
     }
 
     /// Forgets the rock evidence within `radius_m` of (x, y), e.g. once the sample there is picked up.

@@ -9,6 +9,7 @@ use rover_msgs::msg::{MapStats, Telemetry, TerrainScan};
 use rover_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
 use rover_msgs::sensor_msgs::Image;
 use rover_msgs::std_msgs::Header;
+use rover_msgs::tally::SampleTally;
 use rover_node::{Publisher, Runtime, messages, topics};
 use tracing::Instrument as _;
 
@@ -19,10 +20,6 @@ use crate::projection::Pose;
 use crate::rocks::rock_positions;
 use crate::score::{MAP_SIDE, ground_truth_from_png, samples_located};
 
-/// The arm reaches this far ahead of the rover's position, metres.
-const REACH_AHEAD_M: f64 = 0.84;
-/// Rock evidence within this distance of a finished pickup is forgotten, metres.
-const PICKED_RADIUS_M: f64 = 1.5;
 /// A frame number this far below the last one means the bridge restarted.
 const RESTART_GAP: u64 = 1000;
 
@@ -41,9 +38,7 @@ struct Mapping {
     params: MappingParams,
     ground_truth: Option<Vec<bool>>,
     samples_truth: Option<Vec<(f64, f64)>>,
-    first_remaining: Option<u8>,
-    last_remaining: Option<u8>,
-    collected: usize,
+    tally: SampleTally,
     last_frame: Option<u64>,
     rejections: Rejections,
     started: Instant,
@@ -64,9 +59,7 @@ impl Mapping {
             params,
             ground_truth,
             samples_truth: None,
-            first_remaining: None,
-            last_remaining: None,
-            collected: 0,
+            tally: SampleTally::default(),
             last_frame: None,
             rejections: Rejections::default(),
             started: Instant::now(),
@@ -86,28 +79,14 @@ impl Mapping {
             );
             return;
         }
-        let pose = Pose {
-            x_m: scan.x_m,
-            y_m: scan.y_m,
-            yaw_rad: scan.yaw_rad as f64,
-            pitch_rad: scan.pitch_rad as f64,
-            roll_rad: scan.roll_rad as f64,
-        };
-        if ![pose.x_m, pose.y_m, pose.yaw_rad, pose.pitch_rad, pose.roll_rad].iter().all(|v| v.is_finite()) {
+        let pose = Pose::of_scan(scan);
+        if !pose.is_finite() {
             self.rejections.bad_pose += 1;
             log_rejection(self.rejections.bad_pose, &format!("scan of frame {} has a non-finite pose", scan.frame));
             return;
         }
         self.last_frame = Some(scan.frame);
-        let grid = ScanGrid {
-            rows: scan.rows as usize,
-            cols: scan.cols as usize,
-            resolution_m: scan.resolution_m as f64,
-            origin_x_m: scan.origin_x_m as f64,
-            origin_y_m: scan.origin_y_m as f64,
-            cells: &scan.cells,
-        };
-        match self.map.update(&grid, pose) {
+        match self.map.update(&ScanGrid::of(scan), pose) {
             Update::Used(_) => self.frames += 1,
             Update::SkippedTilt => self.rejections.tilted += 1,
             Update::Malformed => {
@@ -127,18 +106,9 @@ impl Mapping {
     }
 
     fn on_telemetry(&mut self, telemetry: &Telemetry) {
-        let remaining = telemetry.samples_remaining;
-        let first = *self.first_remaining.get_or_insert(remaining);
-        if self.last_remaining.is_some_and(|last| remaining < last) {
-            let (s, c) = (telemetry.yaw_rad as f64).sin_cos();
-            self.map.clear_rocks_near(
-                telemetry.x_m + REACH_AHEAD_M * c,
-                telemetry.y_m + REACH_AHEAD_M * s,
-                PICKED_RADIUS_M,
-            );
+        if self.tally.update(telemetry.samples_remaining) > 0 {
+            self.map.forget_picked_rock(telemetry.x_m, telemetry.y_m, telemetry.yaw_rad as f64);
         }
-        self.last_remaining = Some(remaining);
-        self.collected = first.saturating_sub(remaining) as usize;
     }
 
     fn rocks(&self) -> Vec<(f64, f64)> {
@@ -199,7 +169,7 @@ impl Outputs {
             mapped_pct: stats.mapped_pct.is_finite().then_some(stats.mapped_pct as f64),
             fidelity_pct: stats.fidelity_pct.is_finite().then_some(stats.fidelity_pct as f64),
             rocks_located: stats.rocks_located as usize,
-            collected: mapping.collected,
+            collected: mapping.tally.collected() as usize,
         };
         let image = map_inset(&mapping.map, mapping.ground_truth.as_deref(), &rocks, &inset);
         let message = Image {

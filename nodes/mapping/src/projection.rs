@@ -33,6 +33,24 @@ pub struct Pose {
     pub roll_rad: f64,
 }
 
+impl Pose {
+    /// The pose a `rover_msgs/TerrainScan` was taken at.
+    pub fn of_scan(scan: &rover_msgs::msg::TerrainScan) -> Self {
+        Pose {
+            x_m: scan.x_m,
+            y_m: scan.y_m,
+            yaw_rad: scan.yaw_rad as f64,
+            pitch_rad: scan.pitch_rad as f64,
+            roll_rad: scan.roll_rad as f64,
+        }
+    }
+
+    /// Whether every number is finite.
+    pub fn is_finite(&self) -> bool {
+        [self.x_m, self.y_m, self.yaw_rad, self.pitch_rad, self.roll_rad].iter().all(|v| v.is_finite())
+    }
+}
+
 /// Projects rover-frame ground points of one frame into the world.
 #[derive(Debug, Clone, Copy)]
 pub struct Projector {

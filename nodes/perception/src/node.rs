@@ -114,7 +114,6 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         settings,
         frames: 0,
         rejected: 0,
-        cells: Vec::new(),
     };
     let telemetry_subscription = node.subscription(&topics::TELEMETRY)?;
     let camera_subscription = node.subscription(&topics::CAMERA_COMPRESSED)?;
@@ -146,7 +145,6 @@ struct Worker {
     settings: PerceptionParams,
     frames: u64,
     rejected: u64,
-    cells: Vec<u8>,
 }
 
 impl Worker {
@@ -164,31 +162,7 @@ impl Worker {
             return;
         }
         self.frames += 1;
-        let classes = self.perception.classes();
-        let summary = self.geometry.summarize(classes);
-        self.geometry.fill(classes, &mut self.cells);
-        let (rock_bearing, rock_distance) = summary.rock.unwrap_or((0.0, 0.0));
-        let scan = TerrainScan {
-            header: Header { frame_id: "base_link".to_string(), ..header.clone() },
-            frame: pose.frame,
-            x_m: pose.x_m,
-            y_m: pose.y_m,
-            yaw_rad: pose.yaw_rad,
-            pitch_rad: pose.pitch_rad,
-            roll_rad: pose.roll_rad,
-            resolution_m: self.geometry.resolution_m as f32,
-            origin_x_m: self.geometry.origin_x_m as f32,
-            origin_y_m: self.geometry.origin_y_m as f32,
-            rows: self.geometry.rows as u32,
-            cols: self.geometry.cols as u32,
-            cells: self.cells.clone(),
-            navigable_count: summary.navigable_count,
-            navigable_bearing_rad: summary.navigable_bearing_rad,
-            navigable_distance_m: summary.navigable_distance_m,
-            rock_seen: summary.rock.is_some(),
-            rock_bearing_rad: rock_bearing,
-            rock_distance_m: rock_distance,
-        };
+        let scan = self.geometry.terrain_scan(self.perception.classes(), &pose, header.clone());
         if let Err(e) = self.terrain.publish(scan) {
             tracing::warn!("cannot publish rover/terrain: {e:?}");
         }

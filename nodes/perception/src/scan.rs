@@ -2,6 +2,8 @@
 //! y left), summaries for steering, and the classified bird's-eye image for the simulator inset.
 
 use rover_imaging::RgbImage;
+use rover_msgs::msg::{Telemetry, TerrainScan};
+use rover_msgs::std_msgs::Header;
 
 use crate::Calibration;
 use crate::classify::Class;
@@ -63,12 +65,12 @@ impl ScanGeometry {
         }
     }
 
-    /// Summaries of a frame for steering: the mean bearing and distance of the navigable pixels
-    /// and of the rock pixels.
+    /// Summaries of a frame for steering: the mean bearing and distance of the navigable pixels,
+    /// and the bearing and distance of the nearest rock pixel (the foot of the rock: the rest of
+    /// it stands up from the ground and projects beyond).
     pub fn summarize(&self, classes: &[Class]) -> ScanSummary {
         let mut summary = ScanSummary::default();
         let (mut bearing_sum, mut distance_sum) = (0.0f64, 0.0f64);
-        let (mut rock_bearing_sum, mut rock_distance_sum, mut rock_count) = (0.0f64, 0.0f64, 0u32);
         for (class, &(bearing, distance)) in classes.iter().zip(&self.polar_of_entry) {
             match class {
                 Class::Navigable => {
@@ -76,10 +78,8 @@ impl ScanGeometry {
                     bearing_sum += bearing as f64;
                     distance_sum += distance as f64;
                 }
-                Class::Rock => {
-                    rock_count += 1;
-                    rock_bearing_sum += bearing as f64;
-                    rock_distance_sum += distance as f64;
+                Class::Rock if summary.rock.is_none_or(|(_, nearest)| distance < nearest) => {
+                    summary.rock = Some((bearing, distance));
                 }
                 _ => {}
             }
@@ -88,11 +88,36 @@ impl ScanGeometry {
             summary.navigable_bearing_rad = (bearing_sum / summary.navigable_count as f64) as f32;
             summary.navigable_distance_m = (distance_sum / summary.navigable_count as f64) as f32;
         }
-        if rock_count > 0 {
-            let n = rock_count as f64;
-            summary.rock = Some(((rock_bearing_sum / n) as f32, (rock_distance_sum / n) as f32));
-        }
         summary
+    }
+
+    /// The `rover_msgs/TerrainScan` of a frame's classes, taken at the pose of `telemetry`.
+    pub fn terrain_scan(&self, classes: &[Class], telemetry: &Telemetry, header: Header) -> TerrainScan {
+        let summary = self.summarize(classes);
+        let mut cells = Vec::new();
+        self.fill(classes, &mut cells);
+        let (rock_bearing_rad, rock_distance_m) = summary.rock.unwrap_or((0.0, 0.0));
+        TerrainScan {
+            header: Header { frame_id: "base_link".to_string(), ..header },
+            frame: telemetry.frame,
+            x_m: telemetry.x_m,
+            y_m: telemetry.y_m,
+            yaw_rad: telemetry.yaw_rad,
+            pitch_rad: telemetry.pitch_rad,
+            roll_rad: telemetry.roll_rad,
+            resolution_m: self.resolution_m as f32,
+            origin_x_m: self.origin_x_m as f32,
+            origin_y_m: self.origin_y_m as f32,
+            rows: self.rows as u32,
+            cols: self.cols as u32,
+            cells,
+            navigable_count: summary.navigable_count,
+            navigable_bearing_rad: summary.navigable_bearing_rad,
+            navigable_distance_m: summary.navigable_distance_m,
+            rock_seen: summary.rock.is_some(),
+            rock_bearing_rad,
+            rock_distance_m,
+        }
     }
 }
 
@@ -105,7 +130,7 @@ pub struct ScanSummary {
     pub navigable_bearing_rad: f32,
     /// Their mean distance, metres.
     pub navigable_distance_m: f32,
-    /// Mean bearing (radians, positive left) and distance (m) of the rock pixels, if any.
+    /// Bearing (radians, positive left) and distance (m) of the nearest rock pixel, if any.
     pub rock: Option<(f32, f32)>,
 }
 

@@ -60,7 +60,7 @@ pub const DRIVE_CMD: Topic<DriveCommand> = Topic::new("rover/drive_cmd", reliabl
 /// Pickup requests.
 pub const PICKUP: Topic<PickupRequest> = Topic::new("rover/pickup", reliable(10));
 /// State of the decision node.
-pub const MODE: Topic<DecisionState> = Topic::new("rover/mode", reliable(10));
+pub const MODE: Topic<DecisionState> = Topic::new("rover/mode", latched());
 /// Teleoperation velocity (overrides the decision node while fresh).
 pub const CMD_VEL: Topic<Twist> = Topic::new("cmd_vel", reliable(10));
 /// Bridge health.

@@ -1,0 +1,152 @@
+//! Low-level driving: a speed controller, steering toward a bearing, turning in place with
+//! hysteresis, and steering around what the camera sees.
+
+use crate::local::FreeSpace;
+use crate::params::DecisionParams;
+
+/// The simulator's steering limit, degrees.
+pub const MAX_STEER_DEG: f64 = 15.0;
+/// Below this speed the rover counts as stopped and may turn in place, m/s.
+const STOPPED_MPS: f64 = 0.2;
+/// Throttle that holds 1 m/s against rolling resistance.
+const THROTTLE_PER_MPS: f64 = 0.15;
+/// Speed kept when free ground ahead runs short, as a fraction of the cruising speed.
+const MIN_SPEED_FRACTION: f64 = 0.3;
+
+/// One drive command.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Drive {
+    /// Throttle, -1..1 (negative reverses).
+    pub throttle: f64,
+    /// Brake, 0 or more.
+    pub brake: f64,
+    /// Steering angle, degrees, positive left.
+    pub steering_deg: f64,
+}
+
+impl Drive {
+    /// Braking to a standstill.
+    pub fn stop(brake: f64) -> Self {
+        Drive { throttle: 0.0, brake, steering_deg: 0.0 }
+    }
+
+    /// Turning in place, left (counter-clockwise) or right.
+    pub fn turn_in_place(left: bool) -> Self {
+        Drive { throttle: 0.0, brake: 0.0, steering_deg: if left { MAX_STEER_DEG } else { -MAX_STEER_DEG } }
+    }
+
+    /// Whether this command asks the rover to roll forward or back (not turning in place, not braking).
+    pub fn drives(&self) -> bool {
+        self.throttle.abs() > 0.05 && self.brake == 0.0
+    }
+}
+
+/// Steering with memory: once the rover turns in place it keeps turning until it faces the goal.
+#[derive(Debug, Clone, Default)]
+pub struct Steering {
+    turning: Option<bool>,
+}
+
+impl Steering {
+    /// Forgets a turn in progress.
+    pub fn reset(&mut self) {
+        self.turning = None;
+    }
+
+    /// Drives toward `bearing_rad` (relative to the heading, positive left) at up to `speed_mps`,
+    /// turning in place when the bearing is large.
+    pub fn toward(&mut self, bearing_rad: f64, target_mps: f64, speed_mps: f64, params: &DecisionParams) -> Drive {
+        let bearing_deg = bearing_rad.to_degrees();
+        if self.turning.is_none() && bearing_deg.abs() > params.turn_in_place_deg {
+            self.turning = Some(bearing_deg > 0.0);
+        }
+        if let Some(left) = self.turning {
+            if bearing_deg.abs() > params.turn_done_deg {
+                return if speed_mps.abs() > STOPPED_MPS {
+                    Drive::stop(params.brake)
+                } else {
+                    Drive::turn_in_place(left)
+                };
+            }
+            self.turning = None;
+        }
+        let steering_deg = (params.steer_gain * bearing_deg).clamp(-MAX_STEER_DEG, MAX_STEER_DEG);
+        Drive { steering_deg, ..hold_speed(target_mps, speed_mps, params) }
+    }
+
+    /// Drives toward `bearing_rad` along the nearest direction with free ground ahead, slowing when
+    /// little is free; turns in place toward the bearing when nothing ahead is free.
+    pub fn around_obstacles(
+        &mut self,
+        bearing_rad: f64,
+        cruise_mps: f64,
+        speed_mps: f64,
+        free: &FreeSpace,
+        params: &DecisionParams,
+    ) -> Drive {
+        if self.turning.is_some() || bearing_rad.to_degrees().abs() > params.turn_in_place_deg {
+            return self.toward(bearing_rad, cruise_mps, speed_mps, params);
+        }
+        match free.best_toward(bearing_rad as f32, params.clearance_m as f32) {
+            Some(direction) => {
+                let fraction =
+                    (free.toward(direction) as f64 / params.slowdown_distance_m).clamp(MIN_SPEED_FRACTION, 1.0);
+                self.toward(direction as f64, cruise_mps * fraction, speed_mps, params)
+            }
+            None if speed_mps.abs() > STOPPED_MPS => Drive::stop(params.brake),
+            None => Drive::turn_in_place(if bearing_rad != 0.0 { bearing_rad > 0.0 } else { free.most_open() >= 0.0 }),
+        }
+    }
+}
+
+/// Throttle or brake that brings `speed_mps` to `target_mps`.
+pub fn hold_speed(target_mps: f64, speed_mps: f64, params: &DecisionParams) -> Drive {
+    let error = target_mps - speed_mps;
+    if error < -0.5 {
+        return Drive { throttle: 0.0, brake: (-error).min(params.brake), steering_deg: 0.0 };
+    }
+    let throttle = (THROTTLE_PER_MPS * target_mps + params.throttle_gain * error).clamp(0.0, 1.0);
+    Drive { throttle, brake: 0.0, steering_deg: 0.0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params() -> DecisionParams {
+        DecisionParams::default()
+    }
+
+    #[test]
+    fn large_bearings_stop_then_turn_in_place_until_facing_the_goal() {
+        let p = params();
+        let mut steering = Steering::default();
+        assert_eq!(steering.toward(90f64.to_radians(), 2.0, 1.5, &p), Drive::stop(p.brake));
+        assert_eq!(steering.toward(90f64.to_radians(), 2.0, 0.0, &p), Drive::turn_in_place(true));
+        let still_turning = steering.toward(30f64.to_radians(), 2.0, 0.0, &p);
+        assert_eq!(still_turning, Drive::turn_in_place(true), "keeps turning below the start threshold");
+        let driving = steering.toward(5f64.to_radians(), 2.0, 0.0, &p);
+        assert!(driving.throttle > 0.0 && driving.steering_deg > 0.0 && driving.brake == 0.0, "{driving:?}");
+    }
+
+    #[test]
+    fn speed_is_held_with_throttle_and_brake() {
+        let p = params();
+        assert!(hold_speed(2.0, 0.0, &p).throttle > hold_speed(2.0, 1.9, &p).throttle);
+        let braking = hold_speed(0.5, 2.0, &p);
+        assert!(braking.throttle == 0.0 && braking.brake > 0.0);
+        assert!(!braking.drives() && hold_speed(2.0, 0.0, &p).drives());
+    }
+
+    #[test]
+    fn blocked_ahead_turns_toward_the_goal_side() {
+        let p = params();
+        let free = FreeSpace { directions_rad: vec![-0.2, 0.0, 0.2], free_m: vec![0.5, 0.5, 0.5] };
+        let mut steering = Steering::default();
+        assert_eq!(steering.around_obstacles(-0.1, 2.0, 0.0, &free, &p), Drive::turn_in_place(false));
+        let open = FreeSpace { directions_rad: vec![-0.2, 0.0, 0.2], free_m: vec![0.5, 0.5, 6.0] };
+        let mut steering = Steering::default();
+        let drive = steering.around_obstacles(-0.1, 2.0, 0.0, &open, &p);
+        assert!(drive.steering_deg > 0.0, "swerves to the free side: {drive:?}");
+    }
+}

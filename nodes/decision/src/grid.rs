@@ -1,0 +1,251 @@
+//! Planning on the 200 x 200 occupancy grid: path costs from the rover to every cell (Dijkstra with
+//! wall clearance and a premium for unknown ground), frontiers, and paths.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+/// Side of the grid, cells (1 m each).
+pub const SIDE: usize = 200;
+
+/// What a cell of the occupancy grid says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cell {
+    /// Mapped navigable (0).
+    Free,
+    /// Mapped obstacle (100, or anything above 50).
+    Blocked,
+    /// Not mapped yet (-1).
+    Unknown,
+}
+
+/// Costs of moving through cells.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Costs {
+    /// Extra cost of an unknown cell (1 is a free cell).
+    pub unknown: f32,
+    /// Extra cost of a free cell next to an obstacle.
+    pub near_wall: f32,
+    /// Whether unknown cells may be crossed at all.
+    pub cross_unknown: bool,
+}
+
+/// The occupancy grid with planning helpers.
+#[derive(Debug, Clone)]
+pub struct Grid {
+    cells: Vec<Cell>,
+    near_wall: Vec<bool>,
+}
+
+impl Grid {
+    /// A grid from `nav_msgs/OccupancyGrid` data (row = y).
+    pub fn from_occupancy(data: &[i8]) -> Option<Self> {
+        if data.len() != SIDE * SIDE {
+            return None;
+        }
+        let cells: Vec<Cell> = data
+            .iter()
+            .map(|&v| match v {
+                -1 => Cell::Unknown,
+                v if v > 50 => Cell::Blocked,
+                _ => Cell::Free,
+            })
+            .collect();
+        let near_wall = (0..SIDE * SIDE)
+            .map(|i| cells[i] != Cell::Blocked && neighbours8(i).any(|n| cells[n] == Cell::Blocked))
+            .collect();
+        Some(Grid { cells, near_wall })
+    }
+
+    /// An empty (all unknown) grid.
+    pub fn unknown() -> Self {
+        Grid { cells: vec![Cell::Unknown; SIDE * SIDE], near_wall: vec![false; SIDE * SIDE] }
+    }
+
+    /// The cell at index `i`.
+    pub fn cell(&self, i: usize) -> Cell {
+        self.cells[i]
+    }
+
+    /// Index of the cell containing (x, y), if on the grid.
+    pub fn index(x_m: f64, y_m: f64) -> Option<usize> {
+        (x_m >= 0.0 && y_m >= 0.0 && x_m < SIDE as f64 && y_m < SIDE as f64).then(|| y_m as usize * SIDE + x_m as usize)
+    }
+
+    /// Centre of cell `i`, metres.
+    pub fn centre(i: usize) -> (f64, f64) {
+        ((i % SIDE) as f64 + 0.5, (i / SIDE) as f64 + 0.5)
+    }
+
+    fn step_cost(&self, i: usize, costs: &Costs) -> Option<f32> {
+        match self.cells[i] {
+            Cell::Blocked => None,
+            Cell::Unknown if !costs.cross_unknown => None,
+            Cell::Unknown => Some(1.0 + costs.unknown),
+            Cell::Free if self.near_wall[i] => Some(1.0 + costs.near_wall),
+            Cell::Free => Some(1.0),
+        }
+    }
+
+    /// Path costs from `start` to every cell and each cell's predecessor (Dijkstra, 8-connected,
+    /// no corner cutting past obstacles). The start cell is free of charge whatever it holds.
+    pub fn costs_from(&self, start: usize, costs: &Costs) -> CostMap {
+        let mut distance = vec![f32::INFINITY; SIDE * SIDE];
+        let mut parent = vec![usize::MAX; SIDE * SIDE];
+        let mut heap = BinaryHeap::new();
+        distance[start] = 0.0;
+        heap.push(Reverse((Ordered(0.0), start)));
+        while let Some(Reverse((Ordered(d), i))) = heap.pop() {
+            if d > distance[i] {
+                continue;
+            }
+            let (x, y) = ((i % SIDE) as i64, (i / SIDE) as i64);
+            for (dx, dy) in NEIGHBOURS8 {
+                let (nx, ny) = (x + dx, y + dy);
+                if !(0..SIDE as i64).contains(&nx) || !(0..SIDE as i64).contains(&ny) {
+                    continue;
+                }
+                let n = ny as usize * SIDE + nx as usize;
+                let diagonal = dx != 0 && dy != 0;
+                if diagonal
+                    && (self.cells[y as usize * SIDE + nx as usize] == Cell::Blocked
+                        || self.cells[ny as usize * SIDE + x as usize] == Cell::Blocked)
+                {
+                    continue;
+                }
+                let Some(step) = self.step_cost(n, costs) else { continue };
+                let next = d + step * if diagonal { std::f32::consts::SQRT_2 } else { 1.0 };
+                if next < distance[n] {
+                    distance[n] = next;
+                    parent[n] = i;
+                    heap.push(Reverse((Ordered(next), n)));
+                }
+            }
+        }
+        CostMap { distance, parent }
+    }
+
+    /// Frontier cells: free cells with a 4-neighbour that is still `unexplored`.
+    pub fn frontiers(&self, unexplored: impl Fn(usize) -> bool) -> Vec<usize> {
+        (0..SIDE * SIDE).filter(|&i| self.cells[i] == Cell::Free && neighbours4(i).any(&unexplored)).collect()
+    }
+
+    /// Cells within `radius` cells of cell `i` (a square neighbourhood) for which `test` holds.
+    pub fn count_around(i: usize, radius: usize, test: impl Fn(usize) -> bool) -> usize {
+        let (x, y) = (i % SIDE, i / SIDE);
+        let rows = y.saturating_sub(radius)..(y + radius + 1).min(SIDE);
+        rows.flat_map(|row| (x.saturating_sub(radius)..(x + radius + 1).min(SIDE)).map(move |col| row * SIDE + col))
+            .filter(|&n| test(n))
+            .count()
+    }
+
+    /// Counts of free, blocked and unknown cells.
+    pub fn counts(&self) -> (usize, usize, usize) {
+        let count = |c: Cell| self.cells.iter().filter(|&&x| x == c).count();
+        (count(Cell::Free), count(Cell::Blocked), count(Cell::Unknown))
+    }
+}
+
+/// The result of [`Grid::costs_from`].
+#[derive(Debug, Clone)]
+pub struct CostMap {
+    /// Path cost to each cell (infinite when unreachable).
+    pub distance: Vec<f32>,
+    parent: Vec<usize>,
+}
+
+impl CostMap {
+    /// The cells from the start to `goal`, or `None` when unreachable.
+    pub fn path_to(&self, goal: usize) -> Option<Vec<usize>> {
+        if !self.distance[goal].is_finite() {
+            return None;
+        }
+        let mut path = vec![goal];
+        let mut at = goal;
+        while self.parent[at] != usize::MAX {
+            at = self.parent[at];
+            path.push(at);
+        }
+        path.reverse();
+        Some(path)
+    }
+}
+
+/// An `f32` ordered for the heap (costs are never NaN).
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd)]
+struct Ordered(f32);
+
+impl Eq for Ordered {}
+
+impl Ord for Ordered {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0)
+    }
+}
+
+const NEIGHBOURS8: [(i64, i64); 8] = [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)];
+
+fn neighbours(i: usize, offsets: &'static [(i64, i64)]) -> impl Iterator<Item = usize> {
+    let (x, y) = ((i % SIDE) as i64, (i / SIDE) as i64);
+    offsets
+        .iter()
+        .map(move |&(dx, dy)| (x + dx, y + dy))
+        .filter(|&(nx, ny)| (0..SIDE as i64).contains(&nx) && (0..SIDE as i64).contains(&ny))
+        .map(|(nx, ny)| ny as usize * SIDE + nx as usize)
+}
+
+fn neighbours4(i: usize) -> impl Iterator<Item = usize> {
+    neighbours(i, &NEIGHBOURS8[..4])
+}
+
+fn neighbours8(i: usize) -> impl Iterator<Item = usize> {
+    neighbours(i, &NEIGHBOURS8)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const COSTS: Costs = Costs { unknown: 2.0, near_wall: 3.0, cross_unknown: true };
+
+    fn corridor() -> Vec<i8> {
+        let mut data = vec![100i8; SIDE * SIDE];
+        for x in 10..60 {
+            for y in 10..14 {
+                data[y * SIDE + x] = 0;
+            }
+        }
+        for y in 14..40 {
+            for x in 55..60 {
+                data[y * SIDE + x] = -1;
+            }
+        }
+        data
+    }
+
+    #[test]
+    fn paths_go_around_walls_and_through_unknown_ground() {
+        let grid = Grid::from_occupancy(&corridor()).unwrap();
+        let start = Grid::index(11.5, 11.5).unwrap();
+        let costs = grid.costs_from(start, &COSTS);
+        let goal = Grid::index(57.5, 30.5).unwrap();
+        let path = costs.path_to(goal).unwrap();
+        assert_eq!(path[0], start);
+        assert_eq!(*path.last().unwrap(), goal);
+        assert!(path.iter().all(|&i| grid.cell(i) != Cell::Blocked));
+        assert!(costs.path_to(Grid::index(5.5, 5.5).unwrap()).is_none(), "walls are not crossed");
+        let no_unknown = grid.costs_from(start, &Costs { cross_unknown: false, ..COSTS });
+        assert!(no_unknown.path_to(goal).is_none());
+    }
+
+    #[test]
+    fn frontiers_are_free_cells_next_to_unknown_ones() {
+        let grid = Grid::from_occupancy(&corridor()).unwrap();
+        let frontiers = grid.frontiers(|n| grid.cell(n) == Cell::Unknown);
+        assert!(!frontiers.is_empty());
+        assert!(frontiers.iter().all(|&i| grid.cell(i) == Cell::Free && Grid::centre(i).1 < 14.0));
+        assert_eq!(Grid::from_occupancy(&[0; 3]).map(|_| ()), None);
+        let corner = Grid::index(0.5, 0.5).unwrap();
+        assert_eq!(Grid::count_around(corner, 2, |_| true), 9, "clipped at the edge");
+        assert_eq!(Grid::count_around(Grid::index(50.5, 50.5).unwrap(), 2, |_| true), 25);
+    }
+}

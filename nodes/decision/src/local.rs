@@ -1,0 +1,208 @@
+//! Free space ahead, from one terrain scan: for a fan of directions, how far the ground is known
+//! to be navigable along a lane as wide as the rover.
+
+use rover_msgs::msg::TerrainScan;
+
+/// The scan geometry the rays were laid out for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Geometry {
+    rows: u32,
+    cols: u32,
+    resolution_m: f32,
+    origin_x_m: f32,
+    origin_y_m: f32,
+}
+
+impl Geometry {
+    fn of(scan: &TerrainScan) -> Self {
+        Geometry {
+            rows: scan.rows,
+            cols: scan.cols,
+            resolution_m: scan.resolution_m,
+            origin_x_m: scan.origin_x_m,
+            origin_y_m: scan.origin_y_m,
+        }
+    }
+
+    /// The scan cell containing rover-frame point (x, y): `Ok(None)` before the first row (under
+    /// the rover, assumed free), `Err(())` outside the scan.
+    fn cell(&self, x: f64, y: f64) -> Result<Option<u32>, ()> {
+        let res = self.resolution_m as f64;
+        let row = ((x - self.origin_x_m as f64) / res).floor();
+        let col = ((y - self.origin_y_m as f64) / res).floor();
+        if row < 0.0 {
+            return Ok(None);
+        }
+        if row >= self.rows as f64 || col < 0.0 || col >= self.cols as f64 {
+            return Err(());
+        }
+        Ok(Some(row as u32 * self.cols + col as u32))
+    }
+}
+
+/// One lane: the scan cells along it, with their distance from the rover.
+type Lane = Vec<(u32, f32)>;
+
+/// Rays laid out once for a scan geometry.
+#[derive(Debug, Clone)]
+pub struct FreeSpaceRays {
+    geometry: Option<Geometry>,
+    directions_rad: Vec<f32>,
+    half_width_m: f64,
+    max_range_m: f64,
+    lanes: Vec<[Lane; 3]>,
+}
+
+/// Known-free distance per direction of one scan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FreeSpace {
+    /// Directions, radians, positive left, ascending.
+    pub directions_rad: Vec<f32>,
+    /// Free distance along each, metres.
+    pub free_m: Vec<f32>,
+}
+
+impl FreeSpace {
+    /// Free distance in the direction closest to `bearing_rad`.
+    pub fn toward(&self, bearing_rad: f32) -> f32 {
+        let index = self
+            .directions_rad
+            .iter()
+            .enumerate()
+            .min_by(|a, b| (a.1 - bearing_rad).abs().total_cmp(&(b.1 - bearing_rad).abs()))
+            .map_or(0, |(i, _)| i);
+        self.free_m.get(index).copied().unwrap_or(0.0)
+    }
+
+    /// The direction closest to `bearing_rad` with at least `clearance_m` free, if any.
+    pub fn best_toward(&self, bearing_rad: f32, clearance_m: f32) -> Option<f32> {
+        self.directions_rad
+            .iter()
+            .zip(&self.free_m)
+            .filter(|&(_, &free)| free >= clearance_m)
+            .min_by(|a, b| (a.0 - bearing_rad).abs().total_cmp(&(b.0 - bearing_rad).abs()))
+            .map(|(&direction, _)| direction)
+    }
+
+    /// The direction with the most free distance (ties to the one nearest straight ahead).
+    pub fn most_open(&self) -> f32 {
+        self.directions_rad
+            .iter()
+            .zip(&self.free_m)
+            .max_by(|a, b| a.1.total_cmp(b.1).then(b.0.abs().total_cmp(&a.0.abs())))
+            .map_or(0.0, |(&d, _)| d)
+    }
+}
+
+impl FreeSpaceRays {
+    /// Rays every `step_deg` within +-`span_deg`, lanes `half_width_m` either side, up to `max_range_m`.
+    pub fn new(span_deg: f32, step_deg: f32, half_width_m: f64, max_range_m: f64) -> Self {
+        let count = (2.0 * span_deg / step_deg).round() as i32;
+        let directions_rad = (0..=count).map(|i| (-span_deg + i as f32 * step_deg).to_radians()).collect();
+        FreeSpaceRays { geometry: None, directions_rad, half_width_m, max_range_m, lanes: Vec::new() }
+    }
+
+    fn lay_out(&mut self, geometry: Geometry) {
+        let step = geometry.resolution_m as f64 / 2.0;
+        self.lanes = self
+            .directions_rad
+            .iter()
+            .map(|&theta| {
+                let (s, c) = (theta as f64).sin_cos();
+                [-self.half_width_m, 0.0, self.half_width_m].map(|offset| {
+                    let mut lane = Lane::new();
+                    let mut d = 0.0;
+                    while d <= self.max_range_m {
+                        let (x, y) = (d * c - offset * s, d * s + offset * c);
+                        match geometry.cell(x, y) {
+                            Ok(Some(cell)) if lane.last().is_none_or(|&(last, _)| last != cell) => {
+                                lane.push((cell, d as f32))
+                            }
+                            Ok(_) => {}
+                            Err(()) => {
+                                lane.push((u32::MAX, d as f32));
+                                break;
+                            }
+                        }
+                        d += step;
+                    }
+                    lane
+                })
+            })
+            .collect();
+        self.geometry = Some(geometry);
+    }
+
+    /// The free space of `scan`: along each lane, the distance to the first cell that is not
+    /// navigable (obstacle, rock, or out of view once the lane has entered the view; the blind
+    /// strip in front of the camera counts as free); a direction is as free as its narrowest lane.
+    pub fn measure(&mut self, scan: &TerrainScan) -> FreeSpace {
+        let geometry = Geometry::of(scan);
+        if self.geometry != Some(geometry) {
+            self.lay_out(geometry);
+        }
+        let free_m = self
+            .lanes
+            .iter()
+            .map(|lanes| lanes.iter().map(|lane| self.free_along(lane, &scan.cells)).fold(f32::INFINITY, f32::min))
+            .collect();
+        FreeSpace { directions_rad: self.directions_rad.clone(), free_m }
+    }
+
+    fn free_along(&self, lane: &Lane, cells: &[u8]) -> f32 {
+        let mut in_view = false;
+        for &(cell, distance_m) in lane {
+            match cells.get(cell as usize).copied() {
+                Some(TerrainScan::NAVIGABLE) => in_view = true,
+                Some(TerrainScan::UNKNOWN) if !in_view => {}
+                _ => return if in_view { distance_m } else { 0.0 },
+            }
+        }
+        if in_view { self.max_range_m as f32 } else { 0.0 }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scan 6 m deep and 8 m wide at 0.1 m, navigable except a wall across x >= 3 for y < 0.
+    fn scan() -> TerrainScan {
+        let (rows, cols) = (60u32, 80u32);
+        let mut cells = vec![TerrainScan::NAVIGABLE; (rows * cols) as usize];
+        for row in 0..rows {
+            for col in 0..cols {
+                let (x, y) = (0.3 + row as f32 * 0.1, -4.0 + col as f32 * 0.1);
+                if x < 0.8 || y.abs() > 3.5 {
+                    cells[(row * cols + col) as usize] = TerrainScan::UNKNOWN;
+                } else if x >= 3.0 && y < 0.0 {
+                    cells[(row * cols + col) as usize] = TerrainScan::OBSTACLE;
+                }
+            }
+        }
+        TerrainScan {
+            rows,
+            cols,
+            resolution_m: 0.1,
+            origin_x_m: 0.3,
+            origin_y_m: -4.0,
+            cells,
+            ..TerrainScan::default()
+        }
+    }
+
+    #[test]
+    fn open_and_blocked_directions() {
+        let mut rays = FreeSpaceRays::new(40.0, 5.0, 0.4, 5.5);
+        let space = rays.measure(&scan());
+        assert_eq!(space.directions_rad.len(), 17);
+        let right = space.toward(-30f32.to_radians());
+        let left = space.toward(30f32.to_radians());
+        assert!(right < 3.6, "the wall on the right: {right}");
+        assert!(left > 4.5, "open on the left: {left}");
+        let chosen = space.best_toward(-20f32.to_radians(), 4.5).unwrap();
+        assert!(chosen > 0.0, "steers left of the wall: {chosen}");
+        assert!(space.most_open() > 0.0);
+        assert!(space.toward(0.0) > 2.9, "the blind strip in front counts as free");
+    }
+}

@@ -1,0 +1,196 @@
+//! The decision node (`rover decision`): telemetry, terrain scans, the map and the located rocks in;
+//! one drive command per frame and the state machine's mode out.
+
+use futures::StreamExt;
+use rover_msgs::geometry_msgs::PoseArray;
+use rover_msgs::msg::{DecisionState, DriveCommand, Telemetry, TerrainScan};
+use rover_msgs::nav_msgs::OccupancyGrid;
+use rover_msgs::std_msgs::Header;
+use rover_node::pairing::Pairer;
+use rover_node::{Publisher, Runtime, messages, topics};
+use tracing::Instrument as _;
+
+use crate::drive::Drive;
+use crate::grid::Grid;
+use crate::local::FreeSpaceRays;
+use crate::machine::{Machine, Memory};
+use crate::params::DecisionParams;
+use crate::{observation, telemetry_is_finite};
+
+/// How many unmatched telemetry messages or scans are kept while waiting for a partner.
+const PAIRING_BACKLOG: usize = 16;
+/// The mode is published at least every this many frames, even when it does not change.
+const STATUS_EVERY_FRAMES: u64 = 25;
+/// Free space is measured in directions within this angle either side of the heading, degrees.
+const RAY_SPAN_DEG: f32 = 45.0;
+/// Angle between measured directions, degrees.
+const RAY_STEP_DEG: f32 = 5.0;
+/// Free space is measured up to this distance, metres.
+const RAY_RANGE_M: f64 = 6.0;
+
+/// Counts of inputs the node could not use.
+#[derive(Debug, Default)]
+struct Rejections {
+    non_finite_telemetry: u64,
+    bad_map: u64,
+}
+
+struct Decision {
+    machine: Machine,
+    rays: FreeSpaceRays,
+    drive: Publisher<DriveCommand>,
+    mode: Publisher<DecisionState>,
+    first_frame: Option<u64>,
+    resumed: bool,
+    frames: u64,
+    rejections: Rejections,
+}
+
+impl Decision {
+    fn decide(&mut self, telemetry: &Telemetry, scan: &TerrainScan) {
+        self.first_frame.get_or_insert(telemetry.frame);
+        let drive = if telemetry_is_finite(telemetry) {
+            self.frames += 1;
+            self.machine.step(&observation(telemetry, scan, &mut self.rays))
+        } else {
+            self.rejections.non_finite_telemetry += 1;
+            tracing::warn!(frame = telemetry.frame, "telemetry has a non-finite number: braking for this frame");
+            Drive::stop(DecisionParams::default().brake)
+        };
+        let command = DriveCommand {
+            header: Header { frame_id: "base_link".to_string(), ..telemetry.header.clone() },
+            frame: telemetry.frame,
+            throttle: drive.throttle as f32,
+            brake: drive.brake as f32,
+            steering_angle_deg: drive.steering_deg as f32,
+        };
+        if let Err(e) = self.drive.publish(command) {
+            tracing::warn!("cannot publish rover/drive_cmd: {e:?}");
+        }
+        if self.machine.take_change() || telemetry.frame.is_multiple_of(STATUS_EVERY_FRAMES) {
+            self.publish_status(telemetry);
+        }
+    }
+
+    fn publish_status(&mut self, telemetry: &Telemetry) {
+        let status = self.machine.status();
+        let (target_x_m, target_y_m) = status.target.unwrap_or((f64::NAN, f64::NAN));
+        let (home_x_m, home_y_m) = status.home.unwrap_or((f64::NAN, f64::NAN));
+        let state = DecisionState {
+            header: Header { frame_id: "map".to_string(), ..telemetry.header.clone() },
+            frame: telemetry.frame,
+            mode: status.mode.name().to_string(),
+            target_x_m,
+            target_y_m,
+            reason: status.reason.clone(),
+            samples_collected: status.samples_collected,
+            home_x_m,
+            home_y_m,
+        };
+        if let Err(e) = self.mode.publish(state) {
+            tracing::warn!("cannot publish rover/mode: {e:?}");
+        }
+    }
+
+    fn set_map(&mut self, map: &OccupancyGrid) {
+        match Grid::from_occupancy(&map.data) {
+            Some(grid) => self.machine.set_map(grid),
+            None => {
+                self.rejections.bad_map += 1;
+                tracing::warn!(
+                    "ignored a map of {}x{} cells with {} values: expected 200x200",
+                    map.info.width,
+                    map.info.height,
+                    map.data.len()
+                );
+            }
+        }
+    }
+
+    /// Takes over home and collected samples from a state an earlier decision node published
+    /// (latched, decided on a frame before this node's first).
+    fn resume_from(&mut self, state: &DecisionState) {
+        let earlier = self.first_frame.is_none_or(|first| state.frame < first);
+        if self.resumed || !earlier || !state.home_x_m.is_finite() || !state.home_y_m.is_finite() {
+            return;
+        }
+        self.resumed = true;
+        let memory = Memory { home: (state.home_x_m, state.home_y_m), samples_collected: state.samples_collected };
+        tracing::info!(
+            "resuming a mission: home ({:.1}, {:.1}), {} samples collected",
+            memory.home.0,
+            memory.home.1,
+            memory.samples_collected
+        );
+        self.machine.resume(memory);
+    }
+}
+
+/// Runs the decision node until shutdown.
+pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
+    let (mut node, params) = runtime.node::<DecisionParams>("decision")?;
+    let span = node.span();
+    let settings = params.get();
+    let mut decision = Decision {
+        rays: FreeSpaceRays::new(RAY_SPAN_DEG, RAY_STEP_DEG, settings.lane_half_width_m, RAY_RANGE_M),
+        machine: Machine::new(settings),
+        drive: node.publisher(&topics::DRIVE_CMD)?,
+        mode: node.publisher(&topics::MODE)?,
+        first_frame: None,
+        resumed: false,
+        frames: 0,
+        rejections: Rejections::default(),
+    };
+    let telemetry_subscription = node.subscription(&topics::TELEMETRY)?;
+    let terrain_subscription = node.subscription(&topics::TERRAIN)?;
+    let map_subscription = node.subscription(&topics::MAP)?;
+    let rocks_subscription = node.subscription(&topics::ROCKS)?;
+    let mode_subscription = node.subscription(&topics::MODE)?;
+    let mut telemetry = std::pin::pin!(messages(&telemetry_subscription));
+    let mut scans = std::pin::pin!(messages(&terrain_subscription));
+    let mut maps = std::pin::pin!(messages(&map_subscription));
+    let mut rocks = std::pin::pin!(messages(&rocks_subscription));
+    let mut states = std::pin::pin!(messages(&mode_subscription));
+    let mut pairs: Pairer<u64, Telemetry, TerrainScan> = Pairer::new(PAIRING_BACKLOG);
+    let mut changes = params.watch();
+    let shutdown = runtime.shutdown();
+    async {
+        loop {
+            let pair = tokio::select! {
+                () = shutdown.wait() => break,
+                Some(t) = telemetry.next() => pairs.push_first(t.frame, t),
+                Some(scan) = scans.next() => pairs.push_second(scan.frame, scan),
+                Some(map) = maps.next() => { decision.set_map(&map); None }
+                Some(located) = rocks.next() => { decision.machine.set_rocks(rock_positions(&located)); None }
+                Some(state) = states.next() => { decision.resume_from(&state); None }
+                Ok(()) = changes.changed() => {
+                    let updated = changes.borrow_and_update().clone();
+                    decision.machine.set_params(updated);
+                    None
+                }
+            };
+            if let Some((telemetry, scan)) = pair {
+                decision.decide(&telemetry, &scan);
+            }
+        }
+        tracing::info!(
+            "decision: {} frames decided, {} unpaired, rejected {:?}, final mode {}",
+            decision.frames,
+            pairs.dropped(),
+            decision.rejections,
+            decision.machine.status().mode.name()
+        );
+    }
+    .instrument(span)
+    .await;
+    Ok(())
+}
+
+fn rock_positions(rocks: &PoseArray) -> Vec<(f64, f64)> {
+    rocks
+        .poses
+        .iter()
+        .map(|pose| (pose.position.x, pose.position.y))
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .collect()
+}

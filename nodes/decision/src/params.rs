@@ -1,0 +1,82 @@
+//! The decision node's parameters: every threshold of the state machine.
+
+rover_node::node_params! {
+    /// Parameters of the decision node.
+    pub struct DecisionParams {
+        /// Cruising speed, m/s.
+        max_speed_mps: f64 [0.1, 5.0] = 2.0,
+        /// Speed when approaching a sample, m/s.
+        approach_speed_mps: f64 [0.1, 3.0] = 0.5,
+        /// Throttle per m/s of speed error.
+        throttle_gain: f64 [0.0, 10.0] = 0.8,
+        /// Brake value for stops.
+        brake: f64 [0.0, 100.0] = 10.0,
+        /// Steering degrees per degree of bearing to the chosen direction.
+        steer_gain: f64 [0.0, 10.0] = 1.0,
+        /// A direction is taken only with this much free ground ahead, metres.
+        clearance_m: f64 [0.3, 10.0] = 1.2,
+        /// Speed falls to a fraction below this much free ground ahead, metres.
+        slowdown_distance_m: f64 [0.5, 20.0] = 4.0,
+        /// Beyond this bearing the rover stops and turns in place, degrees.
+        turn_in_place_deg: f64 [10.0, 180.0] = 50.0,
+        /// A turn in place ends below this bearing, degrees.
+        turn_done_deg: f64 [1.0, 90.0] = 12.0,
+        /// Half width of the lanes checked for free ground, metres.
+        lane_half_width_m: f64 [0.1, 2.0] = 0.5,
+        /// Lookahead of the path follower, metres.
+        lookahead_m: f64 [0.5, 20.0] = 2.5,
+        /// Frames between replans.
+        replan_frames: i64 [1, 10000] = 12,
+        /// A frontier target counts as reached within this distance, metres.
+        frontier_reached_m: f64 [0.5, 20.0] = 2.0,
+        /// A frontier cell needs this many unexplored cells in its 5x5 neighbourhood.
+        frontier_min_unknown: i64 [1, 25] = 6,
+        /// Cells up to this far in front of the camera count as inspected, metres.
+        inspect_range_m: f64 [0.5, 20.0] = 5.0,
+        /// Cells up to this angle either side of the heading count as inspected, degrees.
+        inspect_half_angle_deg: f64 [1.0, 90.0] = 35.0,
+        /// Extra cost, metres, of a frontier straight behind the rover (scaled by the turn).
+        turn_penalty_m: f64 [0.0, 100.0] = 8.0,
+        /// Extra path cost of unknown cells.
+        unknown_cost: f64 [0.0, 100.0] = 1.5,
+        /// Extra path cost of cells next to obstacles.
+        near_wall_cost: f64 [0.0, 100.0] = 4.0,
+        /// Give up a target after this long without reaching it, seconds.
+        target_timeout_s: f64 [1.0, 10000.0] = 40.0,
+        /// Throttle without motion for this long means stuck, seconds.
+        stuck_s: f64 [0.1, 60.0] = 1.5,
+        /// Recovery: reverse throttle while backing up.
+        recover_throttle: f64 [0.1, 1.0] = 0.8,
+        /// Recovery: backing up, seconds.
+        recover_back_s: f64 [0.0, 60.0] = 1.0,
+        /// Recovery: turning towards open ground, seconds.
+        recover_turn_s: f64 [0.0, 60.0] = 1.5,
+        /// Pitch or roll beyond this means tilted: recover, degrees.
+        tilt_limit_deg: f64 [1.0, 90.0] = 12.0,
+        /// Chase a seen sample up to this distance, metres.
+        sample_sight_m: f64 [0.5, 20.0] = 7.0,
+        /// Go for a remembered sample up to this path cost.
+        sample_detour_cost: f64 [0.0, 1000.0] = 60.0,
+        /// Give up a sample not reached in this time, seconds.
+        sample_timeout_s: f64 [1.0, 1000.0] = 30.0,
+        /// A sample given up after failed approaches is tried again after this long, seconds.
+        sample_retry_s: f64 [1.0, 10000.0] = 90.0,
+        /// Give up waiting for the arm after this long stopped next to a sample, seconds.
+        pickup_wait_s: f64 [0.5, 100.0] = 4.0,
+        /// Stop at home within this distance of the start, metres.
+        home_tolerance_m: f64 [0.2, 10.0] = 1.5,
+        /// Be home by this mission time even if not done, seconds.
+        mission_deadline_s: f64 [10.0, 100000.0] = 1150.0,
+        /// Speed assumed when estimating the way home, as a fraction of the cruising speed.
+        return_speed_fraction: f64 [0.1, 1.0] = 0.6,
+        /// Simulated time per frame, seconds (converts the times above to frames).
+        frame_period_s: f64 [0.001, 1.0] = 0.04,
+    }
+}
+
+impl DecisionParams {
+    /// Frames in `seconds`.
+    pub fn frames(&self, seconds: f64) -> u64 {
+        (seconds / self.frame_period_s).round().max(1.0) as u64
+    }
+}

@@ -1,0 +1,353 @@
+//! Planning on the map: routes to a goal cell, frontier exploration, and the lookahead point of a
+//! path that the rover steers toward.
+
+use crate::grid::{Cell, CostMap, Costs, Grid};
+use crate::params::DecisionParams;
+
+/// A frontier needs enough unknown cells within this many cells.
+const FRONTIER_RADIUS_CELLS: usize = 2;
+/// Cells within this distance of a reached or abandoned target stop being frontier candidates.
+const EXPLORED_RADIUS_CELLS: i64 = 3;
+/// Recoveries on the way to one target before it is abandoned.
+const RECOVERIES_PER_TARGET: u32 = 2;
+
+/// Where the rover is, in the world frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Position {
+    /// Metres.
+    pub x_m: f64,
+    /// Metres.
+    pub y_m: f64,
+    /// Heading, radians counter-clockwise from +x.
+    pub yaw_rad: f64,
+}
+
+impl Position {
+    /// Distance to (x, y), metres.
+    pub fn distance_to(&self, (x_m, y_m): (f64, f64)) -> f64 {
+        (x_m - self.x_m).hypot(y_m - self.y_m)
+    }
+
+    /// Bearing of (x, y) relative to the heading, radians in (-pi, pi], positive left.
+    pub fn bearing_to(&self, (x_m, y_m): (f64, f64)) -> f64 {
+        wrap_rad((y_m - self.y_m).atan2(x_m - self.x_m) - self.yaw_rad)
+    }
+
+    /// The world point `distance_m` away at `bearing_rad` from the heading.
+    pub fn point_at(&self, bearing_rad: f64, distance_m: f64) -> (f64, f64) {
+        let (s, c) = (self.yaw_rad + bearing_rad).sin_cos();
+        (self.x_m + distance_m * c, self.y_m + distance_m * s)
+    }
+}
+
+/// An angle wrapped to (-pi, pi].
+pub fn wrap_rad(angle_rad: f64) -> f64 {
+    let wrapped = angle_rad.rem_euclid(std::f64::consts::TAU);
+    if wrapped > std::f64::consts::PI { wrapped - std::f64::consts::TAU } else { wrapped }
+}
+
+/// The path costs of `params`.
+pub fn path_costs(params: &DecisionParams) -> Costs {
+    Costs { unknown: params.unknown_cost as f32, near_wall: params.near_wall_cost as f32, cross_unknown: true }
+}
+
+/// The point of `path` the rover steers toward: the first cell at least `lookahead_m` away, after
+/// the cell nearest to the rover; the last cell when all are nearer.
+pub fn lookahead(path: &[usize], at: &Position, lookahead_m: f64) -> Option<(f64, f64)> {
+    let distance = |&cell: &usize| at.distance_to(Grid::centre(cell));
+    let nearest = (0..path.len()).min_by(|&a, &b| distance(&path[a]).total_cmp(&distance(&path[b])))?;
+    let ahead = &path[nearest..];
+    ahead.iter().find(|cell| distance(cell) >= lookahead_m).or(ahead.last()).map(|&cell| Grid::centre(cell))
+}
+
+/// A path to one goal, replanned every few frames.
+#[derive(Debug, Clone)]
+pub struct Route {
+    goal: usize,
+    path: Vec<usize>,
+    planned: Option<(u64, u64)>,
+}
+
+impl Route {
+    /// A route to the cell containing `goal`, or `None` when that is off the map.
+    pub fn to(goal: (f64, f64)) -> Option<Self> {
+        Some(Route { goal: Grid::index(goal.0, goal.1)?, path: Vec::new(), planned: None })
+    }
+
+    /// The point to steer toward on the way from `at`, replanning when the route is older than
+    /// `replan_frames` or the map changed; `None` when the goal cannot be reached on the map.
+    pub fn waypoint(
+        &mut self,
+        grid: &Grid,
+        map_version: u64,
+        at: &Position,
+        frame: u64,
+        params: &DecisionParams,
+    ) -> Option<(f64, f64)> {
+        let start = Grid::index(at.x_m, at.y_m)?;
+        if replan_due(self.planned, frame, map_version, params) {
+            self.path = grid.costs_from(start, &path_costs(params)).path_to(self.goal).unwrap_or_default();
+            self.planned = Some((frame, map_version));
+        }
+        lookahead(&self.path, at, params.lookahead_m)
+    }
+}
+
+fn replan_due(planned: Option<(u64, u64)>, frame: u64, map_version: u64, params: &DecisionParams) -> bool {
+    planned.is_none_or(|(at_frame, version)| version != map_version || frame >= at_frame + params.replan_frames as u64)
+}
+
+/// Frontier exploration. A cell is explored once it is free on the map or has been in close view
+/// of the camera: obstacle cells seen only from afar may be floor hidden behind the projection
+/// of a wall. The explorer picks the best frontier (a free cell next to unexplored ones), goes
+/// there, and abandons targets that it reaches without exploring them, that take too long or that
+/// keep the rover stuck.
+#[derive(Debug, Clone)]
+pub struct Explorer {
+    target: Option<Target>,
+    inspected: Vec<bool>,
+    explored: Vec<bool>,
+    costs: Option<CostMap>,
+    planned: Option<(u64, u64)>,
+}
+
+#[derive(Debug, Clone)]
+struct Target {
+    cell: usize,
+    chosen_frame: u64,
+    path: Vec<usize>,
+    recoveries: u32,
+}
+
+impl Default for Explorer {
+    fn default() -> Self {
+        let cells = crate::grid::SIDE * crate::grid::SIDE;
+        Explorer {
+            target: None,
+            inspected: vec![false; cells],
+            explored: vec![false; cells],
+            costs: None,
+            planned: None,
+        }
+    }
+}
+
+impl Explorer {
+    /// The current target's centre, if any.
+    pub fn target(&self) -> Option<(f64, f64)> {
+        self.target.as_ref().map(|t| Grid::centre(t.cell))
+    }
+
+    /// Path cost from the rover (as of the last plan) to the cell containing `point`.
+    pub fn cost_to(&self, point: (f64, f64)) -> Option<f64> {
+        let cell = Grid::index(point.0, point.1)?;
+        let cost = *self.costs.as_ref()?.distance.get(cell)?;
+        cost.is_finite().then_some(cost as f64)
+    }
+
+    /// Marks the cells in close view of the camera at `at` as inspected.
+    pub fn inspect(&mut self, at: &Position, params: &DecisionParams) {
+        let range_m = params.inspect_range_m;
+        let half_angle_rad = params.inspect_half_angle_deg.to_radians();
+        let (x0, x1) = ((at.x_m - range_m).floor() as i64, (at.x_m + range_m).ceil() as i64);
+        let (y0, y1) = ((at.y_m - range_m).floor() as i64, (at.y_m + range_m).ceil() as i64);
+        for y in y0.max(0)..y1.min(crate::grid::SIDE as i64) {
+            for x in x0.max(0)..x1.min(crate::grid::SIDE as i64) {
+                let centre = (x as f64 + 0.5, y as f64 + 0.5);
+                if at.distance_to(centre) <= range_m && at.bearing_to(centre).abs() <= half_angle_rad {
+                    self.inspected[y as usize * crate::grid::SIDE + x as usize] = true;
+                }
+            }
+        }
+    }
+
+    fn unexplored(&self, grid: &Grid, cell: usize) -> bool {
+        grid.cell(cell) != Cell::Free && !self.inspected[cell]
+    }
+
+    /// Notes a recovery on the way to the current target; abandons it after a few.
+    pub fn note_recovery(&mut self) {
+        if let Some(target) = self.target.as_mut() {
+            target.recoveries += 1;
+            if target.recoveries >= RECOVERIES_PER_TARGET {
+                self.abandon_target();
+            }
+        }
+    }
+
+    /// Makes every frontier a candidate again; returns whether any had been ruled out.
+    pub fn forget_explored(&mut self) -> bool {
+        let any = self.explored.iter().any(|&e| e);
+        self.explored.fill(false);
+        any
+    }
+
+    /// The point to steer toward, or `None` when no frontier is left (or the rover is off the map).
+    pub fn waypoint(
+        &mut self,
+        grid: &Grid,
+        map_version: u64,
+        at: &Position,
+        frame: u64,
+        params: &DecisionParams,
+    ) -> Option<(f64, f64)> {
+        let start = Grid::index(at.x_m, at.y_m)?;
+        if let Some(target) = &self.target {
+            let timed_out = frame >= target.chosen_frame + params.frames(params.target_timeout_s);
+            if timed_out || at.distance_to(Grid::centre(target.cell)) < params.frontier_reached_m {
+                self.abandon_target();
+            }
+        }
+        if self.target.is_none() || replan_due(self.planned, frame, map_version, params) {
+            self.replan(grid, start, at, frame, params);
+            self.planned = Some((frame, map_version));
+        }
+        lookahead(&self.target.as_ref()?.path, at, params.lookahead_m)
+    }
+
+    fn replan(&mut self, grid: &Grid, start: usize, at: &Position, frame: u64, params: &DecisionParams) {
+        let costs = grid.costs_from(start, &path_costs(params));
+        let keep = self.target.as_ref().is_some_and(|t| self.is_candidate(grid, &costs, t.cell, params));
+        if !keep {
+            self.target = self.best_frontier(grid, &costs, at, params).map(|cell| Target {
+                cell,
+                chosen_frame: frame,
+                path: Vec::new(),
+                recoveries: 0,
+            });
+        }
+        if let Some(target) = self.target.as_mut() {
+            target.path = costs.path_to(target.cell).unwrap_or_default();
+        }
+        self.costs = Some(costs);
+    }
+
+    fn is_candidate(&self, grid: &Grid, costs: &CostMap, cell: usize, params: &DecisionParams) -> bool {
+        !self.explored[cell]
+            && grid.cell(cell) == Cell::Free
+            && costs.distance[cell].is_finite()
+            && Grid::count_around(cell, FRONTIER_RADIUS_CELLS, |n| self.unexplored(grid, n))
+                >= params.frontier_min_unknown as usize
+    }
+
+    fn best_frontier(&self, grid: &Grid, costs: &CostMap, at: &Position, params: &DecisionParams) -> Option<usize> {
+        let score = |cell: usize| {
+            let turn = at.bearing_to(Grid::centre(cell)).abs() / std::f64::consts::PI;
+            costs.distance[cell] as f64 + params.turn_penalty_m * turn
+        };
+        grid.frontiers(|n| self.unexplored(grid, n))
+            .into_iter()
+            .filter(|&cell| self.is_candidate(grid, costs, cell, params))
+            .filter(|&cell| at.distance_to(Grid::centre(cell)) >= params.frontier_reached_m)
+            .min_by(|&a, &b| score(a).total_cmp(&score(b)))
+    }
+
+    fn abandon_target(&mut self) {
+        let Some(target) = self.target.take() else { return };
+        let side = crate::grid::SIDE as i64;
+        let (x, y) = ((target.cell as i64) % side, (target.cell as i64) / side);
+        for dy in -EXPLORED_RADIUS_CELLS..=EXPLORED_RADIUS_CELLS {
+            for dx in -EXPLORED_RADIUS_CELLS..=EXPLORED_RADIUS_CELLS {
+                let (cx, cy) = (x + dx, y + dy);
+                if (0..side).contains(&cx) && (0..side).contains(&cy) {
+                    self.explored[(cy * side + cx) as usize] = true;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::SIDE;
+
+    /// A map with a known corridor along y = 50..54 from x = 20 to 60, unknown beyond x = 60.
+    fn half_explored() -> Grid {
+        let mut data = vec![100i8; SIDE * SIDE];
+        for y in 50..54 {
+            for x in 20..90 {
+                data[y * SIDE + x] = if x < 60 { 0 } else { -1 };
+            }
+        }
+        Grid::from_occupancy(&data).unwrap()
+    }
+
+    fn at(x_m: f64, y_m: f64) -> Position {
+        Position { x_m, y_m, yaw_rad: 0.0 }
+    }
+
+    #[test]
+    fn angles_and_bearings() {
+        assert!((wrap_rad(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
+        let p = Position { x_m: 1.0, y_m: 1.0, yaw_rad: std::f64::consts::FRAC_PI_2 };
+        assert!(
+            (p.bearing_to((0.0, 1.0)) - std::f64::consts::FRAC_PI_2).abs() < 1e-12,
+            "west is left when facing north"
+        );
+        let (x, y) = p.point_at(0.0, 2.0);
+        assert!((x - 1.0).abs() < 1e-12 && (y - 3.0).abs() < 1e-12);
+    }
+
+    /// An explorer that has looked at both walls of the known corridor from close by.
+    fn explorer_after_inspecting_the_walls(params: &DecisionParams) -> Explorer {
+        let mut explorer = Explorer::default();
+        for x in (18..62).step_by(2) {
+            for yaw_rad in [std::f64::consts::FRAC_PI_2, -std::f64::consts::FRAC_PI_2] {
+                explorer.inspect(&Position { x_m: x as f64, y_m: 52.0, yaw_rad }, params);
+            }
+        }
+        explorer
+    }
+
+    #[test]
+    fn walls_seen_only_from_afar_are_frontiers() {
+        let grid = half_explored();
+        let params = DecisionParams::default();
+        let mut explorer = Explorer::default();
+        explorer.waypoint(&grid, 1, &at(25.5, 51.5), 0, &params);
+        let target = explorer.target().unwrap();
+        assert!(target.0 < 40.0, "the near walls are not inspected yet: {target:?}");
+    }
+
+    #[test]
+    fn the_explorer_heads_for_the_unknown_end_of_the_corridor() {
+        let grid = half_explored();
+        let params = DecisionParams::default();
+        let mut explorer = explorer_after_inspecting_the_walls(&params);
+        let rover = at(25.5, 51.5);
+        let waypoint = explorer.waypoint(&grid, 1, &rover, 0, &params).unwrap();
+        let target = explorer.target().unwrap();
+        assert!((58.0..61.0).contains(&target.0), "target at the frontier: {target:?}");
+        assert!(waypoint.0 > rover.x_m && (rover.distance_to(waypoint) - params.lookahead_m).abs() < 1.5);
+        assert!(explorer.cost_to((40.5, 51.5)).is_some() && explorer.cost_to((5.5, 5.5)).is_none());
+    }
+
+    #[test]
+    fn reached_targets_are_not_chosen_again() {
+        let grid = half_explored();
+        let params = DecisionParams::default();
+        let mut explorer = explorer_after_inspecting_the_walls(&params);
+        explorer.waypoint(&grid, 1, &at(25.5, 51.5), 0, &params);
+        let first = explorer.target().unwrap();
+        explorer.waypoint(&grid, 1, &at(first.0, first.1), 1, &params);
+        let second = explorer.target();
+        assert!(
+            second.is_none_or(|s| (s.0 - first.0).abs() + (s.1 - first.1).abs() > 3.0),
+            "{first:?} then {second:?}"
+        );
+        assert!(explorer.forget_explored());
+    }
+
+    #[test]
+    fn routes_follow_the_map() {
+        let grid = half_explored();
+        let params = DecisionParams::default();
+        let mut route = Route::to((55.5, 52.5)).unwrap();
+        let waypoint = route.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params).unwrap();
+        assert!(waypoint.0 > 21.5 && (50.0..54.0).contains(&waypoint.1));
+        let mut nowhere = Route::to((5.5, 5.5)).unwrap();
+        assert_eq!(nowhere.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params), None);
+        assert!(Route::to((-1.0, 0.0)).is_none());
+    }
+}

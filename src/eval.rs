@@ -1,0 +1,174 @@
+//! `rover eval`: one full mission per seed, scored against the simulator's true world, as a table
+//! or JSON.
+
+use std::ops::RangeInclusive;
+use std::path::PathBuf;
+
+use anyhow::Context as _;
+use serde::Serialize;
+
+use crate::mission::{NodeSettings, run_in_process};
+
+/// Options of `rover eval`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct EvalArgs {
+    /// World map: a 200x200 PNG, e.g. ../shared/udacity/calibration_images/map_bw.png.
+    #[arg(long, value_name = "PNG", conflicts_with = "procedural", required_unless_present = "procedural")]
+    pub map: Option<PathBuf>,
+    /// Procedural worlds, one per seed.
+    #[arg(long)]
+    pub procedural: bool,
+    /// Seeds, e.g. 0..9 (inclusive) or 4.
+    #[arg(long, default_value = "0..9", value_parser = parse_seeds)]
+    pub seeds: RangeInclusive<u64>,
+    /// Print one JSON list instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Run every node as a library in this process (no DDS, no sockets): the fast development loop.
+    #[arg(long)]
+    pub in_process: bool,
+    /// End a mission after this much simulated time, seconds.
+    #[arg(long, default_value_t = 1200.0, value_name = "SECONDS")]
+    pub max_sim_seconds: f64,
+    /// Write each run's final map as PNG into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub maps: Option<PathBuf>,
+}
+
+/// Parses `A..B` (inclusive) or a single seed.
+pub fn parse_seeds(text: &str) -> Result<RangeInclusive<u64>, String> {
+    let number = |s: &str| s.trim().parse::<u64>().map_err(|_| format!("{s:?} is not a seed number"));
+    match text.split_once("..") {
+        Some((a, b)) => {
+            let (a, b) = (number(a)?, number(b.trim_start_matches('='))?);
+            if a > b {
+                return Err(format!("seeds {text:?}: the first must not exceed the last"));
+            }
+            Ok(a..=b)
+        }
+        None => number(text).map(|n| n..=n),
+    }
+}
+
+/// One mission's result.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct RunResult {
+    /// Seed of the world and the samples.
+    pub seed: u64,
+    /// Udacity mapped %, against the simulator's true world.
+    pub mapped_pct: f64,
+    /// Udacity fidelity %.
+    pub fidelity_pct: f64,
+    /// Samples located on the map.
+    pub located: usize,
+    /// Samples picked up.
+    pub collected: usize,
+    /// Samples in the world.
+    pub samples: usize,
+    /// Final distance to the start, metres.
+    pub home_distance_m: f64,
+    /// Simulated time, seconds.
+    pub sim_seconds: f64,
+    /// Wall-clock time, seconds.
+    pub wall_seconds: f64,
+    /// Frames per wall-clock second, end to end.
+    pub frames_per_second: f64,
+    /// The decision's final mode.
+    pub final_mode: String,
+}
+
+impl RunResult {
+    /// Whether the run meets the mission targets: mapped >= 90 %, fidelity >= 85 %, every sample
+    /// collected, stopped within 3 m of the start, within 1,200 simulated seconds.
+    pub fn complete(&self) -> bool {
+        self.mapped_pct >= 90.0
+            && self.fidelity_pct >= 85.0
+            && self.collected == self.samples
+            && self.home_distance_m <= 3.0
+            && self.sim_seconds <= 1200.0
+            && self.final_mode == "done"
+    }
+}
+
+impl EvalArgs {
+    fn world(&self, seed: u64) -> anyhow::Result<rover_sim::world::World> {
+        rover_sim::cli::SimArgs::world_for(self.map.as_deref(), seed)
+    }
+}
+
+/// Runs every seed in-process and returns the results.
+pub fn run_in_process_eval(args: &EvalArgs, settings: &NodeSettings) -> anyhow::Result<Vec<RunResult>> {
+    let mut results = Vec::new();
+    for seed in args.seeds.clone() {
+        let world = args.world(seed)?;
+        let samples = world.samples.len();
+        let outcome = run_in_process(world, settings, args.max_sim_seconds, 2500, |p| {
+            eprintln!(
+                "seed {seed}: {:>6.0} s  mapped {:>5.1} %  fidelity {:>5.1} %  located {}  collected {}  {}",
+                p.sim_seconds, p.mapped_pct, p.fidelity_pct, p.located, p.collected, p.mode
+            )
+        })?;
+        if let Some(dir) = &args.maps {
+            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+            let image = rover_mapping::image::map_inset(&outcome.map, None, &[], &Default::default());
+            let path = dir.join(format!("map_seed{seed}.png"));
+            std::fs::write(&path, rover_imaging::encode_png(&image)?)
+                .with_context(|| format!("cannot write {}", path.display()))?;
+        }
+        let report = &outcome.report;
+        results.push(RunResult {
+            seed,
+            mapped_pct: outcome.progress.mapped_pct,
+            fidelity_pct: outcome.progress.fidelity_pct,
+            located: outcome.progress.located,
+            collected: report.samples_collected,
+            samples,
+            home_distance_m: report.final_distance_to_start_m,
+            sim_seconds: report.sim_seconds,
+            wall_seconds: report.wall_seconds,
+            frames_per_second: report.frames as f64 / report.wall_seconds.max(1e-9),
+            final_mode: outcome.progress.mode.to_string(),
+        });
+    }
+    Ok(results)
+}
+
+/// The results as a table.
+pub fn table(results: &[RunResult]) -> String {
+    let mut out = String::from(
+        "seed  mapped %  fidelity %  located  collected  home m  sim s   wall s  frames/s  mode         complete\n",
+    );
+    for r in results {
+        out += &format!(
+            "{:>4}  {:>8.1}  {:>10.1}  {:>7}  {:>9}  {:>6.1}  {:>6.0}  {:>7.1}  {:>8.0}  {:<12} {}\n",
+            r.seed,
+            r.mapped_pct,
+            r.fidelity_pct,
+            r.located,
+            format!("{}/{}", r.collected, r.samples),
+            r.home_distance_m,
+            r.sim_seconds,
+            r.wall_seconds,
+            r.frames_per_second,
+            r.final_mode,
+            if r.complete() { "yes" } else { "no" }
+        );
+    }
+    let complete = results.iter().filter(|r| r.complete()).count();
+    out += &format!("{complete} of {} complete\n", results.len());
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seed_ranges() {
+        assert_eq!(parse_seeds("0..9"), Ok(0..=9));
+        assert_eq!(parse_seeds("4"), Ok(4..=4));
+        assert_eq!(parse_seeds("2..=3"), Ok(2..=3));
+        assert!(parse_seeds("5..1").unwrap_err().contains("must not exceed"));
+        assert!(parse_seeds("a..3").unwrap_err().contains("\"a\""));
+    }
+}

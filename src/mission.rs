@@ -1,0 +1,148 @@
+//! A whole mission in one thread, without DDS or sockets: the simulator, the bridge's telemetry
+//! parsing, perception, mapping, decision and pickup called in the order the graph runs them. It
+//! is the fast loop for developing the decision logic and for tests of it; `rover eval` runs the
+//! same mission with every node in its own process.
+
+use std::time::Instant;
+
+use rover_bridge::convert::telemetry_message;
+use rover_bridge::telemetry::{SimTelemetry, parse_telemetry};
+use rover_decision::grid::Grid;
+use rover_decision::local::FreeSpaceRays;
+use rover_decision::machine::{Machine, Mode};
+use rover_decision::params::DecisionParams;
+use rover_mapping::map::{ScanGrid, WorldMap};
+use rover_mapping::params::MappingParams;
+use rover_mapping::projection::Pose;
+use rover_mapping::rocks::rock_positions;
+use rover_mapping::score::samples_located;
+use rover_msgs::std_msgs::Header;
+use rover_msgs::tally::SampleTally;
+use rover_perception::node::PerceptionParams;
+use rover_pickup::{ArmInput, Pickup, PickupParams};
+use rover_sim::sim::{SimConfig, SimReport, Simulator};
+use rover_sim::wire::command::Command;
+use rover_sim::world::World;
+
+/// The largest telemetry payload accepted, bytes (as the bridge's default).
+const MAX_TELEMETRY_BYTES: usize = 4 << 20;
+/// The map reaches the decision every this many frames (the mapping node publishes it periodically).
+const MAP_EVERY_FRAMES: u64 = 25;
+
+/// The parameters of every node of the mission.
+#[derive(Debug, Clone, Default)]
+pub struct NodeSettings {
+    /// Perception.
+    pub perception: PerceptionParams,
+    /// Mapping.
+    pub mapping: MappingParams,
+    /// Decision.
+    pub decision: DecisionParams,
+    /// Pickup.
+    pub pickup: PickupParams,
+}
+
+/// A snapshot of a running mission, for progress lines.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Progress {
+    /// Simulated time, seconds.
+    pub sim_seconds: f64,
+    /// Udacity mapped %, against the world's ground truth.
+    pub mapped_pct: f64,
+    /// Udacity fidelity %.
+    pub fidelity_pct: f64,
+    /// Samples located on the map.
+    pub located: usize,
+    /// Samples picked up.
+    pub collected: usize,
+    /// Decision mode.
+    pub mode: &'static str,
+}
+
+/// How a mission ended.
+#[derive(Debug)]
+pub struct MissionOutcome {
+    /// The simulator's report.
+    pub report: SimReport,
+    /// The last progress snapshot.
+    pub progress: Progress,
+    /// The final map.
+    pub map: WorldMap,
+}
+
+/// Runs one mission in `world` until the decision is done or `max_sim_seconds` pass; `on_progress`
+/// gets a snapshot every `progress_every_frames` frames.
+pub fn run_in_process(
+    world: World,
+    settings: &NodeSettings,
+    max_sim_seconds: f64,
+    progress_every_frames: u64,
+    mut on_progress: impl FnMut(&Progress),
+) -> anyhow::Result<MissionOutcome> {
+    let truth = world.ground_truth().to_vec();
+    let samples: Vec<(f64, f64)> = world.samples.iter().map(|s| (s.x_m, s.y_m)).collect();
+    tracing::debug!("samples at {samples:.1?}");
+    let config = SimConfig { step_s: settings.decision.frame_period_s, ..SimConfig::default() };
+    let mut sim = Simulator::new(world, config);
+    let (mut perception, geometry) = settings.perception.pipeline()?;
+    let mut map = WorldMap::new(settings.mapping.map_config());
+    let mut machine = Machine::new(settings.decision.clone());
+    let mut rays = FreeSpaceRays::new(45.0, 5.0, settings.decision.lane_half_width_m, 6.0);
+    let mut pickup = Pickup::default();
+    let mut tally = SampleTally::default();
+    let snapshot = |sim: &Simulator, map: &WorldMap, mode: Mode| {
+        let scores = map.scores(&truth);
+        Progress {
+            sim_seconds: sim.report().sim_seconds,
+            mapped_pct: scores.mapped_pct,
+            fidelity_pct: scores.fidelity_pct,
+            located: samples_located(&map.rock_cells(), &samples),
+            collected: sim.report().samples_collected,
+            mode: mode.name(),
+        }
+    };
+    let started = Instant::now();
+    for frame in 1.. {
+        let telemetry = read_telemetry(&mut sim)?;
+        let message = telemetry_message(&telemetry, frame, Header::default());
+        let classes = perception.process_jpeg(&telemetry.image_jpeg)?;
+        let scan = geometry.terrain_scan(classes, &message, Header::default());
+        map.update(&ScanGrid::of(&scan), Pose::of_scan(&scan));
+        if tally.update(message.samples_remaining) > 0 {
+            map.forget_picked_rock(message.x_m, message.y_m, message.yaw_rad as f64);
+        }
+        if frame % MAP_EVERY_FRAMES == 0 {
+            machine.set_map(Grid::from_occupancy(&map.occupancy()).expect("the map is 200 x 200"));
+            machine.set_rocks(rock_positions(&map.rock_cells(), settings.mapping.rock_merge_m));
+        }
+        let drive = machine.step(&rover_decision::observation(&message, &scan, &mut rays));
+        let arm = ArmInput {
+            frame,
+            speed_mps: message.speed_mps as f64,
+            near_sample: message.near_sample,
+            picking_up: message.picking_up,
+            samples_remaining: message.samples_remaining,
+        };
+        let command = if pickup.on_telemetry(&arm, &settings.pickup) {
+            Command::Pickup
+        } else {
+            Command::Drive { steering_deg: drive.steering_deg, throttle: drive.throttle, brake: drive.brake }
+        };
+        sim.step(command);
+        let mode = machine.status().mode;
+        if frame % progress_every_frames.max(1) == 0 {
+            on_progress(&snapshot(&sim, &map, mode));
+        }
+        if mode == Mode::Done || sim.report().sim_seconds >= max_sim_seconds {
+            break;
+        }
+    }
+    tracing::debug!("mission took {:.1} s", started.elapsed().as_secs_f64());
+    let progress = snapshot(&sim, &map, machine.status().mode);
+    Ok(MissionOutcome { report: sim.report(), progress, map })
+}
+
+fn read_telemetry(sim: &mut Simulator) -> anyhow::Result<SimTelemetry> {
+    parse_telemetry(&sim.telemetry(), MAX_TELEMETRY_BYTES)?
+        .ok_or_else(|| anyhow::anyhow!("the simulator sent empty telemetry"))
+}
