@@ -102,6 +102,7 @@ pub fn run_in_process_eval(args: &EvalArgs, settings: &NodeSettings) -> anyhow::
     for seed in args.seeds.clone() {
         let world = args.world(seed)?;
         let samples = world.samples.len();
+        let truth = world.ground_truth().to_vec();
         let outcome = run_in_process(world, settings, args.max_sim_seconds, 2500, |p| {
             eprintln!(
                 "seed {seed}: {:>6.0} s  mapped {:>5.1} %  fidelity {:>5.1} %  located {}  collected {}  {}",
@@ -110,7 +111,7 @@ pub fn run_in_process_eval(args: &EvalArgs, settings: &NodeSettings) -> anyhow::
         })?;
         if let Some(dir) = &args.maps {
             std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-            let image = rover_mapping::image::map_inset(&outcome.map, None, &[], &Default::default());
+            let image = rover_mapping::image::map_inset(&outcome.map, Some(&truth), &[], &Default::default());
             let path = dir.join(format!("map_seed{seed}.png"));
             std::fs::write(&path, rover_imaging::encode_png(&image)?)
                 .with_context(|| format!("cannot write {}", path.display()))?;

@@ -335,6 +335,7 @@ impl Machine {
         match self.explorer.waypoint(&self.grid, self.map_version, &obs.position, obs.frame, p) {
             Some(waypoint) => {
                 let bearing = obs.position.bearing_to(waypoint);
+                tracing::trace!(bearing_deg = bearing.to_degrees(), free_ahead = obs.free.toward(0.0), best = ?obs.free.best_toward(bearing as f32, p.clearance_m as f32), "explore");
                 self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, p)
             }
             None if self.map_version == 0 => {

@@ -195,6 +195,7 @@ impl Explorer {
         if let Some(target) = &self.target {
             let timed_out = frame >= target.chosen_frame + params.frames(params.target_timeout_s);
             if timed_out || at.distance_to(Grid::centre(target.cell)) < params.frontier_reached_m {
+                tracing::debug!(target = ?Grid::centre(target.cell), timed_out, "frontier target done");
                 self.abandon_target();
             }
         }
