@@ -2,12 +2,18 @@
 //! or JSON.
 
 use std::ops::RangeInclusive;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use anyhow::Context as _;
+use rover_imaging::RgbImage;
+use rover_node::Runtime;
+use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 
-use crate::mission::{NodeSettings, run_in_process};
+use crate::graph::{GraphConfig, log_dir};
+use crate::graph_mission::{rgb_image, run_graph_mission};
+use crate::mission::{NodeSettings, Progress, run_in_process};
 
 /// Options of `rover eval`.
 #[derive(Debug, Clone, clap::Args)]
@@ -96,6 +102,25 @@ impl EvalArgs {
     }
 }
 
+impl RunResult {
+    /// The result of the mission of `seed` in a world with `samples` samples.
+    pub fn of(seed: u64, samples: usize, report: &SimReport, progress: &Progress, wall_seconds: f64) -> Self {
+        RunResult {
+            seed,
+            mapped_pct: progress.mapped_pct,
+            fidelity_pct: progress.fidelity_pct,
+            located: progress.located,
+            collected: report.samples_collected,
+            samples,
+            home_distance_m: report.final_distance_to_start_m,
+            sim_seconds: report.sim_seconds,
+            wall_seconds,
+            frames_per_second: report.frames as f64 / wall_seconds.max(1e-9),
+            final_mode: progress.mode.clone(),
+        }
+    }
+}
+
 /// Runs every seed in-process and returns the results.
 pub fn run_in_process_eval(args: &EvalArgs, settings: &NodeSettings) -> anyhow::Result<Vec<RunResult>> {
     let mut results = Vec::new();
@@ -103,35 +128,68 @@ pub fn run_in_process_eval(args: &EvalArgs, settings: &NodeSettings) -> anyhow::
         let world = args.world(seed)?;
         let samples = world.samples.len();
         let truth = world.ground_truth().to_vec();
-        let outcome = run_in_process(world, settings, args.max_sim_seconds, 2500, |p| {
-            eprintln!(
-                "seed {seed}: {:>6.0} s  mapped {:>5.1} %  fidelity {:>5.1} %  located {}  collected {}  {}",
-                p.sim_seconds, p.mapped_pct, p.fidelity_pct, p.located, p.collected, p.mode
-            )
-        })?;
+        let outcome = run_in_process(world, settings, args.max_sim_seconds, 2500, |p| print_progress(seed, p))?;
         if let Some(dir) = &args.maps {
-            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
             let image = rover_mapping::image::map_inset(&outcome.map, Some(&truth), &[], &Default::default());
-            let path = dir.join(format!("map_seed{seed}.png"));
-            std::fs::write(&path, rover_imaging::encode_png(&image)?)
-                .with_context(|| format!("cannot write {}", path.display()))?;
+            save_map(dir, seed, &image)?;
         }
         let report = &outcome.report;
-        results.push(RunResult {
-            seed,
-            mapped_pct: outcome.progress.mapped_pct,
-            fidelity_pct: outcome.progress.fidelity_pct,
-            located: outcome.progress.located,
-            collected: report.samples_collected,
-            samples,
-            home_distance_m: report.final_distance_to_start_m,
-            sim_seconds: report.sim_seconds,
-            wall_seconds: report.wall_seconds,
-            frames_per_second: report.frames as f64 / report.wall_seconds.max(1e-9),
-            final_mode: outcome.progress.mode.to_string(),
-        });
+        results.push(RunResult::of(seed, samples, report, &outcome.progress, report.wall_seconds));
     }
     Ok(results)
+}
+
+/// Runs every seed with each node in its own process (started from this executable with the ROS
+/// arguments `ros_args`), the evaluator on `runtime`, and returns the results.
+pub async fn run_graph_eval(args: &EvalArgs, runtime: &Runtime, ros_args: &[String]) -> anyhow::Result<Vec<RunResult>> {
+    let mut results = Vec::new();
+    for seed in args.seeds.clone() {
+        let world = args.world(seed)?;
+        let samples = world.samples.len();
+        let mut config = GraphConfig::of_current_exe(free_port()?, log_dir("eval").join(format!("seed{seed}")))?;
+        config.ros_args = ros_args.to_vec();
+        let sim_config = SimConfig { max_sim_seconds: Some(args.max_sim_seconds), ..SimConfig::default() };
+        let started = Instant::now();
+        let mut next_line_s = PROGRESS_EVERY_SIM_S;
+        let outcome = run_graph_mission(runtime, config, world, sim_config, |p, _| {
+            if p.sim_seconds >= next_line_s {
+                print_progress(seed, p);
+                next_line_s += PROGRESS_EVERY_SIM_S;
+            }
+        })
+        .await?;
+        if runtime.shutdown().is_requested() {
+            anyhow::bail!("interrupted during seed {seed}");
+        }
+        if let (Some(dir), Some(image)) = (&args.maps, outcome.map_image.as_ref().and_then(rgb_image)) {
+            save_map(dir, seed, &image)?;
+        }
+        let wall_seconds = started.elapsed().as_secs_f64();
+        results.push(RunResult::of(seed, samples, &outcome.report, &outcome.progress, wall_seconds));
+    }
+    Ok(results)
+}
+
+/// Simulated seconds between two progress lines of a graph run.
+const PROGRESS_EVERY_SIM_S: f64 = 100.0;
+
+fn print_progress(seed: u64, p: &Progress) {
+    eprintln!(
+        "seed {seed}: {:>6.0} s  mapped {:>5.1} %  fidelity {:>5.1} %  located {}  collected {}  {}",
+        p.sim_seconds, p.mapped_pct, p.fidelity_pct, p.located, p.collected, p.mode
+    );
+}
+
+fn save_map(dir: &Path, seed: u64, image: &RgbImage) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let path = dir.join(format!("map_seed{seed}.png"));
+    std::fs::write(&path, rover_imaging::encode_png(image)?).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// A free TCP port on the loopback for a bridge.
+pub fn free_port() -> anyhow::Result<u16> {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").context("cannot find a free TCP port")?;
+    Ok(listener.local_addr()?.port())
 }
 
 /// The results as a table.

@@ -2,7 +2,10 @@
 //! recorded datasets, the demo, the evaluation).
 
 pub mod dataset;
+pub mod demo;
 pub mod eval;
+pub mod graph;
+pub mod graph_mission;
 pub mod mission;
 pub mod replay;
 pub mod replay_dds;

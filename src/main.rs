@@ -38,10 +38,19 @@ enum Command {
     /// Run the pickup node: one pickup request when a sample is in reach and the rover has stopped.
     #[command(after_help = ROS_ARGS_HELP)]
     Pickup,
+    /// Run every node (bridge, perception, mapping, decision, pickup) in this one process, on one
+    /// DDS participant. Aim parameters at a node with -p NODE:NAME:=VALUE or a params file.
+    #[command(after_help = ROS_ARGS_HELP)]
+    All,
     /// Replay a recorded dataset (robot_log.csv + IMG/) through perception and mapping and print
     /// the Udacity scores. Parameters: -p perception:NAME:=VALUE, -p mapping:NAME:=VALUE.
     #[command(after_help = ROS_ARGS_HELP)]
     Replay(rover::replay::ReplayArgs),
+    /// Run the demo: the simulator on the built-in procedural world and the whole graph, each node
+    /// in its own process, headless; a live progress line, then a summary table, the final map
+    /// (PNG) and the JSON report. Ctrl-C stops everything.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Demo(rover::demo::DemoArgs),
     /// Run one full mission per seed and print a table of the scores (mapped and fidelity against
     /// the simulator's true world, samples, distance home, time, frames per second).
     #[command(after_help = ROS_ARGS_HELP)]
@@ -77,7 +86,9 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(e) => e.exit(),
     };
-    logging::init(ros_args.log_level.as_deref());
+    // The demo's own log would break its progress line: warnings only, unless asked otherwise.
+    let quiet = matches!(cli.command, Command::Demo(_)) && std::env::var_os("RUST_LOG").is_none();
+    logging::init(ros_args.log_level.as_deref().or(quiet.then_some("warn")));
     let runtime = match tokio::runtime::Builder::new_multi_thread().enable_all().build() {
         Ok(runtime) => runtime,
         Err(e) => {
@@ -99,6 +110,24 @@ fn main() -> ExitCode {
     }
 }
 
+/// Every node of the graph on one runtime; the first to fail stops the others.
+async fn run_all(runtime: &Runtime) -> anyhow::Result<()> {
+    let result = tokio::try_join!(
+        rover_bridge::node::run(runtime),
+        rover_perception::node::run(runtime),
+        rover_mapping::node::run(runtime),
+        rover_decision::node::run(runtime),
+        rover_pickup::node::run(runtime),
+    );
+    runtime.shutdown().request();
+    result.map(drop)
+}
+
+/// The ROS arguments as given on the command line (after `--ros-args`), for child processes.
+fn raw_ros_args() -> Vec<String> {
+    std::env::args().skip_while(|a| a != "--ros-args").skip(1).collect()
+}
+
 /// The DDS runtime of the process, kept in `slot` so that it outlives the async tasks.
 fn dds<'a>(
     slot: &'a mut Option<Runtime>,
@@ -116,6 +145,7 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
         Command::Mapping => rover_mapping::node::run(dds(participant, ros_args, shutdown)?).await,
         Command::Decision => rover_decision::node::run(dds(participant, ros_args, shutdown)?).await,
         Command::Pickup => rover_pickup::node::run(dds(participant, ros_args, shutdown)?).await,
+        Command::All => run_all(dds(participant, ros_args, shutdown)?).await,
         Command::Replay(args) if args.via_dds => {
             rover::replay::run_via_dds(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
         }
@@ -131,14 +161,20 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
                 decision: rover_node::resolve_params("decision", &ros_args)?,
                 pickup: rover_node::resolve_params("pickup", &ros_args)?,
             };
-            anyhow::ensure!(args.in_process, "only --in-process is built so far");
-            let results = rover::eval::run_in_process_eval(&args, &settings)?;
+            let results = if args.in_process {
+                rover::eval::run_in_process_eval(&args, &settings)?
+            } else {
+                rover::eval::run_graph_eval(&args, dds(participant, ros_args, shutdown)?, &raw_ros_args()).await?
+            };
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&results)?);
             } else {
                 print!("{}", rover::eval::table(&results));
             }
             Ok(())
+        }
+        Command::Demo(args) => {
+            rover::demo::run_demo(&args, dds(participant, ros_args, shutdown)?, &raw_ros_args()).await.map(drop)
         }
         Command::Sim(args) => rover_sim::cli::run(&args, async move { shutdown.wait().await }).await.map(drop),
     }

@@ -15,7 +15,7 @@ use rover_mapping::map::{ScanGrid, WorldMap};
 use rover_mapping::params::MappingParams;
 use rover_mapping::projection::Pose;
 use rover_mapping::rocks::rock_positions;
-use rover_mapping::score::samples_located;
+use rover_mapping::score::LocatedSamples;
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tally::SampleTally;
 use rover_perception::node::PerceptionParams;
@@ -51,12 +51,12 @@ pub struct Progress {
     pub mapped_pct: f64,
     /// Udacity fidelity %.
     pub fidelity_pct: f64,
-    /// Samples located on the map.
+    /// Samples located on the map at any time (collected ones stay counted).
     pub located: usize,
     /// Samples picked up.
     pub collected: usize,
     /// Decision mode.
-    pub mode: &'static str,
+    pub mode: String,
 }
 
 /// How a mission ended.
@@ -90,15 +90,16 @@ pub fn run_in_process(
     let mut rays = FreeSpaceRays::new(45.0, 5.0, settings.decision.lane_half_width_m, 6.0);
     let mut pickup = Pickup::default();
     let mut tally = SampleTally::default();
-    let snapshot = |sim: &Simulator, map: &WorldMap, mode: Mode| {
+    let mut located = LocatedSamples::new(samples);
+    let snapshot = |sim: &Simulator, map: &WorldMap, located: &LocatedSamples, mode: Mode| {
         let scores = map.scores(&truth);
         Progress {
             sim_seconds: sim.report().sim_seconds,
             mapped_pct: scores.mapped_pct,
             fidelity_pct: scores.fidelity_pct,
-            located: samples_located(&map.rock_cells(), &samples),
+            located: located.count(),
             collected: sim.report().samples_collected,
-            mode: mode.name(),
+            mode: mode.name().to_string(),
         }
     };
     let started = Instant::now();
@@ -112,6 +113,7 @@ pub fn run_in_process(
             map.forget_picked_rock(message.x_m, message.y_m, message.yaw_rad as f64);
         }
         if frame % MAP_EVERY_FRAMES == 0 {
+            located.update(&map.rock_cells());
             machine.set_map(Grid::from_occupancy(&map.occupancy()).expect("the map is 200 x 200"));
             machine.set_rocks(rock_positions(&map.rock_cells(), settings.mapping.rock_merge_m));
         }
@@ -131,14 +133,14 @@ pub fn run_in_process(
         sim.step(command);
         let mode = machine.status().mode;
         if frame % progress_every_frames.max(1) == 0 {
-            on_progress(&snapshot(&sim, &map, mode));
+            on_progress(&snapshot(&sim, &map, &located, mode));
         }
         if mode == Mode::Done || sim.report().sim_seconds >= max_sim_seconds {
             break;
         }
     }
     tracing::debug!("mission took {:.1} s", started.elapsed().as_secs_f64());
-    let progress = snapshot(&sim, &map, machine.status().mode);
+    let progress = snapshot(&sim, &map, &located, machine.status().mode);
     Ok(MissionOutcome { report: sim.report(), progress, map })
 }
 

@@ -193,7 +193,12 @@ impl Machine {
     }
 
     /// Takes a new map.
+    /// A map without free cells (the mapping node's first publication, before any scan) says
+    /// nothing yet and is ignored, so that it cannot end the exploration.
     pub fn set_map(&mut self, grid: Grid) {
+        if grid.counts().0 == 0 {
+            return;
+        }
         self.grid = grid;
         self.map_version += 1;
     }

@@ -24,7 +24,7 @@ rover_node::node_params! {
         /// Ground-truth map (200x200 PNG, navigable > 0) for the Udacity scores; empty: none.
         ground_truth_png: String = "",
         /// Period of map, map/image and rover/map_stats, ms.
-        publish_period_ms: f64 [10.0, 60000.0] = 500.0,
+        publish_period_ms: f64 [10.0, 60000.0] = 100.0,
     }
 }
 

@@ -64,16 +64,43 @@ pub fn occupancy_scores(occupancy: &[i8], ground_truth: &[bool]) -> Scores {
 /// Samples counted as located: a rock cell (x, y) lies within 3 cells of the sample's truncated
 /// position. As in the starter, nothing is located when every rock cell is in row 0.
 pub fn samples_located(rock_cells: &[(usize, usize)], samples: &[(f64, f64)]) -> usize {
+    samples.iter().filter(|&&sample| is_located(rock_cells, sample)).count()
+}
+
+fn is_located(rock_cells: &[(usize, usize)], (sx, sy): (f64, f64)) -> bool {
     if !rock_cells.iter().any(|&(_, y)| y != 0) {
-        return 0;
+        return false;
     }
-    samples
-        .iter()
-        .filter(|&&(sx, sy)| {
-            let (sx, sy) = (sx as i64 as f64, sy as i64 as f64);
-            rock_cells.iter().any(|&(x, y)| (x as f64 - sx).hypot(y as f64 - sy) < 3.0)
-        })
-        .count()
+    let (sx, sy) = (sx as i64 as f64, sy as i64 as f64);
+    rock_cells.iter().any(|&(x, y)| (x as f64 - sx).hypot(y as f64 - sy) < 3.0)
+}
+
+/// The samples located at any time of a run, by the rule of [`samples_located`]: a collected
+/// sample leaves the map but stays counted.
+#[derive(Debug, Clone, Default)]
+pub struct LocatedSamples {
+    samples: Vec<(f64, f64)>,
+    located: Vec<bool>,
+}
+
+impl LocatedSamples {
+    /// Tracks the samples at `samples` (world metres).
+    pub fn new(samples: Vec<(f64, f64)>) -> Self {
+        let located = vec![false; samples.len()];
+        LocatedSamples { samples, located }
+    }
+
+    /// Marks the samples the rock cells `rock_cells` locate now.
+    pub fn update(&mut self, rock_cells: &[(usize, usize)]) {
+        for (flag, &sample) in self.located.iter_mut().zip(&self.samples) {
+            *flag |= is_located(rock_cells, sample);
+        }
+    }
+
+    /// How many were ever located.
+    pub fn count(&self) -> usize {
+        self.located.iter().filter(|&&l| l).count()
+    }
 }
 
 /// The ground-truth navigable mask of a 200x200 PNG (pixel > 0 is navigable).
@@ -123,5 +150,15 @@ mod tests {
         assert_eq!(samples_located(&[(98, 76)], &samples), 1);
         assert_eq!(samples_located(&[(100, 74)], &samples), 0);
         assert_eq!(samples_located(&[(97, 0)], &[(97.5, 0.5)]), 0, "row-0 quirk");
+    }
+
+    #[test]
+    fn located_samples_stay_counted_after_their_rock_is_gone() {
+        let mut located = LocatedSamples::new(vec![(97.44, 74.65), (122.28, 51.66)]);
+        located.update(&[(98, 76)]);
+        located.update(&[]);
+        assert_eq!(located.count(), 1);
+        located.update(&[(121, 52), (40, 40)]);
+        assert_eq!(located.count(), 2);
     }
 }

@@ -1,0 +1,124 @@
+//! `rover demo`: the simulator and the whole graph, each node in its own process, headless; one
+//! live progress line, then a summary table, the final map as PNG and the JSON report.
+
+use std::io::{IsTerminal as _, Write as _};
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context as _;
+use rover_node::Runtime;
+use rover_sim::sim::{SimConfig, SimReport};
+use serde::Serialize;
+
+use crate::eval::{RunResult, free_port, table};
+use crate::graph::GraphConfig;
+use crate::graph_mission::{rgb_image, run_graph_mission};
+use crate::mission::Progress;
+
+/// Without a terminal, a progress line is printed every this many simulated seconds.
+const LINE_EVERY_SIM_S: f64 = 50.0;
+
+/// Options of `rover demo`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct DemoArgs {
+    /// World map: a 200x200 PNG, e.g. ../shared/udacity/calibration_images/map_bw.png.
+    /// Default: the procedural world of --seed, built in.
+    #[arg(long, value_name = "PNG")]
+    pub map: Option<PathBuf>,
+    /// Seed of the world, the sample choice and the start yaw.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// End the mission after this much simulated time, seconds.
+    #[arg(long, default_value_t = 1200.0, value_name = "SECONDS")]
+    pub max_sim_seconds: f64,
+    /// Pace the simulation to the wall clock (default: as fast as the graph answers).
+    #[arg(long)]
+    pub realtime: bool,
+    /// Folder for the final map (map.png), the JSON report (report.json) and the node logs.
+    #[arg(long, default_value = "rover-demo", value_name = "DIR")]
+    pub out: PathBuf,
+}
+
+/// The JSON report of a demo run.
+#[derive(Debug, Serialize)]
+struct DemoReport<'a> {
+    result: &'a RunResult,
+    complete: bool,
+    simulator: &'a SimReport,
+}
+
+/// Runs the demo mission; `ros_args` go to every node.
+pub async fn run_demo(args: &DemoArgs, runtime: &Runtime, ros_args: &[String]) -> anyhow::Result<RunResult> {
+    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
+    let world = rover_sim::cli::SimArgs::world_for(args.map.as_deref(), args.seed)?;
+    let samples = world.samples.len();
+    let mut config = GraphConfig::of_current_exe(free_port()?, args.out.join("logs"))?;
+    config.ros_args = ros_args.to_vec();
+    eprintln!(
+        "rover demo: {} (seed {}), {samples} samples; node logs in {}; Ctrl-C stops",
+        args.map.as_ref().map_or("procedural world".to_string(), |p| p.display().to_string()),
+        args.seed,
+        config.log_dir.display()
+    );
+    let sim_config =
+        SimConfig { realtime: args.realtime, max_sim_seconds: Some(args.max_sim_seconds), ..SimConfig::default() };
+    let started = Instant::now();
+    let mut line = ProgressLine::new(samples);
+    let outcome = run_graph_mission(runtime, config, world, sim_config, |p, _| line.show(p)).await?;
+    line.finish(&outcome.progress);
+    let result = RunResult::of(args.seed, samples, &outcome.report, &outcome.progress, started.elapsed().as_secs_f64());
+    print!("{}", table(std::slice::from_ref(&result)));
+    if let Some(image) = outcome.map_image.as_ref().and_then(rgb_image) {
+        let path = args.out.join("map.png");
+        std::fs::write(&path, rover_imaging::encode_png(&image)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("map: {}", path.display());
+    }
+    let report = DemoReport { result: &result, complete: result.complete(), simulator: &outcome.report };
+    let path = args.out.join("report.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&report)?)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    println!("report: {}", path.display());
+    if !outcome.unclean_nodes.is_empty() {
+        tracing::warn!("nodes that did not stop cleanly: {}", outcome.unclean_nodes.join(", "));
+    }
+    Ok(result)
+}
+
+/// The live progress line: rewritten in place on a terminal, one line per 50 sim seconds otherwise.
+struct ProgressLine {
+    samples: usize,
+    terminal: bool,
+    next_line_s: f64,
+}
+
+impl ProgressLine {
+    fn new(samples: usize) -> Self {
+        ProgressLine { samples, terminal: std::io::stderr().is_terminal(), next_line_s: 0.0 }
+    }
+
+    fn text(&self, p: &Progress) -> String {
+        format!(
+            "sim {:>6.1} s | mapped {:>5.1} % | fidelity {:>5.1} % | samples located {} collected {} of {} | {}",
+            p.sim_seconds, p.mapped_pct, p.fidelity_pct, p.located, p.collected, self.samples, p.mode
+        )
+    }
+
+    fn show(&mut self, p: &Progress) {
+        if self.terminal {
+            eprint!("\r\x1b[K{}", self.text(p));
+            let _ = std::io::stderr().flush();
+        } else if p.sim_seconds >= self.next_line_s {
+            eprintln!("{}", self.text(p));
+            self.next_line_s += LINE_EVERY_SIM_S;
+        }
+    }
+
+    fn finish(&mut self, p: &Progress) {
+        if self.terminal {
+            eprintln!("\r\x1b[K{}", self.text(p));
+        } else {
+            eprintln!("{}", self.text(p));
+        }
+    }
+}

@@ -1,0 +1,233 @@
+//! A mission with every node in its own process: the graph of [`crate::graph`] started from this
+//! executable, the simulator's Unity client running in this process, and an evaluator node that
+//! scores the published `map` against the simulator's true world. `rover demo` and `rover eval`
+//! run missions this way.
+
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use rover_imaging::RgbImage;
+use rover_mapping::score::{LocatedSamples, occupancy_scores};
+use rover_msgs::geometry_msgs::PoseArray;
+use rover_msgs::msg::{DecisionState, Telemetry};
+use rover_msgs::nav_msgs::OccupancyGrid;
+use rover_msgs::sensor_msgs::Image;
+use rover_node::{Runtime, spawn_subscriber, topics};
+use rover_sim::sim::{SimConfig, SimReport, Simulator};
+use rover_sim::wire::client::{ClientConfig, run_client};
+use rover_sim::world::World;
+use tokio::sync::Notify;
+
+use crate::graph::{Graph, GraphConfig};
+use crate::mission::Progress;
+
+/// How often the progress callback runs, wall clock.
+const PROGRESS_PERIOD: Duration = Duration::from_millis(500);
+/// Without a new telemetry frame for this long the graph counts as stalled and the run ends.
+const STALL_LIMIT: Duration = Duration::from_secs(60);
+/// How long each node gets to exit after SIGINT.
+const STOP_TIMEOUT: Duration = Duration::from_secs(5);
+
+rover_node::node_params! {
+    /// The evaluator node has no parameters.
+    pub struct EvaluatorParams {}
+}
+
+/// How a graph mission ended.
+#[derive(Debug)]
+pub struct GraphOutcome {
+    /// The simulator's report.
+    pub report: SimReport,
+    /// The evaluator's last snapshot.
+    pub progress: Progress,
+    /// The last `map/image` the mapping node published (the Udacity-style inset), if any.
+    pub map_image: Option<Image>,
+    /// Nodes that did not exit cleanly at the end.
+    pub unclean_nodes: Vec<String>,
+}
+
+/// What the evaluator has heard from the graph.
+#[derive(Debug)]
+struct Evaluator {
+    ground_truth: Vec<bool>,
+    samples: usize,
+    located: LocatedSamples,
+    progress: Progress,
+    last_frame_at: Instant,
+    map_image: Option<Image>,
+}
+
+impl Evaluator {
+    fn new(world: &World) -> Self {
+        let samples = world.samples.iter().map(|s| (s.x_m, s.y_m)).collect::<Vec<_>>();
+        let progress = Progress {
+            sim_seconds: 0.0,
+            mapped_pct: 0.0,
+            fidelity_pct: 0.0,
+            located: 0,
+            collected: 0,
+            mode: "starting".to_string(),
+        };
+        Evaluator {
+            ground_truth: world.ground_truth().to_vec(),
+            samples: samples.len(),
+            located: LocatedSamples::new(samples),
+            progress,
+            last_frame_at: Instant::now(),
+            map_image: None,
+        }
+    }
+
+    fn on_map(&mut self, map: &OccupancyGrid) {
+        let scores = occupancy_scores(&map.data, &self.ground_truth);
+        self.progress.mapped_pct = scores.mapped_pct;
+        self.progress.fidelity_pct = scores.fidelity_pct;
+    }
+
+    fn on_rocks(&mut self, rocks: &PoseArray) {
+        let cells = rocks
+            .poses
+            .iter()
+            .filter(|p| p.position.x >= 0.0 && p.position.y >= 0.0)
+            .map(|p| (p.position.x as usize, p.position.y as usize))
+            .collect::<Vec<_>>();
+        self.located.update(&cells);
+        self.progress.located = self.located.count();
+    }
+
+    fn on_telemetry(&mut self, telemetry: &Telemetry, step_s: f64) {
+        self.progress.sim_seconds = telemetry.frame as f64 * step_s;
+        self.progress.collected = self.samples.saturating_sub(telemetry.samples_remaining as usize);
+        self.last_frame_at = Instant::now();
+    }
+}
+
+/// Runs one mission in `world` with the graph of `config`, the evaluator on `runtime` (same DDS
+/// domain), until the decision node reports `done`, the simulator's time limit, or shutdown.
+/// `on_progress` runs twice a second with the evaluator's snapshot and the graph, which it may
+/// act on (a test kills and restarts nodes there).
+pub async fn run_graph_mission(
+    runtime: &Runtime,
+    config: GraphConfig,
+    world: World,
+    sim_config: SimConfig,
+    mut on_progress: impl FnMut(&Progress, &mut Graph),
+) -> anyhow::Result<GraphOutcome> {
+    let step_s = sim_config.step_s;
+    let client_config = ClientConfig::unity("127.0.0.1", config.port);
+    let evaluator = Arc::new(Mutex::new(Evaluator::new(&world)));
+    let done = Arc::new(Notify::new());
+    let (mut node, _) = runtime.node::<EvaluatorParams>("evaluator")?;
+    let subscribers = subscribe_evaluator(&mut node, &evaluator, &done, step_s)?;
+    let mut graph = Graph::start(config)?;
+    let mut simulator = Simulator::new(world, sim_config);
+    let shutdown = runtime.shutdown();
+    let stop = async {
+        tokio::select! {
+            () = done.notified() => tracing::info!("the decision node reports done"),
+            () = shutdown.wait() => tracing::info!("stopping the mission"),
+        }
+    };
+    let mut ticks = tokio::time::interval(PROGRESS_PERIOD);
+    let mut client = Box::pin(run_client(&mut simulator, &client_config, stop));
+    let failure = loop {
+        tokio::select! {
+            _ = &mut client => break None,
+            _ = ticks.tick() => {
+                let progress = evaluator.lock().expect("evaluator lock").progress.clone();
+                on_progress(&progress, &mut graph);
+                if let Some(problem) = graph_problem(&mut graph, &evaluator) {
+                    break Some(problem);
+                }
+            }
+        }
+    };
+    drop(client);
+    let unclean_nodes = graph.stop(STOP_TIMEOUT);
+    for subscriber in subscribers {
+        subscriber.abort();
+    }
+    if let Some(problem) = failure {
+        anyhow::bail!("{problem}");
+    }
+    let report = simulator.report();
+    let mut evaluator = evaluator.lock().expect("evaluator lock");
+    evaluator.progress.sim_seconds = report.sim_seconds;
+    evaluator.progress.collected = report.samples_collected;
+    Ok(GraphOutcome {
+        report,
+        progress: evaluator.progress.clone(),
+        map_image: evaluator.map_image.take(),
+        unclean_nodes,
+    })
+}
+
+/// The pixels of an `rgb8` image message, or `None` for another encoding or a wrong size.
+pub fn rgb_image(image: &Image) -> Option<RgbImage> {
+    let (width, height) = (image.width as usize, image.height as usize);
+    let packed = image.encoding == "rgb8" && image.step as usize == width * 3;
+    (packed && image.data.len() == width * height * 3).then(|| RgbImage { width, height, data: image.data.clone() })
+}
+
+/// Why the run cannot go on: the bridge is gone, or no frame arrived for too long.
+fn graph_problem(graph: &mut Graph, evaluator: &Mutex<Evaluator>) -> Option<String> {
+    if let Some((_, status)) = graph.exited().into_iter().find(|(name, _)| name == "bridge") {
+        return Some(format!("the bridge exited ({status}); see {}", graph.config().log_dir.display()));
+    }
+    let silent = evaluator.lock().expect("evaluator lock").last_frame_at.elapsed();
+    (silent > STALL_LIMIT).then(|| {
+        format!(
+            "no telemetry for {:.0} s: the graph stalled; see the logs in {}",
+            silent.as_secs_f64(),
+            graph.config().log_dir.display()
+        )
+    })
+}
+
+/// A subscription handler that applies `update` to the shared evaluator.
+fn handler<M>(
+    evaluator: &Arc<Mutex<Evaluator>>,
+    mut update: impl FnMut(&mut Evaluator, M) + Send + 'static,
+) -> impl FnMut(M) + Send + 'static {
+    let evaluator = evaluator.clone();
+    move |message| update(&mut evaluator.lock().expect("evaluator lock"), message)
+}
+
+fn subscribe_evaluator(
+    node: &mut rover_node::RosNode,
+    evaluator: &Arc<Mutex<Evaluator>>,
+    done: &Arc<Notify>,
+    step_s: f64,
+) -> anyhow::Result<Vec<tokio::task::JoinHandle<()>>> {
+    let span = node.span();
+    let done = done.clone();
+    let on_mode = move |e: &mut Evaluator, state: DecisionState| {
+        if state.mode == "done" {
+            done.notify_one();
+        }
+        e.progress.mode = state.mode;
+    };
+    Ok(vec![
+        spawn_subscriber(
+            node.subscription(&topics::MAP)?,
+            span.clone(),
+            handler(evaluator, |e, m: OccupancyGrid| e.on_map(&m)),
+        ),
+        spawn_subscriber(
+            node.subscription(&topics::ROCKS)?,
+            span.clone(),
+            handler(evaluator, |e, r: PoseArray| e.on_rocks(&r)),
+        ),
+        spawn_subscriber(
+            node.subscription(&topics::TELEMETRY)?,
+            span.clone(),
+            handler(evaluator, move |e, t: Telemetry| e.on_telemetry(&t, step_s)),
+        ),
+        spawn_subscriber(node.subscription(&topics::MODE)?, span.clone(), handler(evaluator, on_mode)),
+        spawn_subscriber(
+            node.subscription(&topics::MAP_IMAGE)?,
+            span,
+            handler(evaluator, |e, i: Image| e.map_image = Some(i)),
+        ),
+    ])
+}
