@@ -1,11 +1,12 @@
-# Source this file (after tools/setup-ros) to use rclpy and the rover_msgs Python module:
+# Source this file (after tools/setup-ros) to use rclpy and the rover_msgs and tf2_msgs Python modules:
 #   source tools/ros-env.sh
 _rover_repo=$(cd "$(dirname "${BASH_SOURCE[0]:-$0}")/.." && pwd)
 export VIRTUAL_ENV="$_rover_repo/.venv"
 export PATH="$VIRTUAL_ENV/bin:$PATH"
-export AMENT_PREFIX_PATH="$_rover_repo/target/ros_ws/install/rover_msgs:$VIRTUAL_ENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
-export PYTHONPATH="$_rover_repo/target/ros_ws/install/rover_msgs/lib/python3.11/site-packages${PYTHONPATH:+:$PYTHONPATH}"
-export LD_LIBRARY_PATH="$_rover_repo/target/ros_ws/install/rover_msgs/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+_rover_install="$_rover_repo/target/ros_ws/install"
+export AMENT_PREFIX_PATH="$_rover_install/rover_msgs:$_rover_install/tf2_msgs:$VIRTUAL_ENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
+export PYTHONPATH="$_rover_install/rover_msgs/lib/python3.11/site-packages:$_rover_install/tf2_msgs/lib/python3.11/site-packages${PYTHONPATH:+:$PYTHONPATH}"
+export LD_LIBRARY_PATH="$_rover_install/rover_msgs/lib:$_rover_install/tf2_msgs/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
 export ROS_DISTRO=kilted
-unset _rover_repo
+unset _rover_repo _rover_install

@@ -144,7 +144,9 @@ struct Outputs {
     image: Publisher<Image>,
     stats: Publisher<MapStats>,
     rocks: Publisher<PoseArray>,
-    last_rocks: Vec<(f64, f64)>,
+    /// The rocks last published; `None` until the first publication, so that the latched topic
+    /// says "no rocks yet" from the start.
+    last_rocks: Option<Vec<(f64, f64)>>,
 }
 
 impl Outputs {
@@ -183,13 +185,13 @@ impl Outputs {
         };
         warn_on_error("map/image", self.image.publish(message));
         warn_on_error("rover/map_stats", self.stats.publish(stats));
-        if rocks != self.last_rocks {
+        if self.last_rocks.as_ref() != Some(&rocks) {
             let poses = rocks
                 .iter()
                 .map(|&(x, y)| PoseMsg { position: Point { x, y, z: 0.0 }, orientation: Quaternion::from_yaw(0.0) })
                 .collect();
             warn_on_error("rover/rocks", self.rocks.publish(PoseArray { header, poses }));
-            self.last_rocks = rocks;
+            self.last_rocks = Some(rocks);
         }
     }
 }
@@ -212,7 +214,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         image: node.publisher(&topics::MAP_IMAGE)?,
         stats: node.publisher(&topics::MAP_STATS)?,
         rocks: node.publisher(&topics::ROCKS)?,
-        last_rocks: Vec::new(),
+        last_rocks: None,
     };
     let terrain_subscription = node.subscription(&topics::TERRAIN)?;
     let telemetry_subscription = node.subscription(&topics::TELEMETRY)?;
