@@ -1,0 +1,102 @@
+"""Launch the rover graph: each node its own process running the `rover` executable.
+
+    ros2 launch launch_scripts/rover.launch.py [namespace:=/rover1] [params_file:=FILE]
+        [rover:=PATH] [port:=4567] [sim:=true] [seed:=0] [log_level:=debug]
+
+Every node (bridge, perception, mapping, decision, pickup) runs
+`rover NODE --ros-args --params-file PARAMS -r __ns:=NAMESPACE [--log-level LEVEL]`; the bridge
+also gets `-p port:=PORT`. With sim:=true the headless simulator (`rover sim --seed SEED
+--port PORT`) drives the graph; without it the bridge waits for the Unity simulator. The DDS
+domain is the environment's ROS_DOMAIN_ID, the log filter RUST_LOG unless log_level is given.
+Uses only the `launch` package (no launch_ros): `rover` is not in an ament package index unless
+the repository was built with colcon, so it is started by path.
+"""
+
+import os
+import shutil
+
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, ExecuteProcess, OpaqueFunction
+from launch.substitutions import LaunchConfiguration
+
+NODES = ('bridge', 'perception', 'mapping', 'decision', 'pickup')
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def default_rover():
+    """The `rover` executable: the newest cargo build of this repository, else the one a colcon
+    build installed (lib/rover/rover), else the one on PATH."""
+    builds = [os.path.normpath(os.path.join(HERE, '..', 'target', profile, 'rover')) for profile in ('release', 'debug')]
+    builds = [path for path in builds if os.access(path, os.X_OK)]
+    if builds:
+        return max(builds, key=os.path.getmtime)
+    installed = colcon_installed_rover()
+    if installed:
+        return installed
+    return shutil.which('rover') or 'rover'
+
+
+def colcon_installed_rover():
+    """lib/rover/rover in the ament prefix of the `rover` package, if a colcon build installed it."""
+    try:
+        from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+    except ImportError:
+        return None
+    try:
+        candidate = os.path.join(get_package_prefix('rover'), 'lib', 'rover', 'rover')
+    except PackageNotFoundError:
+        return None
+    return candidate if os.access(candidate, os.X_OK) else None
+
+
+def arguments():
+    """The launch arguments with their defaults."""
+    return [
+        DeclareLaunchArgument('namespace', default_value='/',
+                              description='ROS namespace of every node, e.g. /rover1'),
+        DeclareLaunchArgument('params_file', default_value=os.path.join(HERE, 'rover_params.yaml'),
+                              description='parameter YAML file given to every node'),
+        DeclareLaunchArgument('rover', default_value=default_rover(),
+                              description='path of the rover executable'),
+        DeclareLaunchArgument('port', default_value='4567',
+                              description="TCP port of the bridge's Socket.IO server"),
+        DeclareLaunchArgument('sim', default_value='false', choices=['true', 'false'],
+                              description='also start the headless simulator (rover sim)'),
+        DeclareLaunchArgument('seed', default_value='0',
+                              description="seed of the headless simulator's world"),
+        DeclareLaunchArgument('log_level', default_value='',
+                              description='log level of every node (default: RUST_LOG, else info)'),
+    ]
+
+
+def node_command(name, value):
+    """The command line of node `name`; `value` reads a launch argument."""
+    cmd = [value('rover'), name, '--ros-args', '--params-file', value('params_file'),
+           '-r', '__ns:=' + value('namespace')]
+    if value('log_level'):
+        cmd += ['--log-level', value('log_level')]
+    if name == 'bridge':
+        cmd += ['-p', 'port:=' + value('port')]
+    return cmd
+
+
+def simulator_command(value):
+    """The command line of the headless simulator, connecting to the bridge's port."""
+    return [value('rover'), 'sim', '--seed', value('seed'), '--port', value('port')]
+
+
+def processes(context):
+    """One process per node, plus the simulator with sim:=true."""
+    def value(name):
+        return LaunchConfiguration(name).perform(context)
+
+    commands = [(name, node_command(name, value)) for name in NODES]
+    if value('sim') == 'true':
+        commands.append(('sim', simulator_command(value)))
+    return [ExecuteProcess(cmd=cmd, name=name, output='screen', sigterm_timeout='5', sigkill_timeout='5')
+            for name, cmd in commands]
+
+
+def generate_launch_description():
+    """The launch description that `ros2 launch` and `launch.LaunchService` load."""
+    return LaunchDescription(arguments() + [OpaqueFunction(function=processes)])

@@ -1,0 +1,270 @@
+//! The launchers of `launch_scripts/`: `rover-graph` (no ROS needed) and `rover.launch.py` (ROS 2
+//! `launch`), each starting the real graph with the headless simulator, checked from a DDS
+//! subscriber in the test, and stopped with SIGINT.
+
+mod support;
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+use rover_msgs::msg::{DriveCommand, Telemetry};
+use rover_node::ros_args::Remap;
+use rover_node::{RosArgs, RosNode, Runtime, Shutdown, topics};
+use support::{Domain, Latest, NoParams, eventually, rover};
+
+const PROCESSES: [&str; 6] = ["bridge", "perception", "mapping", "decision", "pickup", "sim"];
+
+fn launch_scripts() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("launch_scripts")
+}
+
+/// A subscriber in namespace `namespace` of the test's domain.
+struct Watcher {
+    telemetry: Latest<Telemetry>,
+    drive: Latest<DriveCommand>,
+    _node: RosNode,
+    _runtime: Runtime,
+}
+
+impl Watcher {
+    fn start(domain: &Domain, namespace: &str) -> Watcher {
+        let remap = Remap { node: None, from: "__ns".into(), to: namespace.into() };
+        let ros_args = RosArgs { remaps: vec![remap], ..RosArgs::default() };
+        let runtime = Runtime::on_domain(domain.id, ros_args, Shutdown::new()).expect("the test's DDS participant");
+        let (mut node, _) = runtime.node::<NoParams>("launch_watcher").expect("create the watcher node");
+        let telemetry = Latest::subscribe(&mut node, &topics::TELEMETRY);
+        let drive = Latest::subscribe(&mut node, &topics::DRIVE_CMD);
+        Watcher { telemetry, drive, _node: node, _runtime: runtime }
+    }
+
+    /// Waits until frames flow and the decision node answers them.
+    fn graph_runs(&self) -> bool {
+        eventually(Duration::from_secs(45), || self.telemetry.all().len() >= 30 && self.drive.all().len() >= 10)
+    }
+}
+
+/// A launcher process whose output goes to a file.
+struct Launcher {
+    child: Child,
+    output: PathBuf,
+}
+
+impl Launcher {
+    fn start(command: &mut Command, what: &str) -> Launcher {
+        let output = std::env::temp_dir().join(format!("rover-launch-{what}-{}.out", std::process::id()));
+        let file = std::fs::File::create(&output).expect("create the launcher's output file");
+        let stderr = file.try_clone().expect("share the output file");
+        let child = command
+            .stdin(Stdio::null())
+            .stdout(file)
+            .stderr(stderr)
+            .spawn()
+            .unwrap_or_else(|e| panic!("start the {what} launcher: {e}"));
+        Launcher { child, output }
+    }
+
+    fn output(&self) -> String {
+        std::fs::read_to_string(&self.output).unwrap_or_default()
+    }
+
+    /// Sends SIGINT and waits up to 30 s; returns the exit code.
+    fn interrupt(&mut self) -> Option<i32> {
+        send_signal("INT", self.child.id());
+        let exited = eventually(Duration::from_secs(30), || self.child.try_wait().ok().flatten().is_some());
+        exited.then(|| self.child.wait().ok().and_then(|s| s.code())).flatten()
+    }
+}
+
+impl Drop for Launcher {
+    fn drop(&mut self) {
+        if self.child.try_wait().ok().flatten().is_none() {
+            send_signal("INT", self.child.id());
+            if !eventually(Duration::from_secs(15), || self.child.try_wait().ok().flatten().is_some()) {
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+            }
+        }
+    }
+}
+
+fn send_signal(signal: &str, pid: u32) {
+    let _ = Command::new("kill").args([&format!("-{signal}"), &pid.to_string()]).stderr(Stdio::null()).status();
+}
+
+fn is_running(pid: u32) -> bool {
+    Path::new(&format!("/proc/{pid}")).exists()
+}
+
+/// The `(name, pid, log)` lines `rover-graph: started NAME pid PID log LOG` of the output.
+fn started_processes(output: &str) -> Vec<(String, u32, PathBuf)> {
+    output
+        .lines()
+        .filter_map(|line| line.strip_prefix("rover-graph: started "))
+        .map(|rest| {
+            let fields: Vec<&str> = rest.split_whitespace().collect();
+            assert_eq!((fields.len(), fields[1], fields[3]), (5, "pid", "log"), "unexpected line: {rest}");
+            (fields[0].to_string(), fields[2].parse().expect("a pid"), PathBuf::from(fields[4]))
+        })
+        .collect()
+}
+
+/// The command line of a running process, its arguments joined by spaces.
+fn command_line(pid: u32) -> String {
+    std::fs::read(format!("/proc/{pid}/cmdline"))
+        .map(|b| String::from_utf8_lossy(&b).replace('\0', " "))
+        .unwrap_or_default()
+}
+
+fn rover_graph(domain: &Domain, namespace: &str, log_dir: &Path, sim: bool) -> Command {
+    let mut command = Command::new(launch_scripts().join("rover-graph"));
+    command.arg("--rover").arg(rover()).arg("--log-dir").arg(log_dir);
+    command.args(["--domain", &domain.id.to_string(), "--port", &domain.port().to_string(), "--namespace", namespace]);
+    if sim {
+        command.args(["--sim", "4"]);
+    }
+    command.args(["--", "-p", "bridge:diagnostics_period_ms:=250.0"]);
+    command
+}
+
+#[test]
+fn rover_graph_runs_the_graph_with_the_simulator_and_stops_every_process_on_sigint() {
+    support::assert_isolated();
+    let tokio = tokio::runtime::Runtime::new().expect("a tokio runtime");
+    let _entered = tokio.enter();
+    let domain = Domain::reserve();
+    let watcher = Watcher::start(&domain, "/plain");
+    let log_dir = std::env::temp_dir().join(format!("rover-graph-test-{}", std::process::id()));
+    let mut launcher = Launcher::start(&mut rover_graph(&domain, "/plain", &log_dir, true), "rover-graph");
+    assert!(watcher.graph_runs(), "no frames on /plain/rover/telemetry; launcher output:\n{}", launcher.output());
+
+    let output = launcher.output();
+    assert!(output.contains(&format!("logs in {}", log_dir.display())), "{output}");
+    let started = started_processes(&output);
+    let names: Vec<&str> = started.iter().map(|(name, _, _)| name.as_str()).collect();
+    assert_eq!(names, PROCESSES, "{output}");
+    let params_file = launch_scripts().join("rover_params.yaml");
+    for (name, pid, log) in &started {
+        assert!(log.starts_with(&log_dir) && log.exists(), "{name}: log {}", log.display());
+        let command = command_line(*pid);
+        if name != "sim" {
+            assert!(command.contains(&format!("--params-file {}", params_file.display())), "{name}: {command}");
+            assert!(command.contains("-r __ns:=/plain -p bridge:diagnostics_period_ms:=250.0"), "{name}: {command}");
+        }
+    }
+
+    let code = launcher.interrupt();
+    let output = launcher.output();
+    assert_eq!(code, Some(0), "rover-graph's exit on SIGINT; output:\n{output}");
+    for (name, pid, _) in &started {
+        assert!(
+            output.contains(&format!("rover-graph: {name:<10} exited: 0")),
+            "{name} did not exit cleanly:\n{output}"
+        );
+        assert!(!is_running(*pid), "{name} (pid {pid}) still runs");
+    }
+}
+
+#[test]
+fn rover_graph_stops_every_node_when_one_exits() {
+    support::assert_isolated();
+    let domain = Domain::reserve();
+    let log_dir = std::env::temp_dir().join(format!("rover-graph-crash-test-{}", std::process::id()));
+    let mut launcher = Launcher::start(&mut rover_graph(&domain, "/crash", &log_dir, false), "rover-graph-crash");
+    assert!(eventually(Duration::from_secs(10), || started_processes(&launcher.output()).len() == 5));
+    let started = started_processes(&launcher.output());
+    let mapping = started.iter().find(|(name, _, _)| name == "mapping").expect("mapping was started").1;
+    std::thread::sleep(Duration::from_secs(1));
+    send_signal("KILL", mapping);
+
+    let exited = eventually(Duration::from_secs(30), || launcher.child.try_wait().ok().flatten().is_some());
+    let output = launcher.output();
+    assert!(exited, "rover-graph kept running after mapping died:\n{output}");
+    assert_eq!(launcher.child.wait().ok().and_then(|s| s.code()), Some(1), "{output}");
+    assert!(output.contains("rover-graph: mapping exited with status -9; stopping the others"), "{output}");
+    for (name, pid, _) in started.iter().filter(|(name, _, _)| name != "mapping") {
+        assert!(output.contains(&format!("rover-graph: {name:<10} exited: 0")), "{name}:\n{output}");
+        assert!(!is_running(*pid), "{name} (pid {pid}) still runs");
+    }
+}
+
+#[test]
+fn rover_graph_help_names_its_options() {
+    let output = Command::new(launch_scripts().join("rover-graph")).arg("--help").output().expect("run rover-graph");
+    let help = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{help}");
+    for option in
+        ["--rover", "--params-file", "--namespace", "--domain", "--port", "--sim SEED", "--log-dir", "-- ROS_ARG"]
+    {
+        assert!(help.contains(option), "--help does not mention {option}:\n{help}");
+    }
+}
+
+/// Loads a launch file with `launch.LaunchService`, as `ros2 launch FILE NAME:=VALUE...` does.
+const LAUNCH_DRIVER: &str = "
+import sys
+from launch import LaunchDescription, LaunchService
+from launch.actions import IncludeLaunchDescription
+from launch.launch_description_sources import PythonLaunchDescriptionSource
+launch_file, *arguments = sys.argv[1:]
+service = LaunchService()
+service.include_launch_description(LaunchDescription([IncludeLaunchDescription(
+    PythonLaunchDescriptionSource(launch_file),
+    launch_arguments=[tuple(argument.split(':=', 1)) for argument in arguments])]))
+sys.exit(service.run())
+";
+
+/// A Python that imports the ROS 2 `launch` package. No registry ships it (it is not among the
+/// ROS 2 wheels on PyPI), so its absence skips the test unless `ROVER_REQUIRE_LAUNCH` is set.
+fn python_with_launch() -> Option<PathBuf> {
+    let python = std::env::var_os("ROVER_PYTHON").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("python3"));
+    let found = Command::new(&python)
+        .args(["-c", "import launch.launch_description_sources"])
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if found {
+        return Some(python);
+    }
+    assert!(std::env::var_os("ROVER_REQUIRE_LAUNCH").is_none(), "{} cannot import launch", python.display());
+    eprintln!("skipped: {} cannot import the ROS 2 launch package (not on PyPI)", python.display());
+    None
+}
+
+#[test]
+fn the_launch_file_is_valid_python() {
+    let file = launch_scripts().join("rover.launch.py");
+    let output = Command::new("python3")
+        .args(["-c", "import ast, sys; ast.parse(open(sys.argv[1]).read(), sys.argv[1])"])
+        .arg(&file)
+        .output()
+        .expect("run python3");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+}
+
+#[test]
+fn the_launch_file_starts_the_graph_with_the_simulator_and_stops_it_on_sigint() {
+    support::assert_isolated();
+    let Some(python) = python_with_launch() else { return };
+    let tokio = tokio::runtime::Runtime::new().expect("a tokio runtime");
+    let _entered = tokio.enter();
+    let domain = Domain::reserve();
+    let watcher = Watcher::start(&domain, "/launched");
+    let mut command = Command::new(python);
+    command.args(["-c", LAUNCH_DRIVER]).arg(launch_scripts().join("rover.launch.py"));
+    command.arg(format!("rover:={}", rover().display()));
+    command.args(["namespace:=/launched", "sim:=true", "seed:=6", &format!("port:={}", domain.port())]);
+    command.env("ROS_DOMAIN_ID", domain.id.to_string());
+    let mut launcher = Launcher::start(&mut command, "launch-file");
+    assert!(watcher.graph_runs(), "no frames on /launched/rover/telemetry; launch output:\n{}", launcher.output());
+
+    let code = launcher.interrupt();
+    let output = launcher.output();
+    assert!(code.is_some(), "the launch service did not stop on SIGINT:\n{output}");
+    for name in PROCESSES {
+        let finished = format!("[{name}-");
+        let clean =
+            output.lines().any(|line| line.contains(&finished) && line.contains("process has finished cleanly"));
+        assert!(clean, "{name} did not finish cleanly:\n{output}");
+    }
+}
