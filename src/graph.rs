@@ -54,9 +54,8 @@ impl NodeProcess {
         let stderr = File::create(&log).with_context(|| format!("cannot create {}", log.display()))?;
         let mut command = Command::new(&config.rover);
         command.arg(name).arg("--ros-args").args(&config.ros_args);
-        if name == "bridge" {
-            command.args(["-p", &format!("port:={}", config.port)]);
-        }
+        // Aimed at the bridge node, so it also reaches the bridge of `rover all`; the other nodes ignore it.
+        command.args(["-p", &format!("bridge:port:={}", config.port)]);
         if let Some(id) = config.domain_id {
             command.env("ROS_DOMAIN_ID", id.to_string());
         }

@@ -482,3 +482,88 @@ impl Machine {
         drive
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::SIDE;
+
+    fn open_ahead() -> FreeSpace {
+        FreeSpace { directions_rad: vec![-0.3, 0.0, 0.3], free_m: vec![6.0, 6.0, 6.0] }
+    }
+
+    fn observation(frame: u64, x_m: f64, y_m: f64) -> Observation {
+        Observation {
+            frame,
+            position: Position { x_m, y_m, yaw_rad: 0.0 },
+            pitch_rad: 0.0,
+            roll_rad: 0.0,
+            speed_mps: 0.0,
+            near_sample: false,
+            picking_up: false,
+            samples_remaining: 6,
+            free: open_ahead(),
+            rock: None,
+        }
+    }
+
+    /// A corridor along y = 100 from x = 90 to 130, unknown beyond x = 130.
+    fn corridor() -> Grid {
+        let mut data = vec![100i8; SIDE * SIDE];
+        for y in 98..103 {
+            for x in 90..140 {
+                data[y * SIDE + x] = if x < 130 { 0 } else { -1 };
+            }
+        }
+        Grid::from_occupancy(&data).unwrap()
+    }
+
+    #[test]
+    fn a_map_without_free_cells_does_not_end_the_exploration() {
+        let params = DecisionParams::default();
+        let mut machine = Machine::new(params.clone());
+        machine.set_map(Grid::unknown());
+        for frame in 1..params.frames(params.stuck_s) {
+            let drive = machine.step(&observation(frame, 100.5, 100.5));
+            assert!(drive.throttle > 0.0, "frame {frame}: {drive:?}");
+        }
+        assert_eq!(machine.status().mode, Mode::Explore);
+    }
+
+    #[test]
+    fn a_seen_sample_is_approached_and_picked_up() {
+        let mut machine = Machine::new(DecisionParams::default());
+        machine.set_map(corridor());
+        let mut obs = observation(1, 100.5, 100.5);
+        obs.rock = Some(Sighting { bearing_rad: 0.1, distance_m: 3.0 });
+        machine.step(&obs);
+        assert_eq!(machine.status().mode, Mode::ApproachSample);
+        obs.frame = 2;
+        obs.near_sample = true;
+        assert_eq!(machine.step(&obs).throttle, 0.0);
+        assert_eq!(machine.status().mode, Mode::Pickup);
+        obs.frame = 3;
+        obs.picking_up = true;
+        machine.step(&obs);
+        obs.frame = 4;
+        (obs.picking_up, obs.near_sample, obs.samples_remaining, obs.rock) = (false, false, 5, None);
+        machine.step(&obs);
+        assert_eq!(machine.status().mode, Mode::Explore);
+        assert_eq!((machine.status().reason.as_str(), machine.status().samples_collected), ("sample collected", 1));
+    }
+
+    #[test]
+    fn the_rover_goes_home_at_the_deadline_and_stops_there() {
+        let params = DecisionParams::default();
+        let mut machine = Machine::new(params.clone());
+        machine.set_map(corridor());
+        machine.step(&observation(1, 100.5, 100.5));
+        let late = params.frames(params.mission_deadline_s);
+        machine.step(&observation(late, 120.5, 100.5));
+        assert_eq!(machine.status().mode, Mode::ReturnHome);
+        assert_eq!(machine.status().target, Some((100.5, 100.5)));
+        machine.step(&observation(late + 1, 101.0, 100.5));
+        assert_eq!(machine.status().mode, Mode::Done);
+        assert_eq!(machine.step(&observation(late + 2, 101.0, 100.5)).throttle, 0.0);
+    }
+}

@@ -3,7 +3,7 @@
 
 use futures::StreamExt;
 use rover_msgs::geometry_msgs::PoseArray;
-use rover_msgs::msg::{DecisionState, DriveCommand, Telemetry, TerrainScan};
+use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, Telemetry, TerrainScan};
 use rover_msgs::nav_msgs::OccupancyGrid;
 use rover_msgs::std_msgs::Header;
 use rover_node::pairing::Pairer;
@@ -107,15 +107,15 @@ impl Decision {
         }
     }
 
-    /// Takes over home and collected samples from a state an earlier decision node published
-    /// (latched, decided on a frame before this node's first).
-    fn resume_from(&mut self, state: &DecisionState) {
-        let earlier = self.first_frame.is_none_or(|first| state.frame < first);
-        if self.resumed || !earlier || !state.home_x_m.is_finite() || !state.home_y_m.is_finite() {
+    /// Takes over home and collected samples from the mapping node when it has seen frames from
+    /// before this node's first: the mission was already under way (this node was restarted).
+    fn resume_from(&mut self, stats: &MapStats) {
+        let earlier = stats.frame > 0 && self.first_frame.is_none_or(|first| stats.frame < first);
+        if self.resumed || !earlier || !stats.home_x_m.is_finite() || !stats.home_y_m.is_finite() {
             return;
         }
         self.resumed = true;
-        let memory = Memory { home: (state.home_x_m, state.home_y_m), samples_collected: state.samples_collected };
+        let memory = Memory { home: (stats.home_x_m, stats.home_y_m), samples_collected: stats.samples_collected };
         tracing::info!(
             "resuming a mission: home ({:.1}, {:.1}), {} samples collected",
             memory.home.0,
@@ -145,12 +145,12 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let terrain_subscription = node.subscription(&topics::TERRAIN)?;
     let map_subscription = node.subscription(&topics::MAP)?;
     let rocks_subscription = node.subscription(&topics::ROCKS)?;
-    let mode_subscription = node.subscription(&topics::MODE)?;
+    let stats_subscription = node.subscription(&topics::MAP_STATS)?;
     let mut telemetry = std::pin::pin!(messages(&telemetry_subscription));
     let mut scans = std::pin::pin!(messages(&terrain_subscription));
     let mut maps = std::pin::pin!(messages(&map_subscription));
     let mut rocks = std::pin::pin!(messages(&rocks_subscription));
-    let mut states = std::pin::pin!(messages(&mode_subscription));
+    let mut stats = std::pin::pin!(messages(&stats_subscription));
     let mut pairs: Pairer<u64, Telemetry, TerrainScan> = Pairer::new(PAIRING_BACKLOG);
     let mut changes = params.watch();
     let shutdown = runtime.shutdown();
@@ -162,7 +162,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
                 Some(scan) = scans.next() => pairs.push_second(scan.frame, scan),
                 Some(map) = maps.next() => { decision.set_map(&map); None }
                 Some(located) = rocks.next() => { decision.machine.set_rocks(rock_positions(&located)); None }
-                Some(state) = states.next() => { decision.resume_from(&state); None }
+                Some(s) = stats.next() => { decision.resume_from(&s); None }
                 Ok(()) = changes.changed() => {
                     let updated = changes.borrow_and_update().clone();
                     decision.machine.set_params(updated);
