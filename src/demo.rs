@@ -10,8 +10,8 @@ use rover_node::Runtime;
 use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 
-use crate::eval::{RunResult, free_port, table};
-use crate::graph::GraphConfig;
+use crate::eval::{RunResult, table};
+use crate::graph::{GraphConfig, free_port};
 use crate::graph_mission::{rgb_image, run_graph_mission};
 use crate::mission::Progress;
 

@@ -11,7 +11,7 @@ use rover_node::Runtime;
 use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 
-use crate::graph::{GraphConfig, log_dir};
+use crate::graph::{GraphConfig, free_port, log_dir};
 use crate::graph_mission::{rgb_image, run_graph_mission};
 use crate::mission::{NodeSettings, Progress, run_in_process};
 
@@ -184,12 +184,6 @@ fn save_map(dir: &Path, seed: u64, image: &RgbImage) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let path = dir.join(format!("map_seed{seed}.png"));
     std::fs::write(&path, rover_imaging::encode_png(image)?).with_context(|| format!("cannot write {}", path.display()))
-}
-
-/// A free TCP port on the loopback for a bridge.
-pub fn free_port() -> anyhow::Result<u16> {
-    let listener = std::net::TcpListener::bind("127.0.0.1:0").context("cannot find a free TCP port")?;
-    Ok(listener.local_addr()?.port())
 }
 
 /// The results as a table.

@@ -80,18 +80,7 @@ impl NodeProcess {
 
     /// Sends SIGINT and waits up to `timeout` for the exit status.
     pub fn interrupt(&mut self, timeout: Duration) -> Option<ExitStatus> {
-        if let Some(status) = self.exited() {
-            return Some(status);
-        }
-        send_sigint(self.child.id());
-        let deadline = Instant::now() + timeout;
-        while Instant::now() < deadline {
-            if let Some(status) = self.exited() {
-                return Some(status);
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        None
+        interrupt_child(&mut self.child, timeout)
     }
 
     /// Kills the process at once (a crash, as far as the other nodes can tell).
@@ -112,6 +101,28 @@ impl Drop for NodeProcess {
             self.kill();
         }
     }
+}
+
+/// Sends SIGINT to `child` (unless it has exited) and waits up to `timeout` for its exit status.
+pub fn interrupt_child(child: &mut Child, timeout: Duration) -> Option<ExitStatus> {
+    if let Ok(Some(status)) = child.try_wait() {
+        return Some(status);
+    }
+    send_sigint(child.id());
+    let deadline = Instant::now() + timeout;
+    while Instant::now() < deadline {
+        if let Ok(Some(status)) = child.try_wait() {
+            return Some(status);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    None
+}
+
+/// A free TCP port on the loopback, e.g. for a bridge.
+pub fn free_port() -> anyhow::Result<u16> {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").context("cannot find a free TCP port")?;
+    Ok(listener.local_addr()?.port())
 }
 
 fn send_sigint(pid: u32) {

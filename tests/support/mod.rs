@@ -90,18 +90,7 @@ impl Process {
 
     /// Sends SIGINT and waits up to 5 s for the exit status.
     pub fn interrupt(&mut self) -> Option<std::process::ExitStatus> {
-        if let Ok(Some(status)) = self.child.try_wait() {
-            return Some(status);
-        }
-        let _ = Command::new("kill").args(["-INT", &self.child.id().to_string()]).stderr(Stdio::null()).status();
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while Instant::now() < deadline {
-            if let Ok(Some(status)) = self.child.try_wait() {
-                return Some(status);
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        None
+        rover::graph::interrupt_child(&mut self.child, Duration::from_secs(5))
     }
 
     /// Kills the process at once (a crash, as far as the others can tell).
@@ -220,5 +209,5 @@ pub fn python_with(modules: &[&str]) -> Option<PathBuf> {
 
 /// A free TCP port on the loopback.
 pub fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map(|a| a.port()).expect("a free port")
+    rover::graph::free_port().expect("a free port")
 }
