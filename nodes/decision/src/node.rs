@@ -107,10 +107,10 @@ impl Decision {
         }
     }
 
-    /// Takes over home and collected samples from the mapping node when it has seen frames from
-    /// before this node's first: the mission was already under way (this node was restarted).
+    /// Takes over home and collected samples from the mapping node when its mission started
+    /// before this node's first frame: the mission was already under way (this node was restarted).
     fn resume_from(&mut self, stats: &MapStats) {
-        let earlier = stats.frame > 0 && self.first_frame.is_none_or(|first| stats.frame < first);
+        let earlier = stats.home_frame > 0 && self.first_frame.is_none_or(|first| stats.home_frame < first);
         if self.resumed || !earlier || !stats.home_x_m.is_finite() || !stats.home_y_m.is_finite() {
             return;
         }

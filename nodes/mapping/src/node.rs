@@ -39,8 +39,7 @@ struct Mapping {
     ground_truth: Option<Vec<bool>>,
     samples_truth: Option<Vec<(f64, f64)>>,
     tally: SampleTally,
-    home: Option<(f64, f64)>,
-    last_telemetry_frame: u64,
+    home: Option<(u64, f64, f64)>,
     last_frame: Option<u64>,
     rejections: Rejections,
     started: Instant,
@@ -63,7 +62,6 @@ impl Mapping {
             samples_truth: None,
             tally: SampleTally::default(),
             home: None,
-            last_telemetry_frame: 0,
             last_frame: None,
             rejections: Rejections::default(),
             started: Instant::now(),
@@ -111,9 +109,8 @@ impl Mapping {
 
     fn on_telemetry(&mut self, telemetry: &Telemetry) {
         if telemetry.x_m.is_finite() && telemetry.y_m.is_finite() {
-            self.home.get_or_insert((telemetry.x_m, telemetry.y_m));
+            self.home.get_or_insert((telemetry.frame, telemetry.x_m, telemetry.y_m));
         }
-        self.last_telemetry_frame = self.last_telemetry_frame.max(telemetry.frame);
         if self.tally.update(telemetry.samples_remaining) > 0 {
             self.map.forget_picked_rock(telemetry.x_m, telemetry.y_m, telemetry.yaw_rad as f64);
         }
@@ -137,9 +134,9 @@ impl Mapping {
             mapped_pct: scores.map_or(f32::NAN, |s| s.mapped_pct as f32),
             fidelity_pct: scores.map_or(f32::NAN, |s| s.fidelity_pct as f32),
             rocks_located: rocks_located as u32,
-            frame: self.last_telemetry_frame,
-            home_x_m: self.home.map_or(f64::NAN, |h| h.0),
-            home_y_m: self.home.map_or(f64::NAN, |h| h.1),
+            home_frame: self.home.map_or(0, |h| h.0),
+            home_x_m: self.home.map_or(f64::NAN, |h| h.1),
+            home_y_m: self.home.map_or(f64::NAN, |h| h.2),
             samples_collected: self.tally.collected(),
         }
     }
