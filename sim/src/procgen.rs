@@ -1,10 +1,11 @@
 //! Seeded procedural worlds: connected canyons carved by wandering walkers, scattered boulders,
-//! and six samples lying next to walls, so that the default demo needs no data files.
+//! and six samples lying next to walls, so that the default demo needs no data files. As in the
+//! Unity world, a low drivable bank lines the walls outside the navigable map.
 
 use std::collections::VecDeque;
 
 use crate::random::SplitMix64;
-use crate::world::{SAMPLE_COUNT, Sample, StartPose, WORLD_SIZE, World, terrain_from_mask};
+use crate::world::{SAMPLE_COUNT, Sample, StartPose, WORLD_SIZE, World, terrain_for_map, widen_floor};
 
 /// Fewest navigable cells a procedural world has.
 pub const MIN_NAVIGABLE_CELLS: usize = 1500;
@@ -18,14 +19,14 @@ pub fn procedural_world(seed: u64) -> World {
     let mut rng = SplitMix64::new(seed);
     let target = rng.range(1900.0, 2600.0) as usize;
     let centre = WORLD_SIZE as f64 / 2.0;
-    let mut floor = vec![false; WORLD_SIZE * WORLD_SIZE];
-    carve_disc(&mut floor, centre, centre, 4.0);
-    carve_canyons(&mut floor, &mut rng, target);
-    place_boulders(&mut floor, &mut rng, (centre, centre));
-    let heights = terrain_from_mask(&floor, &mut rng);
-    let samples = place_samples(&floor, &mut rng, (centre, centre));
+    let mut map = vec![false; WORLD_SIZE * WORLD_SIZE];
+    carve_disc(&mut map, centre, centre, 4.0);
+    carve_canyons(&mut map, &mut rng, target);
+    place_boulders(&mut map, &mut rng, (centre, centre));
+    let heights = terrain_for_map(&map, &mut rng);
+    let samples = place_samples(&widen_floor(&map), &mut rng, (centre, centre));
     let start = StartPose { x_m: centre + 0.5, y_m: centre + 0.5, yaw_deg: rng.range(0.0, 360.0) };
-    World::from_heights(heights, samples, start)
+    World::with_ground_truth(heights, map, samples, start)
 }
 
 struct Walker {
@@ -97,14 +98,12 @@ fn neighbours(index: usize) -> impl Iterator<Item = usize> {
         .map(|(nx, ny)| ny as usize * WORLD_SIZE + nx as usize)
 }
 
-/// Number of floor cells reachable from `from`.
-fn reachable(floor: &[bool], from: usize) -> usize {
+/// The floor cells reachable from `from`.
+fn reached(floor: &[bool], from: usize) -> Vec<bool> {
     let mut seen = vec![false; floor.len()];
     let mut queue = VecDeque::from([from]);
     seen[from] = true;
-    let mut count = 0;
     while let Some(cell) = queue.pop_front() {
-        count += 1;
         for next in neighbours(cell) {
             if floor[next] && !seen[next] {
                 seen[next] = true;
@@ -112,7 +111,12 @@ fn reachable(floor: &[bool], from: usize) -> usize {
             }
         }
     }
-    count
+    seen
+}
+
+/// Number of floor cells reachable from `from`.
+fn reachable(floor: &[bool], from: usize) -> usize {
+    reached(floor, from).iter().filter(|&&r| r).count()
 }
 
 /// Boulders of one to four cells in open floor, never cutting the floor apart.
@@ -185,17 +189,21 @@ mod tests {
     fn procedural_worlds_are_connected_large_and_deterministic() {
         for seed in 0..8 {
             let world = procedural_world(seed);
-            let floor = world.ground_truth();
-            let navigable = floor.iter().filter(|&&f| f).count();
+            let map = world.ground_truth();
+            let navigable = map.iter().filter(|&&f| f).count();
             assert!(navigable >= MIN_NAVIGABLE_CELLS, "seed {seed}: {navigable} navigable cells");
             let start = world.start.y_m as usize * WORLD_SIZE + world.start.x_m as usize;
-            assert_eq!(reachable(floor, start), navigable, "seed {seed}: every floor cell is reachable");
+            let floor: Vec<bool> =
+                (0..map.len()).map(|i| world.is_floor((i % WORLD_SIZE) as i64, (i / WORLD_SIZE) as i64)).collect();
+            let reached = reached(&floor, start);
+            assert!((0..map.len()).all(|i| !map[i] || reached[i]), "seed {seed}: every navigable cell is reachable");
+            assert!(reachable(&floor, start) > navigable + 200, "seed {seed}: the floor is wider than the map");
             assert_eq!(world.samples.len(), 6, "seed {seed}");
             for sample in &world.samples {
                 assert!(world.is_floor(sample.x_m as i64, sample.y_m as i64), "seed {seed}: sample on the floor");
                 assert!(world.wall_distance(sample.x_m, sample.y_m) < 1.0, "seed {seed}: sample next to a wall");
             }
-            let boulders = (0..floor.len()).filter(|&i| !floor[i] && neighbours(i).all(|n| floor[n])).count();
+            let boulders = (0..map.len()).filter(|&i| !floor[i] && neighbours(i).all(|n| floor[n])).count();
             assert!(boulders > 0, "seed {seed}: some free-standing boulders");
         }
         assert_eq!(procedural_world(5).ground_truth(), procedural_world(5).ground_truth());

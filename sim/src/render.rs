@@ -371,6 +371,9 @@ impl Renderer {
         normal: [f64; 2],
         bottom: usize,
     ) -> usize {
+        if t_in <= 0.0 && height < view.height {
+            return bottom;
+        }
         if t_in <= 0.0 {
             for v in self.window.v0..bottom {
                 self.put(u, v, to_rgb8(ROCK_RGB), 0.0, Surface::Rock);

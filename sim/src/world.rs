@@ -98,6 +98,9 @@ pub const UNITY_SAMPLE_CANDIDATES: [(f64, f64); 33] = [
 /// The Unity scene's rover start position (unity-sim-spec 5.2).
 pub const UNITY_START: (f64, f64) = (99.67, 85.589);
 
+/// Height of the bank along the foot of the walls, metres: drivable, but rock to the camera.
+pub const BANK_HEIGHT_M: f32 = 0.08;
+
 /// Number of samples spawned per run.
 pub const SAMPLE_COUNT: usize = 6;
 
@@ -122,9 +125,9 @@ impl World {
         World { heights_m, ground_truth, wall_distance, samples, start }
     }
 
-    /// The Unity world from `map_bw.png`-style bytes: navigable pixels become floor, the rest
-    /// terrain rising with the distance from the floor; 6 of the 33 placeholders get samples and
-    /// the start yaw is drawn from `seed`, as Unity does in autonomous mode.
+    /// The Unity world from `map_bw.png`-style bytes: terrain for the map ([`terrain_for_map`]);
+    /// 6 of the 33 placeholders get samples and the start yaw is drawn from `seed`, as Unity does in
+    /// autonomous mode. The scoring ground truth is the map itself.
     pub fn from_map_png(png: &[u8], seed: u64) -> Result<Self, WorldError> {
         let image = rover_imaging::decode_png(png).map_err(|e| WorldError::Unreadable(e.to_string()))?;
         if (image.width, image.height) != (WORLD_SIZE, WORLD_SIZE) {
@@ -136,7 +139,7 @@ impl World {
             return Err(WorldError::TooSmall(count));
         }
         let mut rng = SplitMix64::new(seed);
-        let mut heights_m = terrain_from_mask(&navigable, &mut SplitMix64::new(0));
+        let mut heights_m = terrain_for_map(&navigable, &mut SplitMix64::new(0));
         for &(x, y) in &UNITY_SAMPLE_CANDIDATES {
             carve_access(&mut heights_m, x, y);
         }
@@ -163,9 +166,9 @@ impl World {
         self.heights_m[iy as usize * WORLD_SIZE + ix as usize]
     }
 
-    /// True if the cell (column `ix`, row `iy`) is floor the rover can drive on.
+    /// True if the rover can drive on the cell (column `ix`, row `iy`): floor or bank.
     pub fn is_floor(&self, ix: i64, iy: i64) -> bool {
-        self.cell_height(ix, iy) <= 0.0
+        self.cell_height(ix, iy) <= BANK_HEIGHT_M
     }
 
     /// The ground-truth navigable map for scoring, row-major (row = y, column = x).
@@ -179,7 +182,65 @@ impl World {
     }
 }
 
-/// Heights for a navigability mask: 0 on the floor, then steep rock walls rising with the distance
+/// The drivable ground of a map: its navigable cells plus every cell next to one (8-neighbourhood)
+/// that belongs to the outer non-navigable region. The Unity terrain is flat (below 0.5 m) on 829
+/// cells around the 1993 navigable ones of `map_bw.png`, mostly along the walls: the map is
+/// conservative, and the rover drives where the map says it cannot (the narrow north canyon is
+/// passable). One cell of widening adds 874 cells. Enclosed non-navigable spots (rocks on the
+/// floor) stay solid.
+pub fn widen_floor(navigable: &[bool]) -> Vec<bool> {
+    let outer = outer_region(navigable);
+    (0..navigable.len())
+        .map(|index| {
+            let (x, y) = ((index % WORLD_SIZE) as i64, (index / WORLD_SIZE) as i64);
+            let next_to_floor = || {
+                (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (x + dx, y + dy))).any(|(nx, ny)| {
+                    (0..WORLD_SIZE as i64).contains(&nx)
+                        && (0..WORLD_SIZE as i64).contains(&ny)
+                        && navigable[ny as usize * WORLD_SIZE + nx as usize]
+                })
+            };
+            navigable[index] || (outer[index] && next_to_floor())
+        })
+        .collect()
+}
+
+/// The non-navigable cells connected (4-neighbourhood) to the map's border.
+fn outer_region(navigable: &[bool]) -> Vec<bool> {
+    let side = WORLD_SIZE as i64;
+    let mut outer = vec![false; navigable.len()];
+    let border = (0..side).flat_map(|i| [(i, 0), (i, side - 1), (0, i), (side - 1, i)]);
+    let mut queue: std::collections::VecDeque<(i64, i64)> = border.collect();
+    while let Some((x, y)) = queue.pop_front() {
+        let index = y as usize * WORLD_SIZE + x as usize;
+        if navigable[index] || outer[index] {
+            continue;
+        }
+        outer[index] = true;
+        for (nx, ny) in [(x + 1, y), (x - 1, y), (x, y + 1), (x, y - 1)] {
+            if (0..side).contains(&nx) && (0..side).contains(&ny) {
+                queue.push_back((nx, ny));
+            }
+        }
+    }
+    outer
+}
+
+/// Heights for a navigable map: 0 on its cells, a low drivable bank ([`BANK_HEIGHT_M`]) on the
+/// cells that [`widen_floor`] adds, then the walls. The camera sees the bank as rock, not as
+/// navigable ground, as it sees the wall foot in the recorded Unity frames.
+pub fn terrain_for_map(navigable: &[bool], rng: &mut SplitMix64) -> Vec<f32> {
+    let drivable = widen_floor(navigable);
+    let mut heights_m = terrain_from_mask(&drivable, rng);
+    for (index, height_m) in heights_m.iter_mut().enumerate() {
+        if drivable[index] && !navigable[index] {
+            *height_m = BANK_HEIGHT_M;
+        }
+    }
+    heights_m
+}
+
+/// Heights for a floor mask: 0 on the floor, then steep rock walls rising with the distance
 /// from the floor to ridges of uneven height, with noise.
 pub fn terrain_from_mask(navigable: &[bool], rng: &mut SplitMix64) -> Vec<f32> {
     let distance = cell_distance_to(navigable, true);
@@ -364,12 +425,32 @@ mod tests {
     }
 
     #[test]
+    fn the_drivable_ground_widens_into_the_walls_but_not_into_enclosed_rocks() {
+        let mut navigable = vec![false; WORLD_SIZE * WORLD_SIZE];
+        for y in 10..20 {
+            for x in 10..20 {
+                navigable[y * WORLD_SIZE + x] = (x, y) != (15, 15);
+            }
+        }
+        let floor = widen_floor(&navigable);
+        assert!(!floor[15 * WORLD_SIZE + 15], "the enclosed rock stays");
+        assert!(floor[9 * WORLD_SIZE + 9] && floor[20 * WORLD_SIZE + 15], "one cell around the map");
+        assert!(!floor[8 * WORLD_SIZE + 15] && !floor[21 * WORLD_SIZE + 21]);
+        assert_eq!(floor.iter().filter(|&&f| f).count(), 12 * 12 - 1);
+    }
+
+    #[test]
     fn the_unity_map_builds_with_six_samples_and_a_random_yaw() {
         let png =
             std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/udacity/calibration_images/map_bw.png"))
                 .expect("../shared/udacity/calibration_images/map_bw.png");
         let world = World::from_map_png(&png, 3).unwrap();
         assert_eq!(world.ground_truth().iter().filter(|&&n| n).count(), 1993);
+        let floor =
+            (0..WORLD_SIZE * WORLD_SIZE).filter(|&i| world.is_floor((i % WORLD_SIZE) as i64, (i / WORLD_SIZE) as i64));
+        assert!((2800..2950).contains(&floor.count()), "the rover drives on the map widened by one cell");
+        let bank = (0..WORLD_SIZE * WORLD_SIZE).filter(|&i| world.heights_m[i] == BANK_HEIGHT_M).count();
+        assert!((700..900).contains(&bank), "{bank} bank cells");
         for &(x, y) in &UNITY_SAMPLE_CANDIDATES {
             assert!(world.is_floor(x as i64, y as i64), "sample placeholder ({x}, {y}) is reachable");
         }

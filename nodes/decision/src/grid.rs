@@ -76,8 +76,9 @@ impl Grid {
         ((i % SIDE) as f64 + 0.5, (i / SIDE) as f64 + 0.5)
     }
 
-    fn step_cost(&self, i: usize, costs: &Costs) -> Option<f32> {
+    fn step_cost(&self, i: usize, costs: &Costs, start: usize) -> Option<f32> {
         match self.cells[i] {
+            Cell::Blocked if chebyshev(i, start) <= ESCAPE_RADIUS_CELLS => Some(1.0 + costs.near_wall + costs.unknown),
             Cell::Blocked => None,
             Cell::Unknown if !costs.cross_unknown => None,
             Cell::Unknown => Some(1.0 + costs.unknown),
@@ -87,7 +88,9 @@ impl Grid {
     }
 
     /// Path costs from `start` to every cell and each cell's predecessor (Dijkstra, 8-connected,
-    /// no corner cutting past obstacles). The start cell is free of charge whatever it holds.
+    /// no corner cutting past obstacles). The start cell is free of charge whatever it holds, and
+    /// obstacle cells right around it can be crossed at a premium: a rover that the map puts in or
+    /// against a wall (a sample by the wall, a wall margin) can still leave.
     pub fn costs_from(&self, start: usize, costs: &Costs) -> CostMap {
         let mut distance = vec![f32::INFINITY; SIDE * SIDE];
         let mut parent = vec![usize::MAX; SIDE * SIDE];
@@ -106,13 +109,11 @@ impl Grid {
                 }
                 let n = ny as usize * SIDE + nx as usize;
                 let diagonal = dx != 0 && dy != 0;
-                if diagonal
-                    && (self.cells[y as usize * SIDE + nx as usize] == Cell::Blocked
-                        || self.cells[ny as usize * SIDE + x as usize] == Cell::Blocked)
-                {
+                let blocks = |c: usize| self.cells[c] == Cell::Blocked && chebyshev(c, start) > ESCAPE_RADIUS_CELLS;
+                if diagonal && (blocks(y as usize * SIDE + nx as usize) || blocks(ny as usize * SIDE + x as usize)) {
                     continue;
                 }
-                let Some(step) = self.step_cost(n, costs) else { continue };
+                let Some(step) = self.step_cost(n, costs, start) else { continue };
                 let next = d + step * if diagonal { std::f32::consts::SQRT_2 } else { 1.0 };
                 if next < distance[n] {
                     distance[n] = next;
@@ -143,6 +144,14 @@ impl Grid {
         let count = |c: Cell| self.cells.iter().filter(|&&x| x == c).count();
         (count(Cell::Free), count(Cell::Blocked), count(Cell::Unknown))
     }
+}
+
+/// Obstacle cells up to this far from the start of a plan can be crossed, cells.
+const ESCAPE_RADIUS_CELLS: usize = 1;
+
+/// Chebyshev distance between two cells, cells.
+fn chebyshev(a: usize, b: usize) -> usize {
+    (a % SIDE).abs_diff(b % SIDE).max((a / SIDE).abs_diff(b / SIDE))
 }
 
 /// The result of [`Grid::costs_from`].
