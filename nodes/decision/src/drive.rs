@@ -10,10 +10,11 @@ pub const MAX_STEER_DEG: f64 = 15.0;
 const STOPPED_MPS: f64 = 0.2;
 /// Throttle that holds 1 m/s against rolling resistance.
 const THROTTLE_PER_MPS: f64 = 0.15;
-/// A goal bearing within this of straight ahead does not pick a side to turn to, radians.
-const BEARING_SIDE_RAD: f64 = 0.1;
 /// Speed kept when free ground ahead runs short, as a fraction of the cruising speed.
 const MIN_SPEED_FRACTION: f64 = 0.3;
+/// With nothing free in view, the rover still creeps along the map's bearing when it is within
+/// this multiple of `turn_done_deg` (narrow canyons look blocked to the camera).
+const CREEP_BEARING_FACTOR: f64 = 2.0;
 
 /// One drive command.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -43,19 +44,16 @@ impl Drive {
     }
 }
 
-/// Steering with memory: once the rover turns in place it keeps turning until it faces the goal,
-/// and once it turns away from a blocked view it keeps that direction until the way is free.
+/// Steering with memory: once the rover turns in place it keeps turning until it faces the goal.
 #[derive(Debug, Clone, Default)]
 pub struct Steering {
     turning: Option<bool>,
-    blocked_turn: Option<bool>,
 }
 
 impl Steering {
     /// Forgets a turn in progress.
     pub fn reset(&mut self) {
         self.turning = None;
-        self.blocked_turn = None;
     }
 
     /// Drives toward `bearing_rad` (relative to the heading, positive left) at up to `speed_mps`,
@@ -80,9 +78,9 @@ impl Steering {
     }
 
     /// Drives toward `bearing_rad` along the nearest direction with free ground ahead, slowing when
-    /// little is free; when nothing ahead is free, turns in place toward the bearing's side and keeps
-    /// turning that way until something is (a bearing near zero would otherwise flip the side
-    /// from frame to frame).
+    /// little is free. When nothing ahead is free it creeps at the approach speed if it roughly
+    /// faces the bearing (the map says the way is open; getting stuck ends that), and otherwise
+    /// stops and turns in place toward the bearing.
     pub fn around_obstacles(
         &mut self,
         bearing_rad: f64,
@@ -96,19 +94,15 @@ impl Steering {
         }
         match free.best_toward(bearing_rad as f32, params.clearance_m as f32) {
             Some(direction) => {
-                self.blocked_turn = None;
                 let fraction =
                     (free.toward(direction) as f64 / params.slowdown_distance_m).clamp(MIN_SPEED_FRACTION, 1.0);
                 self.toward(direction as f64, cruise_mps * fraction, speed_mps, params)
             }
-            None if speed_mps.abs() > STOPPED_MPS => Drive::stop(params.brake),
-            None => {
-                let left = *self.blocked_turn.get_or_insert_with(|| match bearing_rad {
-                    b if b.abs() > BEARING_SIDE_RAD => b > 0.0,
-                    _ => free.most_open() >= 0.0,
-                });
-                Drive::turn_in_place(left)
+            None if bearing_rad.to_degrees().abs() <= CREEP_BEARING_FACTOR * params.turn_done_deg => {
+                self.toward(bearing_rad, params.approach_speed_mps, speed_mps, params)
             }
+            None if speed_mps.abs() > STOPPED_MPS => Drive::stop(params.brake),
+            None => Drive::turn_in_place(bearing_rad > 0.0),
         }
     }
 }
@@ -157,7 +151,8 @@ mod tests {
         let p = params();
         let free = FreeSpace { directions_rad: vec![-0.2, 0.0, 0.2], free_m: vec![0.5, 0.5, 0.5] };
         let mut steering = Steering::default();
-        assert_eq!(steering.around_obstacles(-0.3, 2.0, 0.0, &free, &p), Drive::turn_in_place(false));
+        assert_eq!(steering.around_obstacles(-0.6, 2.0, 0.0, &free, &p), Drive::turn_in_place(false));
+        assert_eq!(steering.around_obstacles(0.6, 2.0, 0.0, &free, &p), Drive::turn_in_place(true));
         let open = FreeSpace { directions_rad: vec![-0.2, 0.0, 0.2], free_m: vec![0.5, 0.5, 6.0] };
         let mut steering = Steering::default();
         let drive = steering.around_obstacles(-0.1, 2.0, 0.0, &open, &p);
@@ -165,17 +160,14 @@ mod tests {
     }
 
     #[test]
-    fn a_blocked_turn_keeps_its_side_while_the_goal_bearing_wobbles() {
+    fn blocked_but_facing_the_bearing_creeps_at_the_approach_speed() {
         let p = params();
         let blocked = FreeSpace { directions_rad: vec![-0.2, 0.0, 0.2], free_m: vec![0.5, 0.5, 0.5] };
         let mut steering = Steering::default();
-        let first = steering.around_obstacles(0.3, 2.0, 0.0, &blocked, &p);
-        assert_eq!(first, Drive::turn_in_place(true));
-        for bearing_rad in [-0.3, 0.05, -0.05, -0.4] {
-            assert_eq!(steering.around_obstacles(bearing_rad, 2.0, 0.0, &blocked, &p), first, "bearing {bearing_rad}");
-        }
-        let open = FreeSpace { directions_rad: vec![-0.2, 0.0, 0.2], free_m: vec![6.0, 6.0, 0.5] };
-        assert!(steering.around_obstacles(-0.3, 2.0, 0.0, &open, &p).throttle > 0.0, "drives once free");
-        assert_eq!(steering.around_obstacles(-0.3, 2.0, 0.0, &blocked, &p), Drive::turn_in_place(false));
+        let creeping = steering.around_obstacles(-0.1, 2.0, 0.0, &blocked, &p);
+        assert!(creeping.drives() && creeping.steering_deg < 0.0, "{creeping:?}");
+        assert_eq!(creeping.throttle, hold_speed(p.approach_speed_mps, 0.0, &p).throttle);
+        let at_speed = steering.around_obstacles(0.1, 2.0, p.approach_speed_mps, &blocked, &p);
+        assert!(at_speed.brake == 0.0 && at_speed.steering_deg > 0.0, "keeps creeping: {at_speed:?}");
     }
 }
