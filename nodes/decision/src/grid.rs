@@ -163,6 +163,19 @@ pub struct CostMap {
 }
 
 impl CostMap {
+    /// `goal` when it is reachable, else the cheapest reachable cell within `radius` cells of it
+    /// (a sample by a wall lies on cells the map holds as obstacles).
+    pub fn reachable_near(&self, goal: usize, radius: usize) -> Option<usize> {
+        if self.distance[goal].is_finite() {
+            return Some(goal);
+        }
+        let (x, y) = (goal % SIDE, goal / SIDE);
+        let rows = y.saturating_sub(radius)..(y + radius + 1).min(SIDE);
+        rows.flat_map(|ny| (x.saturating_sub(radius)..(x + radius + 1).min(SIDE)).map(move |nx| ny * SIDE + nx))
+            .filter(|&cell| self.distance[cell].is_finite())
+            .min_by(|&a, &b| self.distance[a].total_cmp(&self.distance[b]))
+    }
+
     /// The cells from the start to `goal`, or `None` when unreachable.
     pub fn path_to(&self, goal: usize) -> Option<Vec<usize>> {
         if !self.distance[goal].is_finite() {

@@ -22,6 +22,32 @@ const ARM_REACH_M: f64 = 0.84;
 const STOPPED_MPS: f64 = 0.05;
 /// Moving less than this while driving counts toward being stuck, metres.
 const STUCK_PROGRESS_M: f64 = 0.3;
+/// Moving less than this, whatever the rover is told, counts toward being stalled, metres.
+const STALL_PROGRESS_M: f64 = 1.0;
+
+/// Watches the rover's progress: how long it has stayed within some distance of one spot.
+#[derive(Debug, Clone, Copy, Default)]
+struct ProgressWatch {
+    anchor: Option<(u64, f64, f64)>,
+}
+
+impl ProgressWatch {
+    /// Frames the rover at `obs` has stayed within `radius_m` of where this watch last anchored.
+    fn frames_within(&mut self, obs: &Observation, radius_m: f64) -> u64 {
+        let (x, y) = (obs.position.x_m, obs.position.y_m);
+        match self.anchor {
+            Some((since, ax, ay)) if (x - ax).hypot(y - ay) <= radius_m => obs.frame.saturating_sub(since),
+            _ => {
+                self.anchor = Some((obs.frame, x, y));
+                0
+            }
+        }
+    }
+
+    fn reset(&mut self) {
+        self.anchor = None;
+    }
+}
 
 /// The modes of the state machine, as published on `rover/mode`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -126,7 +152,7 @@ enum State {
 #[derive(Debug, Clone)]
 struct Chase {
     at: (f64, f64),
-    since_frame: u64,
+    give_up_frame: u64,
     route: Option<Route>,
 }
 
@@ -144,7 +170,8 @@ pub struct Machine {
     failed_approaches: Vec<((f64, f64), u64)>,
     explorer: Explorer,
     steering: Steering,
-    stuck_anchor: Option<(u64, f64, f64)>,
+    stuck_watch: ProgressWatch,
+    stall_watch: ProgressWatch,
     last_drive: Drive,
     frame: u64,
     tally: SampleTally,
@@ -171,7 +198,8 @@ impl Machine {
             failed_approaches: Vec::new(),
             explorer: Explorer::default(),
             steering: Steering::default(),
-            stuck_anchor: None,
+            stuck_watch: ProgressWatch::default(),
+            stall_watch: ProgressWatch::default(),
             last_drive: Drive::stop(0.0),
             frame: 0,
             tally: SampleTally::default(),
@@ -267,7 +295,8 @@ impl Machine {
         self.status.reason = reason.to_string();
         self.changed = true;
         self.steering.reset();
-        self.stuck_anchor = None;
+        self.stuck_watch.reset();
+        self.stall_watch.reset();
     }
 
     fn decide(&mut self, obs: &Observation) -> Drive {
@@ -280,6 +309,8 @@ impl Machine {
                 self.start_recovery(obs, "tilted");
             } else if self.stuck(obs) {
                 self.start_recovery(obs, "stuck");
+            } else if self.stalled(obs) {
+                self.start_recovery(obs, "no progress");
             }
         }
         match self.state.clone() {
@@ -300,21 +331,16 @@ impl Machine {
     /// Whether the rover has been told to drive for a while without getting anywhere.
     fn stuck(&mut self, obs: &Observation) -> bool {
         if !self.last_drive.drives() {
-            self.stuck_anchor = None;
+            self.stuck_watch.reset();
             return false;
         }
-        let (x, y) = (obs.position.x_m, obs.position.y_m);
-        match self.stuck_anchor {
-            Some((_, ax, ay)) if (x - ax).hypot(y - ay) > STUCK_PROGRESS_M => {
-                self.stuck_anchor = Some((obs.frame, x, y));
-                false
-            }
-            Some((since, ..)) => obs.frame >= since + self.params.frames(self.params.stuck_s),
-            None => {
-                self.stuck_anchor = Some((obs.frame, x, y));
-                false
-            }
-        }
+        self.stuck_watch.frames_within(obs, STUCK_PROGRESS_M) >= self.params.frames(self.params.stuck_s)
+    }
+
+    /// Whether the rover has stayed in one spot for long, turning or not (a goal that the camera
+    /// and the map disagree about can keep it turning back and forth).
+    fn stalled(&mut self, obs: &Observation) -> bool {
+        self.stall_watch.frames_within(obs, STALL_PROGRESS_M) >= self.params.frames(self.params.stall_s)
     }
 
     fn start_recovery(&mut self, obs: &Observation, reason: &str) {
@@ -328,13 +354,13 @@ impl Machine {
     }
 
     fn explore(&mut self, obs: &Observation) -> Drive {
-        if let Some(chase) = self.sample_to_chase(obs) {
-            self.enter(State::Approach(chase.clone()), "sample located");
-            return self.approach(obs, chase);
-        }
         if let Some(reason) = self.time_to_go_home(obs) {
             self.enter(State::ReturnHome(None), reason);
             return self.return_home(obs, None);
+        }
+        if let Some(chase) = self.sample_to_chase(obs, self.params.sample_detour_cost) {
+            self.enter(State::Approach(chase.clone()), "sample located");
+            return self.approach(obs, chase);
         }
         let p = &self.params;
         match self.explorer.waypoint(&self.grid, self.map_version, &obs.position, obs.frame, p) {
@@ -347,33 +373,42 @@ impl Machine {
                 self.steering.around_obstacles(0.0, p.max_speed_mps, obs.speed_mps, &obs.free, p)
             }
             None if obs.samples_remaining > 0 && self.explorer.forget_explored() => Drive::stop(p.brake),
+            None if let Some(chase) = self.sample_to_chase(obs, f64::INFINITY) => {
+                self.enter(State::Approach(chase.clone()), "map explored, sample left");
+                self.approach(obs, chase)
+            }
             None => {
+                tracing::debug!(rocks = ?self.rocks, given_up = ?self.ignored_rocks, "no frontier left");
                 self.enter(State::ReturnHome(None), "no frontier left");
                 self.return_home(obs, None)
             }
         }
     }
 
-    /// A seen sample within sight, or a remembered one within the detour budget.
-    fn sample_to_chase(&self, obs: &Observation) -> Option<Chase> {
+    /// A seen sample within sight, or a remembered one within `max_cost` on the map.
+    fn sample_to_chase(&self, obs: &Observation, max_cost: f64) -> Option<Chase> {
         if obs.samples_remaining == 0 {
             return None;
         }
-        let new = |at: (f64, f64)| Chase { at, since_frame: obs.frame, route: None };
+        let p = &self.params;
+        let new = |(at, way_m): ((f64, f64), f64)| Chase {
+            at,
+            give_up_frame: obs.frame + p.frames(p.sample_timeout_s + way_m / p.max_speed_mps),
+            route: None,
+        };
         let seen = obs
             .rock
-            .filter(|s| s.distance_m <= self.params.sample_sight_m)
-            .map(|s| obs.position.point_at(s.bearing_rad, s.distance_m))
-            .filter(|&at| !self.is_ignored(at));
+            .filter(|s| s.distance_m <= p.sample_sight_m)
+            .map(|s| (obs.position.point_at(s.bearing_rad, s.distance_m), s.distance_m))
+            .filter(|&(at, _)| !self.is_ignored(at));
         seen.or_else(|| {
             self.rocks
                 .iter()
                 .copied()
                 .filter(|&at| !self.is_ignored(at))
                 .filter_map(|at| Some((at, self.explorer.cost_to(at)?)))
-                .filter(|&(_, cost)| cost <= self.params.sample_detour_cost)
+                .filter(|&(_, cost)| cost <= max_cost)
                 .min_by(|a, b| a.1.total_cmp(&b.1))
-                .map(|(at, _)| at)
         })
         .map(new)
     }
@@ -401,8 +436,8 @@ impl Machine {
         if let Some(seen) = obs.rock.filter(|s| s.distance_m <= p.sample_sight_m) {
             chase.at = obs.position.point_at(seen.bearing_rad, seen.distance_m);
         }
-        if obs.frame >= chase.since_frame + p.frames(p.sample_timeout_s) || obs.samples_remaining == 0 {
-            self.ignored_rocks.push(chase.at);
+        if obs.frame >= chase.give_up_frame || obs.samples_remaining == 0 {
+            self.failed_approaches.push((chase.at, obs.frame));
             self.enter(State::Explore, "sample not reached in time");
             return Drive::stop(p.brake);
         }
@@ -466,7 +501,8 @@ impl Machine {
             self.enter(State::Done, "home");
             return Drive::stop(p.brake);
         }
-        if let Some(chase) = self.sample_to_chase(obs) {
+        let detour = self.time_to_go_home(obs).is_none().then(|| self.sample_to_chase(obs, p.sample_detour_cost));
+        if let Some(chase) = detour.flatten() {
             self.enter(State::Approach(chase.clone()), "sample located on the way home");
             return self.approach(obs, chase);
         }
@@ -531,6 +567,25 @@ mod tests {
     }
 
     #[test]
+    fn a_rover_that_turns_on_one_spot_for_long_recovers() {
+        let params = DecisionParams::default();
+        let mut machine = Machine::new(params.clone());
+        machine.set_map(corridor());
+        let facing_away = |frame| {
+            let mut obs = observation(frame, 100.5, 100.5);
+            obs.position.yaw_rad = std::f64::consts::PI;
+            obs
+        };
+        let stall = params.frames(params.stall_s);
+        for frame in 1..stall {
+            assert_eq!(machine.step(&facing_away(frame)).throttle, 0.0, "turns in place");
+            assert_eq!(machine.status().mode, Mode::Explore, "frame {frame}");
+        }
+        machine.step(&facing_away(stall + 1));
+        assert_eq!((machine.status().mode, machine.status().reason.as_str()), (Mode::Recover, "no progress"));
+    }
+
+    #[test]
     fn a_seen_sample_is_approached_and_picked_up() {
         let mut machine = Machine::new(DecisionParams::default());
         machine.set_map(corridor());
@@ -553,14 +608,16 @@ mod tests {
     }
 
     #[test]
-    fn the_rover_goes_home_at_the_deadline_and_stops_there() {
+    fn at_the_deadline_the_rover_goes_home_without_detours_and_stops_there() {
         let params = DecisionParams::default();
         let mut machine = Machine::new(params.clone());
         machine.set_map(corridor());
         machine.step(&observation(1, 100.5, 100.5));
         let late = params.frames(params.mission_deadline_s);
-        machine.step(&observation(late, 120.5, 100.5));
-        assert_eq!(machine.status().mode, Mode::ReturnHome);
+        let mut sample_in_view = observation(late, 120.5, 100.5);
+        sample_in_view.rock = Some(Sighting { bearing_rad: 0.0, distance_m: 3.0 });
+        machine.step(&sample_in_view);
+        assert_eq!(machine.status().mode, Mode::ReturnHome, "no detour for a sample at the deadline");
         assert_eq!(machine.status().target, Some((100.5, 100.5)));
         machine.step(&observation(late + 1, 101.0, 100.5));
         assert_eq!(machine.status().mode, Mode::Done);

@@ -45,6 +45,9 @@ rover_node::node_params! {
         target_timeout_s: f64 [1.0, 10000.0] = 40.0,
         /// Throttle without motion for this long means stuck, seconds.
         stuck_s: f64 [0.1, 60.0] = 1.5,
+        /// Moving less than 1 m in this long, turns in place included, means stalled: recover,
+        /// seconds.
+        stall_s: f64 [1.0, 600.0] = 12.0,
         /// Recovery: reverse throttle while backing up.
         recover_throttle: f64 [0.1, 1.0] = 0.8,
         /// Recovery: backing up, seconds.
@@ -57,7 +60,7 @@ rover_node::node_params! {
         sample_sight_m: f64 [0.5, 20.0] = 7.0,
         /// Go for a remembered sample up to this path cost.
         sample_detour_cost: f64 [0.0, 1000.0] = 60.0,
-        /// Give up a sample not reached in this time, seconds.
+        /// Give up a sample not reached in this time plus its way at cruising speed, seconds.
         sample_timeout_s: f64 [1.0, 1000.0] = 30.0,
         /// A sample given up after failed approaches is tried again after this long, seconds.
         sample_retry_s: f64 [1.0, 10000.0] = 90.0,

@@ -10,6 +10,8 @@ const FRONTIER_RADIUS_CELLS: usize = 2;
 const EXPLORED_RADIUS_CELLS: i64 = 3;
 /// Recoveries on the way to one target before it is abandoned.
 const RECOVERIES_PER_TARGET: u32 = 2;
+/// A goal on an obstacle cell is reached through the cheapest reachable cell this close, cells.
+const GOAL_SLACK_CELLS: usize = 3;
 
 /// Where the rover is, in the world frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -75,7 +77,9 @@ impl Route {
     }
 
     /// The point to steer toward on the way from `at`, replanning when the route is older than
-    /// `replan_frames` or the map changed; `None` when the goal cannot be reached on the map.
+    /// `replan_frames` or the map changed; the goal itself once the path's end is within the
+    /// lookahead (a path that ends next to a goal on an obstacle cell would otherwise leave the
+    /// rover circling its own cell); `None` when the goal cannot be reached on the map.
     pub fn waypoint(
         &mut self,
         grid: &Grid,
@@ -86,10 +90,15 @@ impl Route {
     ) -> Option<(f64, f64)> {
         let start = Grid::index(at.x_m, at.y_m)?;
         if replan_due(self.planned, frame, map_version, params) {
-            self.path = grid.costs_from(start, &path_costs(params)).path_to(self.goal).unwrap_or_default();
+            let costs = grid.costs_from(start, &path_costs(params));
+            self.path = costs
+                .reachable_near(self.goal, GOAL_SLACK_CELLS)
+                .and_then(|cell| costs.path_to(cell))
+                .unwrap_or_default();
             self.planned = Some((frame, map_version));
         }
-        lookahead(&self.path, at, params.lookahead_m)
+        let point = lookahead(&self.path, at, params.lookahead_m)?;
+        Some(if at.distance_to(point) < params.lookahead_m { Grid::centre(self.goal) } else { point })
     }
 }
 
@@ -138,11 +147,12 @@ impl Explorer {
         self.target.as_ref().map(|t| Grid::centre(t.cell))
     }
 
-    /// Path cost from the rover (as of the last plan) to the cell containing `point`.
+    /// Path cost from the rover (as of the last plan) to the cell containing `point`, or to the
+    /// cheapest reachable cell next to it when that is an obstacle.
     pub fn cost_to(&self, point: (f64, f64)) -> Option<f64> {
-        let cell = Grid::index(point.0, point.1)?;
-        let cost = *self.costs.as_ref()?.distance.get(cell)?;
-        cost.is_finite().then_some(cost as f64)
+        let costs = self.costs.as_ref()?;
+        let cell = costs.reachable_near(Grid::index(point.0, point.1)?, GOAL_SLACK_CELLS)?;
+        Some(costs.distance[cell] as f64)
     }
 
     /// Marks the cells in close view of the camera at `at` as inspected.
@@ -350,5 +360,12 @@ mod tests {
         let mut nowhere = Route::to((5.5, 5.5)).unwrap();
         assert_eq!(nowhere.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params), None);
         assert!(Route::to((-1.0, 0.0)).is_none());
+        let mut into_the_wall = Route::to((40.5, 55.5)).unwrap();
+        let waypoint = into_the_wall.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params).unwrap();
+        assert!(waypoint.0 > 21.5 && (50.0..54.0).contains(&waypoint.1), "a sample by the wall: {waypoint:?}");
+        let near_the_end = into_the_wall.waypoint(&grid, 1, &at(39.5, 52.5), 100, &params);
+        assert_eq!(near_the_end, Some((40.5, 55.5)), "the goal itself once the path's end is in reach");
+        let mut deep_in_the_wall = Route::to((40.5, 58.5)).unwrap();
+        assert_eq!(deep_in_the_wall.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params), None);
     }
 }
