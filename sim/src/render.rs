@@ -345,7 +345,7 @@ impl Renderer {
 
     /// Draws the floor rows of one cell (forward depths up to `t_out`); returns the new bottom.
     fn draw_floor(&mut self, view: &LevelView, u: usize, dir: [f64; 2], t_out: f64, bottom: usize) -> usize {
-        let first = view.row(t_out, 0.0) as usize + 1;
+        let first = (view.row(t_out, 0.0) as usize).saturating_add(1);
         for v in first..bottom {
             let FloorRow { depth, rgb } = self.floor_rows[v];
             let (x, y) = (view.x + depth * dir[0], view.y + depth * dir[1]);
