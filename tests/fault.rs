@@ -1,10 +1,13 @@
 //! Fault test: the decision node dies mid-mission, the bridge brakes the rover within its silence
-//! limit, and a restarted decision node resumes the mission from the mapping node's memory.
+//! limit, and a restarted decision node resumes the mission from the mapping node's memory and the
+//! latched map and carries it to its end: the one full mission, graph in separate processes, of
+//! the tests.
 
 mod support;
 
 use std::time::{Duration, Instant};
 
+use rover::eval::RunResult;
 use rover::graph::GraphConfig;
 use rover::graph_mission::run_graph_mission;
 use rover_msgs::msg::Telemetry;
@@ -14,6 +17,8 @@ use support::{Domain, Latest, NoParams, rover, test_runtime};
 
 /// Sim time at which the decision node is killed, seconds.
 const KILL_AT_SIM_S: f64 = 20.0;
+/// The procedural world of the mission.
+const SEED: u64 = 3;
 /// Wall time the graph runs without a decision node.
 const DEAD_FOR: Duration = Duration::from_secs(4);
 
@@ -33,7 +38,7 @@ fn driving(telemetry: &Latest<Telemetry>) -> bool {
 }
 
 #[tokio::test(flavor = "multi_thread")]
-async fn a_killed_decision_node_brakes_the_rover_and_a_restarted_one_resumes() {
+async fn a_killed_decision_node_brakes_the_rover_and_a_restarted_one_finishes_the_mission() {
     support::assert_isolated();
     let domain = Domain::reserve();
     let runtime = test_runtime(&domain);
@@ -43,13 +48,17 @@ async fn a_killed_decision_node_brakes_the_rover_and_a_restarted_one_resumes() {
     let config =
         GraphConfig { rover: rover(), domain_id: Some(domain.id), port: domain.port(), ros_args: Vec::new(), log_dir };
     let decision_log = config.log_dir.join("decision.log");
-    let world = rover_sim::procgen::procedural_world(0);
-    let sim_config = SimConfig { max_sim_seconds: Some(60.0), ..SimConfig::default() };
+    let world = rover_sim::procgen::procedural_world(SEED);
+    let samples = world.samples.len();
+    let sim_config = SimConfig { max_sim_seconds: Some(1200.0), ..SimConfig::default() };
+    let started = Instant::now();
     let mut phase = Phase::Running;
+    let mut collected_at_kill = None;
     let outcome = run_graph_mission(&runtime, config, world, sim_config, |progress, graph| {
         phase = match std::mem::replace(&mut phase, Phase::Running) {
             Phase::Running if progress.sim_seconds >= KILL_AT_SIM_S => {
                 graph.kill("decision");
+                collected_at_kill = Some(progress.collected);
                 Phase::Killed { at: Instant::now(), braked_after: None }
             }
             Phase::Killed { at, braked_after } if at.elapsed() >= DEAD_FOR => {
@@ -78,5 +87,10 @@ async fn a_killed_decision_node_brakes_the_rover_and_a_restarted_one_resumes() {
     assert!(drove_again, "the rover drove again after the restart");
     let log = std::fs::read_to_string(&decision_log).unwrap_or_default();
     assert!(log.contains("resuming a mission"), "the new decision node resumed: {log}");
-    assert!(outcome.progress.mapped_pct > 0.0 && outcome.report.sim_seconds >= 59.9, "{outcome:?}");
+    let result = RunResult::of(SEED, samples, &outcome.report, &outcome.progress, started.elapsed().as_secs_f64());
+    println!("{}", rover::eval::table(std::slice::from_ref(&result)));
+    let collected_at_kill = collected_at_kill.expect("killed");
+    assert!(result.final_mode == "done" && result.home_distance_m <= 3.0, "back home and done: {result:?}");
+    assert!(result.mapped_pct >= 90.0 && result.fidelity_pct >= 85.0, "the map is done: {result:?}");
+    assert!(result.collected > collected_at_kill, "samples collected after the restart: {result:?}");
 }
