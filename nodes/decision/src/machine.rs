@@ -44,6 +44,7 @@ impl ProgressWatch {
         }
     }
 
+    /// Forgets the anchor: the next frame starts a new watch.
     fn reset(&mut self) {
         self.anchor = None;
     }
@@ -373,15 +374,17 @@ impl Machine {
                 self.steering.around_obstacles(0.0, p.max_speed_mps, obs.speed_mps, &obs.free, p)
             }
             None if obs.samples_remaining > 0 && self.explorer.forget_explored() => Drive::stop(p.brake),
-            None if let Some(chase) = self.sample_to_chase(obs, f64::INFINITY) => {
-                self.enter(State::Approach(chase.clone()), "map explored, sample left");
-                self.approach(obs, chase)
-            }
-            None => {
-                tracing::debug!(rocks = ?self.rocks, given_up = ?self.ignored_rocks, "no frontier left");
-                self.enter(State::ReturnHome(None), "no frontier left");
-                self.return_home(obs, None)
-            }
+            None => match self.sample_to_chase(obs, f64::INFINITY) {
+                Some(chase) => {
+                    self.enter(State::Approach(chase.clone()), "map explored, sample left");
+                    self.approach(obs, chase)
+                }
+                None => {
+                    tracing::debug!(rocks = ?self.rocks, given_up = ?self.ignored_rocks, "no frontier left");
+                    self.enter(State::ReturnHome(None), "no frontier left");
+                    self.return_home(obs, None)
+                }
+            },
         }
     }
 
