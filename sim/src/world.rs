@@ -210,18 +210,13 @@ fn outer_region(navigable: &[bool]) -> Vec<bool> {
     let side = WORLD_SIZE as i64;
     let mut outer = vec![false; navigable.len()];
     let border = (0..side).flat_map(|i| [(i, 0), (i, side - 1), (0, i), (side - 1, i)]);
-    let mut queue: std::collections::VecDeque<(i64, i64)> = border.collect();
-    while let Some((x, y)) = queue.pop_front() {
-        let index = y as usize * WORLD_SIZE + x as usize;
+    let mut queue: std::collections::VecDeque<usize> = border.map(|(x, y)| (y * side + x) as usize).collect();
+    while let Some(index) = queue.pop_front() {
         if navigable[index] || outer[index] {
             continue;
         }
         outer[index] = true;
-        for (nx, ny) in [(x + 1, y), (x - 1, y), (x, y + 1), (x, y - 1)] {
-            if (0..side).contains(&nx) && (0..side).contains(&ny) {
-                queue.push_back((nx, ny));
-            }
-        }
+        queue.extend(neighbours4(index));
     }
     outer
 }
@@ -311,13 +306,7 @@ fn cell_distance_to(mask: &[bool], target: bool) -> Vec<u16> {
         }
     }
     while let Some(index) = queue.pop_front() {
-        let (x, y) = ((index % WORLD_SIZE) as i64, (index / WORLD_SIZE) as i64);
-        for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
-            let (nx, ny) = (x + dx, y + dy);
-            if nx < 0 || ny < 0 || nx >= WORLD_SIZE as i64 || ny >= WORLD_SIZE as i64 {
-                continue;
-            }
-            let next = ny as usize * WORLD_SIZE + nx as usize;
+        for next in neighbours4(index) {
             if distance[next] == u16::MAX {
                 distance[next] = distance[index] + 1;
                 queue.push_back(next);
@@ -325,6 +314,15 @@ fn cell_distance_to(mask: &[bool], target: bool) -> Vec<u16> {
         }
     }
     distance
+}
+
+/// The cells left, right, below and above `index` that lie on the map.
+fn neighbours4(index: usize) -> impl Iterator<Item = usize> {
+    let (x, y) = ((index % WORLD_SIZE) as i64, (index / WORLD_SIZE) as i64);
+    [(x + 1, y), (x - 1, y), (x, y + 1), (x, y - 1)]
+        .into_iter()
+        .filter(|&(nx, ny)| (0..WORLD_SIZE as i64).contains(&nx) && (0..WORLD_SIZE as i64).contains(&ny))
+        .map(|(nx, ny)| ny as usize * WORLD_SIZE + nx as usize)
 }
 
 /// Distance to the nearest wall on a fine grid, for shading the floor near walls.

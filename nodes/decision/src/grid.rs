@@ -76,10 +76,15 @@ impl Grid {
         ((i % SIDE) as f64 + 0.5, (i / SIDE) as f64 + 0.5)
     }
 
+    /// Whether a plan from `start` cannot cross `cell`: an obstacle beyond the escape radius.
+    fn walls_off(&self, cell: usize, start: usize) -> bool {
+        self.cells[cell] == Cell::Blocked && chebyshev(cell, start) > ESCAPE_RADIUS_CELLS
+    }
+
     fn step_cost(&self, i: usize, costs: &Costs, start: usize) -> Option<f32> {
         match self.cells[i] {
-            Cell::Blocked if chebyshev(i, start) <= ESCAPE_RADIUS_CELLS => Some(1.0 + costs.near_wall + costs.unknown),
-            Cell::Blocked => None,
+            Cell::Blocked if self.walls_off(i, start) => None,
+            Cell::Blocked => Some(1.0 + costs.near_wall + costs.unknown),
             Cell::Unknown if !costs.cross_unknown => None,
             Cell::Unknown => Some(1.0 + costs.unknown),
             Cell::Free if self.near_wall[i] => Some(1.0 + costs.near_wall),
@@ -109,8 +114,10 @@ impl Grid {
                 }
                 let n = ny as usize * SIDE + nx as usize;
                 let diagonal = dx != 0 && dy != 0;
-                let blocks = |c: usize| self.cells[c] == Cell::Blocked && chebyshev(c, start) > ESCAPE_RADIUS_CELLS;
-                if diagonal && (blocks(y as usize * SIDE + nx as usize) || blocks(ny as usize * SIDE + x as usize)) {
+                if diagonal
+                    && (self.walls_off(y as usize * SIDE + nx as usize, start)
+                        || self.walls_off(ny as usize * SIDE + x as usize, start))
+                {
                     continue;
                 }
                 let Some(step) = self.step_cost(n, costs, start) else { continue };
