@@ -12,6 +12,9 @@ const STOPPED_MPS: f64 = 0.2;
 const THROTTLE_PER_MPS: f64 = 0.15;
 /// Speed kept when free ground ahead runs short, as a fraction of the cruising speed.
 const MIN_SPEED_FRACTION: f64 = 0.3;
+/// A turn in place changes side when the goal moves to the other side within this bearing,
+/// degrees; beyond it the bearing may just have wrapped past 180 degrees while turning.
+const SIDE_SWITCH_DEG: f64 = 135.0;
 /// With nothing free in view, the rover still creeps along the map's bearing when it is within
 /// this multiple of `turn_done_deg` (narrow canyons look blocked to the camera).
 const CREEP_BEARING_FACTOR: f64 = 2.0;
@@ -57,10 +60,13 @@ impl Steering {
     }
 
     /// Drives toward `bearing_rad` (relative to the heading, positive left) at up to `speed_mps`,
-    /// turning in place when the bearing is large.
+    /// turning in place when the bearing is large. A turn keeps its side while the goal stays on
+    /// that side (or behind), and changes side when a new goal lies on the other.
     pub fn toward(&mut self, bearing_rad: f64, target_mps: f64, speed_mps: f64, params: &DecisionParams) -> Drive {
         let bearing_deg = bearing_rad.to_degrees();
-        if self.turning.is_none() && bearing_deg.abs() > params.turn_in_place_deg {
+        let goal_switched_side =
+            self.turning.is_some_and(|left| left != (bearing_deg > 0.0) && bearing_deg.abs() < SIDE_SWITCH_DEG);
+        if goal_switched_side || (self.turning.is_none() && bearing_deg.abs() > params.turn_in_place_deg) {
             self.turning = Some(bearing_deg > 0.0);
         }
         if let Some(left) = self.turning {
@@ -135,6 +141,17 @@ mod tests {
         assert_eq!(still_turning, Drive::turn_in_place(true), "keeps turning below the start threshold");
         let driving = steering.toward(5f64.to_radians(), 2.0, 0.0, &p);
         assert!(driving.throttle > 0.0 && driving.steering_deg > 0.0 && driving.brake == 0.0, "{driving:?}");
+    }
+
+    #[test]
+    fn a_turn_changes_side_when_the_goal_does_but_not_when_the_bearing_wraps() {
+        let p = params();
+        let mut steering = Steering::default();
+        assert_eq!(steering.toward(170f64.to_radians(), 2.0, 0.0, &p), Drive::turn_in_place(true));
+        let wrapped = steering.toward(-178f64.to_radians(), 2.0, 0.0, &p);
+        assert_eq!(wrapped, Drive::turn_in_place(true), "the bearing wrapped past 180 degrees: same side");
+        let new_goal = steering.toward(-30f64.to_radians(), 2.0, 0.0, &p);
+        assert_eq!(new_goal, Drive::turn_in_place(false), "a new goal on the right: turn right");
     }
 
     #[test]
