@@ -220,7 +220,11 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         }
     });
     let shutdown = runtime.shutdown();
-    server::serve(core, initial.server_config()?, async move { shutdown.wait().await }).instrument(span).await
+    let served = server::serve(core.clone(), initial.server_config()?, async move { shutdown.wait().await })
+        .instrument(span.clone())
+        .await;
+    span.in_scope(|| tracing::info!("bridge: {}", core.stats().summary()));
+    served
 }
 
 fn subscribe_commands(node: &mut RosNode, core: &Arc<LockStep<DdsSink>>, span: &tracing::Span) -> anyhow::Result<()> {

@@ -157,6 +157,29 @@ impl BridgeStats {
         rate
     }
 
+    /// One line for the log: frames, replies by source, deadline misses, latency and problems.
+    pub fn summary(&self) -> String {
+        let count = |counter: &AtomicU64| counter.load(Ordering::Relaxed);
+        let latency = self.latency();
+        let problems = self.problems.lock().unwrap_or_else(|e| e.into_inner());
+        format!(
+            "{} frames; replies: {} fresh, {} held, {} silence brakes, {} teleop, {} rejected frames, {} pickups, \
+             {} manual; {} deadline misses; reply latency p50 {:.2} ms, p99 {:.2} ms; problems {:?}",
+            self.frames(),
+            self.fresh_replies(),
+            count(&self.replies_held),
+            count(&self.replies_silence_brake),
+            count(&self.replies_teleop),
+            count(&self.replies_rejected),
+            count(&self.replies_pickup),
+            count(&self.replies_manual),
+            self.deadline_misses(),
+            latency.p50_ms,
+            latency.p99_ms,
+            *problems
+        )
+    }
+
     /// The `/diagnostics` message of the bridge named `name`.
     pub fn diagnostics(&self, name: &str, header: Header) -> DiagnosticArray {
         let connected = self.connected.load(Ordering::Relaxed);
@@ -235,5 +258,8 @@ mod tests {
         assert_eq!(value("deadline_misses").as_deref(), Some("1"));
         assert_eq!(value("problem_not_a_number").as_deref(), Some("2"));
         assert_eq!(value("link_up").as_deref(), Some("true"));
+        let summary = stats.summary();
+        assert!(summary.starts_with("100 frames; replies: 100 fresh, 1 held"), "{summary}");
+        assert!(summary.contains("1 deadline misses") && summary.contains("\"not_a_number\": 2"), "{summary}");
     }
 }
