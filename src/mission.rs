@@ -26,8 +26,6 @@ use rover_sim::world::World;
 
 /// The largest telemetry payload accepted, bytes (as the bridge's default).
 const MAX_TELEMETRY_BYTES: usize = 4 << 20;
-/// The map reaches the decision every this many frames (the mapping node publishes it periodically).
-const MAP_EVERY_FRAMES: u64 = 25;
 
 /// The parameters of every node of the mission.
 #[derive(Debug, Clone, Default)]
@@ -112,7 +110,7 @@ pub fn run_in_process(
         if tally.update(message.samples_remaining) > 0 {
             map.forget_picked_rock(message.x_m, message.y_m, message.yaw_rad as f64);
         }
-        if frame % MAP_EVERY_FRAMES == 0 {
+        if frame % settings.mapping.publish_every_scans as u64 == 0 {
             located.update(&map.rock_cells());
             machine.set_map(Grid::from_occupancy(&map.occupancy()).expect("the map is 200 x 200"));
             machine.set_rocks(rock_positions(&map.rock_cells(), settings.mapping.rock_merge_m));

@@ -56,7 +56,8 @@ pub async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> any
     let discovered = async {
         camera.wait_for_subscription(node.inner()).await;
         telemetry.wait_for_subscription(node.inner()).await;
-        stats.next().await
+        terrain_subscription.wait_for_publisher(node.inner()).await;
+        stats_subscription.wait_for_publisher(node.inner()).await;
     };
     tokio::time::timeout(DISCOVERY_TIMEOUT, discovered)
         .await

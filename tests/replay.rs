@@ -52,7 +52,7 @@ fn start_nodes(domain: &Domain) -> (Process, Process) {
             "-p",
             &format!("ground_truth_png:={}", ground_truth()),
             "-p",
-            "publish_period_ms:=100.0",
+            "publish_max_delay_ms:=100.0",
         ],
         domain,
         "mapping",

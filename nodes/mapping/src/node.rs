@@ -44,6 +44,7 @@ struct Mapping {
     rejections: Rejections,
     started: Instant,
     frames: u64,
+    unpublished_scans: u64,
 }
 
 impl Mapping {
@@ -66,10 +67,12 @@ impl Mapping {
             rejections: Rejections::default(),
             started: Instant::now(),
             frames: 0,
+            unpublished_scans: 0,
         })
     }
 
     fn add_scan(&mut self, scan: &TerrainScan) {
+        self.unpublished_scans += 1;
         if let Some(last) = self.last_frame
             && scan.frame <= last
             && scan.frame + RESTART_GAP > last
@@ -116,6 +119,11 @@ impl Mapping {
         }
     }
 
+    /// Whether enough scans came in since the last publication to publish again.
+    fn publication_due(&self) -> bool {
+        self.unpublished_scans >= self.params.publish_every_scans as u64
+    }
+
     fn rocks(&self) -> Vec<(f64, f64)> {
         rock_positions(&self.map.rock_cells(), self.params.rock_merge_m)
     }
@@ -156,10 +164,13 @@ struct Outputs {
     /// The rocks last published; `None` until the first publication, so that the latched topic
     /// says "no rocks yet" from the start.
     last_rocks: Option<Vec<(f64, f64)>>,
+    published_at: Instant,
 }
 
 impl Outputs {
-    fn publish(&mut self, mapping: &Mapping) {
+    fn publish(&mut self, mapping: &mut Mapping) {
+        mapping.unpublished_scans = 0;
+        self.published_at = Instant::now();
         let header = Header::now("map");
         let grid = OccupancyGrid {
             header: header.clone(),
@@ -215,15 +226,14 @@ fn warn_on_error<E: std::fmt::Debug>(topic: &str, result: Result<(), E>) {
 pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let (mut node, params) = runtime.node::<MappingParams>("mapping")?;
     let span = node.span();
-    let settings = params.get();
-    let period = Duration::from_secs_f64(settings.publish_period_ms / 1000.0);
-    let mut mapping = Mapping::new(settings)?;
+    let mut mapping = Mapping::new(params.get())?;
     let mut outputs = Outputs {
         map: node.publisher(&topics::MAP)?,
         image: node.publisher(&topics::MAP_IMAGE)?,
         stats: node.publisher(&topics::MAP_STATS)?,
         rocks: node.publisher(&topics::ROCKS)?,
         last_rocks: None,
+        published_at: Instant::now(),
     };
     let terrain_subscription = node.subscription(&topics::TERRAIN)?;
     let telemetry_subscription = node.subscription(&topics::TELEMETRY)?;
@@ -232,18 +242,24 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let mut telemetry = std::pin::pin!(messages(&telemetry_subscription));
     let mut truth = std::pin::pin!(messages(&truth_subscription));
     let mut changes = params.watch();
-    let mut ticks = tokio::time::interval(period);
     let shutdown = runtime.shutdown();
+    outputs.publish(&mut mapping);
     async {
     loop {
+        let flush_at = outputs.published_at + Duration::from_secs_f64(mapping.params.publish_max_delay_ms / 1000.0);
         tokio::select! {
             () = shutdown.wait() => break,
-            Some(scan) = scans.next() => mapping.add_scan(&scan),
+            Some(scan) = scans.next() => {
+                mapping.add_scan(&scan);
+                if mapping.publication_due() {
+                    outputs.publish(&mut mapping);
+                }
+            }
             Some(t) = telemetry.next() => mapping.on_telemetry(&t),
             Some(samples) = truth.next() => {
                 mapping.samples_truth.get_or_insert_with(|| samples.poses.iter().map(|p| (p.position.x, p.position.y)).collect());
             }
-            _ = ticks.tick() => outputs.publish(&mapping),
+            () = tokio::time::sleep_until(flush_at.into()), if mapping.unpublished_scans > 0 => outputs.publish(&mut mapping),
             Ok(()) = changes.changed() => {
                 let updated = changes.borrow_and_update().clone();
                 mapping.map.set_config(updated.map_config());
@@ -251,7 +267,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             }
         }
     }
-    outputs.publish(&mapping);
+    outputs.publish(&mut mapping);
     tracing::info!("mapping: {} frames mapped, rejected {:?}", mapping.frames, mapping.rejections);
     }
     .instrument(span)

@@ -23,8 +23,11 @@ rover_node::node_params! {
         rock_merge_m: f64 [0.1, 20.0] = 2.0,
         /// Ground-truth map (200x200 PNG, navigable > 0) for the Udacity scores; empty: none.
         ground_truth_png: String = "",
-        /// Period of map, map/image and rover/map_stats, ms.
-        publish_period_ms: f64 [10.0, 60000.0] = 100.0,
+        /// Publish map, map/image, rover/map_stats and rover/rocks every this many terrain scans
+        /// (simulated time, so a mission plays out alike however fast the graph runs).
+        publish_every_scans: i64 [1, 100000] = 25,
+        /// Also publish scans not yet published after this long, ms (when the scans stop).
+        publish_max_delay_ms: f64 [10.0, 60000.0] = 500.0,
     }
 }
 
