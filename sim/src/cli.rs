@@ -40,6 +40,10 @@ pub struct SimArgs {
     /// Also write the final report as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
+    /// Write the world's ground-truth map (navigable white, as map_bw.png) to this PNG and exit,
+    /// e.g. to look at a procedural world or to score it with other tools.
+    #[arg(long, value_name = "PNG")]
+    pub export_map: Option<PathBuf>,
 }
 
 impl SimArgs {
@@ -78,8 +82,15 @@ impl SimArgs {
 }
 
 /// Runs the simulator until its time limit or until `stop` resolves; prints and returns the report.
-pub async fn run(args: &SimArgs, stop: impl std::future::Future<Output = ()>) -> anyhow::Result<SimReport> {
+/// With `--export-map`, writes the world's map instead and returns `None`.
+pub async fn run(args: &SimArgs, stop: impl std::future::Future<Output = ()>) -> anyhow::Result<Option<SimReport>> {
     let world = args.world()?;
+    if let Some(path) = &args.export_map {
+        let png = world.ground_truth_png()?;
+        std::fs::write(path, png).with_context(|| format!("cannot write the map to {}", path.display()))?;
+        println!("wrote the ground-truth map of the world to {}", path.display());
+        return Ok(None);
+    }
     let config = args.config()?;
     let mut simulator = Simulator::new(world, config);
     tracing::info!(
@@ -100,5 +111,5 @@ pub async fn run(args: &SimArgs, stop: impl std::future::Future<Output = ()>) ->
         let json = serde_json::to_string_pretty(&report)?;
         std::fs::write(path, json).with_context(|| format!("cannot write the report to {}", path.display()))?;
     }
-    Ok(report)
+    Ok(Some(report))
 }

@@ -153,6 +153,16 @@ impl World {
         Ok(World::with_ground_truth(heights_m, navigable, samples, start))
     }
 
+    /// The scoring ground truth as a `map_bw.png`-style PNG: navigable pixels white, the rest
+    /// black (row = y, column = x).
+    pub fn ground_truth_png(&self) -> Result<Vec<u8>, rover_imaging::ImageError> {
+        let mut image = rover_imaging::RgbImage::new(WORLD_SIZE, WORLD_SIZE);
+        for (i, _) in self.ground_truth.iter().enumerate().filter(|(_, navigable)| **navigable) {
+            image.set_pixel(i % WORLD_SIZE, i / WORLD_SIZE, [255, 255, 255]);
+        }
+        rover_imaging::encode_png(&image)
+    }
+
     /// Terrain height of the cell containing (x, y), metres; 0 is floor. Outside the map: a wall.
     pub fn height_at(&self, x_m: f64, y_m: f64) -> f32 {
         self.cell_height(x_m.floor() as i64, y_m.floor() as i64)
@@ -412,6 +422,14 @@ mod tests {
         assert!(!world.is_floor(100, 94));
         assert_eq!(world.height_at(-1.0, 5.0), MAX_TERRAIN_HEIGHT_M);
         assert_eq!(world.ground_truth().iter().filter(|&&n| n).count(), 1000);
+    }
+
+    #[test]
+    fn the_exported_map_is_the_ground_truth() {
+        let world = crate::procgen::procedural_world(3);
+        let png = world.ground_truth_png().unwrap();
+        let reloaded = World::from_map_png(&png, 3).unwrap();
+        assert_eq!(reloaded.ground_truth(), world.ground_truth());
     }
 
     #[test]
