@@ -137,13 +137,11 @@ impl Grid {
         (0..SIDE * SIDE).filter(|&i| self.cells[i] == Cell::Free && neighbours4(i).any(&unexplored)).collect()
     }
 
-    /// Cells within `radius` cells of cell `i` (a square neighbourhood) for which `test` holds.
-    pub fn count_around(i: usize, radius: usize, test: impl Fn(usize) -> bool) -> usize {
+    /// Cells within `radius` cells of cell `i` (a square neighbourhood, clipped at the edges).
+    pub fn cells_around(i: usize, radius: usize) -> impl Iterator<Item = usize> {
         let (x, y) = (i % SIDE, i / SIDE);
         let rows = y.saturating_sub(radius)..(y + radius + 1).min(SIDE);
-        rows.flat_map(|row| (x.saturating_sub(radius)..(x + radius + 1).min(SIDE)).map(move |col| row * SIDE + col))
-            .filter(|&n| test(n))
-            .count()
+        rows.flat_map(move |row| (x.saturating_sub(radius)..(x + radius + 1).min(SIDE)).map(move |col| row * SIDE + col))
     }
 
     /// Counts of free, blocked and unknown cells.
@@ -274,7 +272,7 @@ mod tests {
         assert!(frontiers.iter().all(|&i| grid.cell(i) == Cell::Free && Grid::centre(i).1 < 14.0));
         assert_eq!(Grid::from_occupancy(&[0; 3]).map(|_| ()), None);
         let corner = Grid::index(0.5, 0.5).unwrap();
-        assert_eq!(Grid::count_around(corner, 2, |_| true), 9, "clipped at the edge");
-        assert_eq!(Grid::count_around(Grid::index(50.5, 50.5).unwrap(), 2, |_| true), 25);
+        assert_eq!(Grid::cells_around(corner, 2).count(), 9, "clipped at the edge");
+        assert_eq!(Grid::cells_around(Grid::index(50.5, 50.5).unwrap(), 2).count(), 25);
     }
 }

@@ -373,7 +373,10 @@ impl Machine {
             None if self.map_version == 0 => {
                 self.steering.around_obstacles(0.0, p.max_speed_mps, obs.speed_mps, &obs.free, p)
             }
-            None if obs.samples_remaining > 0 && self.explorer.forget_explored() => Drive::stop(p.brake),
+            None if obs.samples_remaining > 0 && self.explorer.forget_explored() => {
+                tracing::info!("no frontier left, {} samples not found: trying given-up frontiers again", obs.samples_remaining);
+                Drive::stop(p.brake)
+            }
             None => match self.sample_to_chase(obs, f64::INFINITY) {
                 Some(chase) => {
                     self.enter(State::Approach(chase.clone()), "map explored, sample left");

@@ -33,8 +33,9 @@ rover_node::node_params! {
         frontier_min_unknown: i64 [1, 25] = 6,
         /// Cells up to this far in front of the camera count as inspected, metres.
         inspect_range_m: f64 [0.5, 20.0] = 5.0,
-        /// Cells up to this angle either side of the heading count as inspected, degrees.
-        inspect_half_angle_deg: f64 [1.0, 90.0] = 35.0,
+        /// Cells up to this angle either side of the heading count as inspected, degrees (the
+        /// camera's ground view spans about 45 degrees either side).
+        inspect_half_angle_deg: f64 [1.0, 90.0] = 45.0,
         /// Extra cost, metres, of a frontier straight behind the rover (scaled by the turn).
         turn_penalty_m: f64 [0.0, 100.0] = 8.0,
         /// Extra path cost of unknown cells.
@@ -56,8 +57,9 @@ rover_node::node_params! {
         recover_turn_s: f64 [0.0, 60.0] = 1.5,
         /// Pitch or roll beyond this means tilted: recover, degrees.
         tilt_limit_deg: f64 [1.0, 90.0] = 12.0,
-        /// Chase a seen sample up to this distance, metres.
-        sample_sight_m: f64 [0.5, 20.0] = 7.0,
+        /// Chase a seen sample up to this distance, metres (as projected on the ground: a sample
+        /// on the bank by a wall projects farther than it is).
+        sample_sight_m: f64 [0.5, 20.0] = 12.0,
         /// Go for a remembered sample up to this path cost.
         sample_detour_cost: f64 [0.0, 1000.0] = 60.0,
         /// Give up a sample not reached in this time plus its way at cruising speed, seconds.

@@ -12,6 +12,8 @@ const EXPLORED_RADIUS_CELLS: i64 = 3;
 const RECOVERIES_PER_TARGET: u32 = 2;
 /// A goal on an obstacle cell is reached through the cheapest reachable cell this close, cells.
 const GOAL_SLACK_CELLS: usize = 3;
+/// Longest look at the unexplored cells of a reached target, seconds (a half turn takes 4 s).
+const LOOK_S: f64 = 5.0;
 
 /// Where the rover is, in the world frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -109,15 +111,24 @@ fn replan_due(planned: Option<(u64, u64)>, frame: u64, map_version: u64, params:
 /// Frontier exploration. A cell is explored once it is free on the map or has been in close view
 /// of the camera: obstacle cells seen only from afar may be floor hidden behind the projection
 /// of a wall. The explorer picks the best frontier (a free cell next to unexplored ones), goes
-/// there, and abandons targets that it reaches without exploring them, that take too long or that
-/// keep the rover stuck.
+/// there, and abandons targets that take too long or keep the rover stuck. A target reached with
+/// its unexplored cells still beside or behind the rover (a side passage) is first looked at:
+/// the rover turns toward those cells until the camera has seen them, then moves on.
 #[derive(Debug, Clone)]
 pub struct Explorer {
     target: Option<Target>,
+    look: Option<Look>,
     inspected: Vec<bool>,
     explored: Vec<bool>,
     costs: Option<CostMap>,
     planned: Option<(u64, u64)>,
+}
+
+/// A look at the unexplored cells around a reached target.
+#[derive(Debug, Clone, Copy)]
+struct Look {
+    around: usize,
+    until_frame: u64,
 }
 
 #[derive(Debug, Clone)]
@@ -133,6 +144,7 @@ impl Default for Explorer {
         let cells = crate::grid::SIDE * crate::grid::SIDE;
         Explorer {
             target: None,
+            look: None,
             inspected: vec![false; cells],
             explored: vec![false; cells],
             costs: None,
@@ -202,10 +214,21 @@ impl Explorer {
         params: &DecisionParams,
     ) -> Option<(f64, f64)> {
         let start = Grid::index(at.x_m, at.y_m)?;
-        if let Some(target) = &self.target {
-            let timed_out = frame >= target.chosen_frame + params.frames(params.target_timeout_s);
-            if timed_out || at.distance_to(Grid::centre(target.cell)) < params.frontier_reached_m {
-                tracing::debug!(target = ?Grid::centre(target.cell), timed_out, "frontier target done");
+        if let Some(point) = self.look_point(grid, frame) {
+            return Some(point);
+        }
+        if let Some((cell, chosen_frame)) = self.target.as_ref().map(|t| (t.cell, t.chosen_frame)) {
+            let timed_out = frame >= chosen_frame + params.frames(params.target_timeout_s);
+            let reached = at.distance_to(Grid::centre(cell)) < params.frontier_reached_m;
+            if reached && !timed_out {
+                self.look = Some(Look { around: cell, until_frame: frame + params.frames(LOOK_S) });
+                if let Some(point) = self.look_point(grid, frame) {
+                    tracing::debug!(target = ?Grid::centre(cell), ?point, "frontier target reached: looking");
+                    return Some(point);
+                }
+            }
+            if timed_out || reached {
+                tracing::debug!(target = ?Grid::centre(cell), timed_out, "frontier target done");
                 self.abandon_target();
             }
         }
@@ -214,6 +237,22 @@ impl Explorer {
             self.planned = Some((frame, map_version));
         }
         lookahead(&self.target.as_ref()?.path, at, params.lookahead_m)
+    }
+
+    /// While looking at a reached target: the middle of its unexplored cells. The look (and the
+    /// target) ends once the camera has seen them all or the time is up.
+    fn look_point(&mut self, grid: &Grid, frame: u64) -> Option<(f64, f64)> {
+        let look = self.look?;
+        let unexplored: Vec<(f64, f64)> = Grid::cells_around(look.around, FRONTIER_RADIUS_CELLS)
+            .filter(|&n| self.unexplored(grid, n))
+            .map(Grid::centre)
+            .collect();
+        if unexplored.is_empty() || frame >= look.until_frame {
+            self.abandon_target();
+            return None;
+        }
+        let count = unexplored.len() as f64;
+        Some((unexplored.iter().map(|p| p.0).sum::<f64>() / count, unexplored.iter().map(|p| p.1).sum::<f64>() / count))
     }
 
     fn replan(&mut self, grid: &Grid, start: usize, at: &Position, frame: u64, params: &DecisionParams) {
@@ -237,7 +276,7 @@ impl Explorer {
         !self.explored[cell]
             && grid.cell(cell) == Cell::Free
             && costs.distance[cell].is_finite()
-            && Grid::count_around(cell, FRONTIER_RADIUS_CELLS, |n| self.unexplored(grid, n))
+            && Grid::cells_around(cell, FRONTIER_RADIUS_CELLS).filter(|&n| self.unexplored(grid, n)).count()
                 >= params.frontier_min_unknown as usize
     }
 
@@ -254,6 +293,7 @@ impl Explorer {
     }
 
     fn abandon_target(&mut self) {
+        self.look = None;
         let Some(target) = self.target.take() else { return };
         let side = crate::grid::SIDE as i64;
         let (x, y) = ((target.cell as i64) % side, (target.cell as i64) / side);
@@ -303,7 +343,7 @@ mod tests {
     /// An explorer that has looked at both walls of the known corridor from close by.
     fn explorer_after_inspecting_the_walls(params: &DecisionParams) -> Explorer {
         let mut explorer = Explorer::default();
-        for x in (18..62).step_by(2) {
+        for x in (18..57).step_by(2) {
             for yaw_rad in [std::f64::consts::FRAC_PI_2, -std::f64::consts::FRAC_PI_2] {
                 explorer.inspect(&Position { x_m: x as f64, y_m: 52.0, yaw_rad }, params);
             }
@@ -335,13 +375,18 @@ mod tests {
     }
 
     #[test]
-    fn reached_targets_are_not_chosen_again() {
+    fn reached_targets_are_looked_at_then_not_chosen_again() {
         let grid = half_explored();
         let params = DecisionParams::default();
         let mut explorer = explorer_after_inspecting_the_walls(&params);
         explorer.waypoint(&grid, 1, &at(25.5, 51.5), 0, &params);
         let first = explorer.target().unwrap();
-        explorer.waypoint(&grid, 1, &at(first.0, first.1), 1, &params);
+        let facing_back = Position { x_m: first.0, y_m: first.1, yaw_rad: std::f64::consts::PI };
+        let look = explorer.waypoint(&grid, 1, &facing_back, 1, &params).unwrap();
+        assert!(look.0 > first.0, "looks at the unknown cells behind the rover: {look:?} from {first:?}");
+        assert_eq!(explorer.target(), Some(first), "the target stays while looking");
+        let look_end = params.frames(LOOK_S) + 1;
+        explorer.waypoint(&grid, 1, &facing_back, look_end, &params);
         let second = explorer.target();
         assert!(
             second.is_none_or(|s| (s.0 - first.0).abs() + (s.1 - first.1).abs() > 3.0),
