@@ -275,6 +275,10 @@ impl Rover {
                 })
                 .filter(|slide| free_at(slide[0], slide[1]));
             let length = step[0].hypot(step[1]);
+            let slide = slide.or_else(|| {
+                let along = slide_along_contacts(world, samples, self.x_m, self.y_m, step);
+                free_at(along[0], along[1]).then_some(along)
+            });
             match slide {
                 Some(slide) if slide[0].hypot(slide[1]) > SLIDE_MIN_FRACTION * length => {
                     (slide, slide[0].hypot(slide[1]) / length)
@@ -320,11 +324,16 @@ impl Rover {
 /// The unit vector from the nearest blocking point to (x, y), for a footprint of radius `r` that
 /// overlaps a wall cell or a sample there.
 fn contact_normal(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) -> Option<[f64; 2]> {
-    let mut nearest: Option<(f64, [f64; 2])> = None;
+    contact_normals(world, samples, x, y, r).first().copied()
+}
+
+/// The unit vectors from every blocking point within `r` of (x, y) to it, nearest first.
+fn contact_normals(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) -> Vec<[f64; 2]> {
+    let mut contacts: Vec<(f64, [f64; 2])> = Vec::new();
     let mut consider = |qx: f64, qy: f64, clearance: f64| {
-        let distance = (x - qx).hypot(y - qy) - clearance;
-        if distance < r && nearest.is_none_or(|(d, _)| distance < d) {
-            nearest = Some((distance, [qx, qy]));
+        let length = (x - qx).hypot(y - qy);
+        if length - clearance < r && length > 1e-9 {
+            contacts.push((length - clearance, [(x - qx) / length, (y - qy) / length]));
         }
     };
     for iy in (y - r).floor() as i64..=(y + r).floor() as i64 {
@@ -337,9 +346,21 @@ fn contact_normal(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) -> 
     for sample in samples {
         consider(sample.x_m, sample.y_m, sample.radius_m);
     }
-    let (_, [qx, qy]) = nearest?;
-    let length = (x - qx).hypot(y - qy);
-    (length > 1e-9).then(|| [(x - qx) / length, (y - qy) / length])
+    contacts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    contacts.into_iter().map(|(_, normal)| normal).collect()
+}
+
+/// `step` without its part into any wall or sample touching the footprint at (x, y): a rover
+/// wedged between two walls can still move along the gap.
+fn slide_along_contacts(world: &World, samples: &[Sample], x: f64, y: f64, step: [f64; 2]) -> [f64; 2] {
+    let mut slide = step;
+    for normal in contact_normals(world, samples, x, y, FOOTPRINT_RADIUS_M + CONTACT_MARGIN_M) {
+        let into = slide[0] * normal[0] + slide[1] * normal[1];
+        if into < 0.0 {
+            slide = [slide[0] - into * normal[0], slide[1] - into * normal[1]];
+        }
+    }
+    slide
 }
 
 /// The largest fraction of a move in [0, 1] that stays free, by bisection (`blocked(0)` is false).
@@ -453,6 +474,21 @@ mod tests {
         assert!(rover.pitch_deg < 0.0, "braking pitches the nose up: {}", rover.pitch_deg);
         rover.step(1.0, &world, &[]);
         assert_eq!(rover.speed_mps, 0.0);
+    }
+
+    #[test]
+    fn a_rover_touching_two_corners_can_back_out_of_the_gap() {
+        let mut heights = vec![0.0f32; WORLD_SIZE * WORLD_SIZE];
+        heights[83 * WORLD_SIZE + 28] = 5.0;
+        heights[81 * WORLD_SIZE + 29] = 5.0;
+        let world = World::from_heights(heights, vec![], StartPose { x_m: 29.0, y_m: 82.5, yaw_deg: 0.0 });
+        let mut rover = Rover::new(29.0, 82.5, 33.0);
+        assert!(!footprint_blocked(&world, &[], 29.0, 82.5, FOOTPRINT_RADIUS_M), "touching, not overlapping");
+        rover.apply(drive(-0.8, 0.0, 0.0), &[]);
+        for _ in 0..50 {
+            rover.step(0.04, &world, &[]);
+        }
+        assert!(rover.x_m < 28.8, "slid back along the gap between the corners: x = {}", rover.x_m);
     }
 
     #[test]
