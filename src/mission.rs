@@ -14,7 +14,6 @@ use rover_decision::params::DecisionParams;
 use rover_mapping::map::{ScanGrid, WorldMap};
 use rover_mapping::params::MappingParams;
 use rover_mapping::projection::Pose;
-use rover_mapping::rocks::rock_positions;
 use rover_mapping::score::LocatedSamples;
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tally::SampleTally;
@@ -113,7 +112,7 @@ pub fn run_in_process(
         if frame % settings.mapping.publish_every_scans as u64 == 0 {
             located.update(&map.rock_cells());
             machine.set_map(Grid::from_occupancy(&map.occupancy()).expect("the map is 200 x 200"));
-            machine.set_rocks(rock_positions(&map.rock_cells(), settings.mapping.rock_merge_m));
+            machine.set_rocks(map.rocks(settings.mapping.rock_merge_m));
         }
         let drive = machine.step(&rover_decision::observation(&message, &scan, &mut rays));
         let arm = ArmInput {

@@ -7,7 +7,6 @@ use rover_bridge::convert::{rep103_roll_rad, wrapped_rad};
 use rover_mapping::map::{ScanGrid, Update, WorldMap};
 use rover_mapping::params::MappingParams;
 use rover_mapping::projection::Pose;
-use rover_mapping::rocks::rock_positions;
 use rover_mapping::score::ground_truth_from_png;
 use rover_perception::node::PerceptionParams;
 use serde::Serialize;
@@ -125,7 +124,7 @@ pub fn replay_frames(
         frames_rejected: rejected,
         mapped_pct: scores.map(|s| s.mapped_pct),
         fidelity_pct: scores.map(|s| s.fidelity_pct),
-        rocks_located: rock_positions(&map.rock_cells(), mapping.rock_merge_m).len(),
+        rocks_located: map.rocks(mapping.rock_merge_m).len(),
         navigable_cells: map.cell_counts().0,
         perception_ms_median: median_ms(perception_times),
         mapping_ms_median: median_ms(mapping_times),

@@ -2,6 +2,7 @@
 //! scans, each cell counted at most once per frame and class, and the decisions drawn from it.
 
 use crate::projection::{CameraMount, Pose, Projector};
+use crate::rocks::{RockCell, rock_positions};
 use crate::score::{MAP_SIDE, Scores, udacity_scores};
 
 /// Terrain-scan class codes (`rover_msgs/TerrainScan`).
@@ -10,8 +11,10 @@ const ROCK: u8 = rover_msgs::msg::TerrainScan::ROCK;
 
 /// The arm reaches this far ahead of the rover's position, metres.
 const REACH_AHEAD_M: f64 = 0.84;
-/// Rock evidence within this distance of a finished pickup is forgotten, metres.
-const PICKED_RADIUS_M: f64 = 2.0;
+/// Rock evidence within this distance of a finished pickup is forgotten, metres: a sample seen
+/// from afar projects up to 3 m beyond where it lies, and no two sample places of the Unity
+/// world are closer than 7 m.
+const PICKED_RADIUS_M: f64 = 4.0;
 
 /// How scans become evidence and evidence becomes a map.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -95,6 +98,7 @@ pub struct WorldMap {
     mount: CameraMount,
     hits: [Vec<u16>; 3],
     last_frame: [Vec<u32>; 3],
+    rock_range_m: Vec<f32>,
     frame: u32,
 }
 
@@ -107,6 +111,7 @@ impl WorldMap {
             mount: CameraMount::default(),
             hits: [vec![0; cells], vec![0; cells], vec![0; cells]],
             last_frame: [vec![u32::MAX; cells], vec![u32::MAX; cells], vec![u32::MAX; cells]],
+            rock_range_m: vec![f32::INFINITY; cells],
             frame: 0,
         }
     }
@@ -161,10 +166,13 @@ impl WorldMap {
                 }
             }
         }
-        let rock_cell =
-            nearest_rock.and_then(|(_, x, y)| projector.world(x, y)).and_then(|(wx, wy)| cell_index(wx, wy));
-        if let Some(cell) = rock_cell {
+        let rock = nearest_rock.and_then(|(range_sq, x, y)| {
+            let cell = projector.world(x, y).and_then(|(wx, wy)| cell_index(wx, wy))?;
+            Some((cell, range_sq.sqrt() as f32))
+        });
+        if let Some((cell, range_m)) = rock {
             self.add(cell, (ROCK - 1) as usize);
+            self.rock_range_m[cell] = self.rock_range_m[cell].min(range_m);
             landed += 1;
         }
         Update::Used(landed)
@@ -235,6 +243,16 @@ impl WorldMap {
         (0..MAP_SIDE * MAP_SIDE).filter(|&c| self.is_rock(c)).map(|c| (c % MAP_SIDE, c / MAP_SIDE)).collect()
     }
 
+    /// The located rocks, world metres: rock cells within `merge_m` are one rock (see
+    /// [`rock_positions`]).
+    pub fn rocks(&self, merge_m: f64) -> Vec<(f64, f64)> {
+        let cells: Vec<RockCell> = (0..MAP_SIDE * MAP_SIDE)
+            .filter(|&c| self.is_rock(c))
+            .map(|c| RockCell { x: c % MAP_SIDE, y: c / MAP_SIDE, range_m: self.rock_range_m[c] })
+            .collect();
+        rock_positions(&cells, merge_m)
+    }
+
     /// Forgets the rock the arm just picked up: the rock evidence around the arm of a rover at
     /// (x, y) facing `yaw_rad`.
     pub fn forget_picked_rock(&mut self, x_m: f64, y_m: f64, yaw_rad: f64) {
@@ -251,6 +269,7 @@ impl WorldMap {
                     && (ix as f64 + 0.5 - x_m).hypot(iy as f64 + 0.5 - y_m) <= radius_m
                 {
                     self.hits[2][cell] = 0;
+                    self.rock_range_m[cell] = f32::INFINITY;
                 }
             }
         }
@@ -327,6 +346,27 @@ mod tests {
         assert_eq!(rocks.len(), 1, "{rocks:?}");
         map.clear_rocks_near(rocks[0].0 as f64 + 0.5, rocks[0].1 as f64 + 0.5, 1.0);
         assert!(map.rock_cells().is_empty());
+    }
+
+    #[test]
+    fn a_rock_seen_far_then_near_is_placed_where_it_was_seen_near() {
+        let (rows, cols) = (12, 4);
+        let rock_in_row = |row: usize| {
+            let mut cells = vec![NAVIGABLE; rows * cols];
+            cells[row * cols + 1] = ROCK;
+            cells
+        };
+        let mut map = WorldMap::new(MapConfig::default());
+        let (far, near) = (rock_in_row(11), rock_in_row(1));
+        for _ in 0..2 {
+            map.update(&scan(&far, rows, cols), Pose { x_m: 20.0, y_m: 20.5, ..Pose::default() });
+        }
+        assert_eq!(map.rocks(3.5), vec![(26.5, 20.5)], "seen from 6.75 m");
+        for _ in 0..2 {
+            map.update(&scan(&near, rows, cols), Pose { x_m: 22.0, y_m: 20.5, ..Pose::default() });
+        }
+        assert_eq!(map.rock_cells().len(), 2);
+        assert_eq!(map.rocks(3.5), vec![(23.5, 20.5)], "seen from 1.75 m, the far echo merged into it");
     }
 
     #[test]

@@ -17,7 +17,6 @@ use crate::image::{InsetStats, map_inset};
 use crate::map::{ScanGrid, Update, WorldMap};
 use crate::params::MappingParams;
 use crate::projection::Pose;
-use crate::rocks::rock_positions;
 use crate::score::{MAP_SIDE, ground_truth_from_png, samples_located};
 
 /// A frame number this far below the last one means the bridge restarted.
@@ -125,7 +124,7 @@ impl Mapping {
     }
 
     fn rocks(&self) -> Vec<(f64, f64)> {
-        rock_positions(&self.map.rock_cells(), self.params.rock_merge_m)
+        self.map.rocks(self.params.rock_merge_m)
     }
 
     fn stats(&self, header: Header) -> MapStats {

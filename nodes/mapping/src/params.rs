@@ -19,8 +19,9 @@ rover_node::node_params! {
         min_obstacle_hits: i64 [1, 1000] = 2,
         /// A cell holds a rock after this many rock frames.
         min_rock_hits: i64 [1, 1000] = 2,
-        /// Rock cells closer than this are one rock, metres.
-        rock_merge_m: f64 [0.1, 20.0] = 2.0,
+        /// Rock cells closer than this are one rock, metres (a sample seen from afar lands up to
+        /// 3 m beyond where it lies; no two sample places of the Unity world are closer than 7 m).
+        rock_merge_m: f64 [0.1, 20.0] = 3.5,
         /// Ground-truth map (200x200 PNG, navigable > 0) for the Udacity scores; empty: none.
         ground_truth_png: String = "",
         /// Publish map, map/image, rover/map_stats and rover/rocks every this many terrain scans
