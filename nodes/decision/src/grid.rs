@@ -56,6 +56,15 @@ impl Grid {
         Some(Grid { cells, near_wall })
     }
 
+    /// Marks cell `i` as an obstacle (the rover got stuck there although the map says free).
+    pub fn block(&mut self, i: usize) {
+        self.cells[i] = Cell::Blocked;
+        self.near_wall[i] = false;
+        for n in neighbours8(i) {
+            self.near_wall[n] = self.cells[n] != Cell::Blocked;
+        }
+    }
+
     /// An empty (all unknown) grid.
     pub fn unknown() -> Self {
         Grid { cells: vec![Cell::Unknown; SIDE * SIDE], near_wall: vec![false; SIDE * SIDE] }
@@ -137,11 +146,27 @@ impl Grid {
         (0..SIDE * SIDE).filter(|&i| self.cells[i] == Cell::Free && neighbours4(i).any(&unexplored)).collect()
     }
 
+    /// Whether cell `to` can be seen from point `from` (metres): no obstacle cell farther than
+    /// `around_cells` from `to` lies on the straight line between them (unknown cells may be
+    /// floor and do not block the view).
+    pub fn line_of_sight(&self, from: (f64, f64), to: usize, around_cells: usize) -> bool {
+        let target = Self::centre(to);
+        let steps = ((target.0 - from.0).hypot(target.1 - from.1) / SIGHT_STEP_M).ceil() as usize;
+        (1..steps).all(|k| {
+            let t = k as f64 / steps as f64;
+            let point = (from.0 + t * (target.0 - from.0), from.1 + t * (target.1 - from.1));
+            Self::index(point.0, point.1)
+                .is_none_or(|cell| chebyshev(cell, to) <= around_cells || self.cells[cell] != Cell::Blocked)
+        })
+    }
+
     /// Cells within `radius` cells of cell `i` (a square neighbourhood, clipped at the edges).
     pub fn cells_around(i: usize, radius: usize) -> impl Iterator<Item = usize> {
         let (x, y) = (i % SIDE, i / SIDE);
         let rows = y.saturating_sub(radius)..(y + radius + 1).min(SIDE);
-        rows.flat_map(move |row| (x.saturating_sub(radius)..(x + radius + 1).min(SIDE)).map(move |col| row * SIDE + col))
+        rows.flat_map(move |row| {
+            (x.saturating_sub(radius)..(x + radius + 1).min(SIDE)).map(move |col| row * SIDE + col)
+        })
     }
 
     /// Counts of free, blocked and unknown cells.
@@ -151,6 +176,8 @@ impl Grid {
     }
 }
 
+/// Step along a line of sight, metres.
+const SIGHT_STEP_M: f64 = 0.25;
 /// Obstacle cells up to this far from the start of a plan can be crossed, cells.
 const ESCAPE_RADIUS_CELLS: usize = 1;
 
@@ -198,10 +225,16 @@ impl CostMap {
 }
 
 /// An `f32` ordered for the heap (costs are never NaN).
-#[derive(Debug, Clone, Copy, PartialEq, PartialOrd)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct Ordered(f32);
 
 impl Eq for Ordered {}
+
+impl PartialOrd for Ordered {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
 
 impl Ord for Ordered {
     fn cmp(&self, other: &Self) -> std::cmp::Ordering {
@@ -233,6 +266,32 @@ mod tests {
     use super::*;
 
     const COSTS: Costs = Costs { unknown: 2.0, near_wall: 3.0, cross_unknown: true };
+
+    #[test]
+    fn an_obstacle_hides_what_lies_behind_it() {
+        let mut data = vec![0i8; SIDE * SIDE];
+        data[10 * SIDE + 12] = 100;
+        data[10 * SIDE + 14] = 100;
+        let grid = Grid::from_occupancy(&data).unwrap();
+        assert!(grid.line_of_sight((10.5, 10.5), Grid::index(12.5, 10.5).unwrap(), 0), "the obstacle itself is seen");
+        assert!(!grid.line_of_sight((10.5, 10.5), Grid::index(13.5, 10.5).unwrap(), 0), "behind it is hidden");
+        assert!(grid.line_of_sight((10.5, 10.5), Grid::index(13.5, 12.5).unwrap(), 0), "beside it is not");
+        assert!(grid.line_of_sight((10.5, 10.5), Grid::index(13.5, 10.5).unwrap(), 1), "unless it is let through");
+    }
+
+    #[test]
+    fn a_blocked_cell_is_planned_around() {
+        let mut data = vec![0i8; SIDE * SIDE];
+        data[10 * SIDE + 10] = 100;
+        let mut grid = Grid::from_occupancy(&data).unwrap();
+        let (start, goal) = (Grid::index(5.5, 12.5).unwrap(), Grid::index(15.5, 12.5).unwrap());
+        let straight = grid.costs_from(start, &COSTS).path_to(goal).unwrap();
+        let blocked = Grid::index(10.5, 12.5).unwrap();
+        assert!(straight.contains(&blocked));
+        grid.block(blocked);
+        let around = grid.costs_from(start, &COSTS).path_to(goal).unwrap();
+        assert!(!around.contains(&blocked) && grid.cell(blocked) == Cell::Blocked, "{around:?}");
+    }
 
     fn corridor() -> Vec<i8> {
         let mut data = vec![100i8; SIDE * SIDE];

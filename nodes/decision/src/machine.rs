@@ -7,10 +7,11 @@ use crate::drive::{Drive, Steering};
 use crate::grid::Grid;
 use crate::local::FreeSpace;
 use crate::params::DecisionParams;
-use crate::plan::{Explorer, Position, Route};
+use crate::plan::{Explorer, Position, Route, staging_cell};
 
-/// Within this distance a rock is taken to be one already given up or collected, metres.
-const SAME_ROCK_M: f64 = 3.0;
+/// Within this distance a rock is taken to be one already given up or collected, metres (as
+/// the mapping node's radius for picked rocks: projections of one sample spread this far).
+const SAME_ROCK_M: f64 = 4.0;
 /// A rock is given up after this many approaches that ended stuck.
 const APPROACHES_PER_ROCK: usize = 2;
 /// Farther than this the rover drives to a sample along the map and around obstacles; closer, it
@@ -18,12 +19,36 @@ const APPROACHES_PER_ROCK: usize = 2;
 const ROUTE_APPROACH_M: f64 = 4.0;
 /// The arm reaches this far ahead of the rover's position, metres.
 const ARM_REACH_M: f64 = 0.84;
+/// After a failed approach the next one starts from a free cell this close to the sample, cells...
+const STAGING_RADIUS_CELLS: usize = 2;
+/// ...at least this far from where the failed ones ended, metres...
+const STAGING_AWAY_M: f64 = 1.5;
+/// ...reached within this distance, metres.
+const STAGING_REACHED_M: f64 = 0.7;
+/// A remembered sample between these distances ahead, metres (nearer, it is below the camera's
+/// view)...
+const CHECK_RANGE_M: (f64, f64) = (1.2, 3.0);
+/// ...and within this bearing, degrees, with no obstacle of the map in between...
+const CHECK_BEARING_DEG: f64 = 20.0;
+/// ...that the camera does not see for this long, seconds, is not there (an echo of a sample
+/// seen from afar, or one picked up already).
+const UNSEEN_S: f64 = 1.0;
 /// Below this speed the rover counts as stopped, m/s.
 const STOPPED_MPS: f64 = 0.05;
-/// Moving less than this while driving counts toward being stuck, metres.
+/// Moving less than this while driving counts toward being stuck, metres...
 const STUCK_PROGRESS_M: f64 = 0.3;
+/// ...when the rover has come to a stop, m/s (a slow approach is not stuck).
+const STUCK_SPEED_MPS: f64 = 0.1;
 /// Moving less than this, whatever the rover is told, counts toward being stalled, metres.
 const STALL_PROGRESS_M: f64 = 1.0;
+/// Getting stuck again this close to an earlier stuck spot...
+const STUCK_AGAIN_M: f64 = 2.0;
+/// ...within this time, seconds, makes the cell ahead of the rover an obstacle for planning...
+const STUCK_AGAIN_S: f64 = 90.0;
+/// ...for this long, seconds (the map says free what the rover cannot drive through).
+const STUCK_MARK_S: f64 = 120.0;
+/// The marked cell is the one this far ahead of the rover's position: its front, metres.
+const STUCK_MARK_AHEAD_M: f64 = 0.9;
 
 /// Watches the rover's progress: how long it has stayed within some distance of one spot.
 #[derive(Debug, Clone, Copy, Default)]
@@ -155,6 +180,16 @@ struct Chase {
     at: (f64, f64),
     give_up_frame: u64,
     route: Option<Route>,
+    staging: Option<(f64, f64)>,
+    unseen_since: Option<u64>,
+}
+
+/// An approach to a sample that ended without it.
+#[derive(Debug, Clone, Copy)]
+struct FailedApproach {
+    sample: (f64, f64),
+    frame: u64,
+    from: (f64, f64),
 }
 
 /// The decision state machine.
@@ -164,15 +199,18 @@ pub struct Machine {
     state: State,
     status: Status,
     changed: bool,
+    map: Grid,
     grid: Grid,
     map_version: u64,
     rocks: Vec<(f64, f64)>,
     ignored_rocks: Vec<(f64, f64)>,
-    failed_approaches: Vec<((f64, f64), u64)>,
+    failed_approaches: Vec<FailedApproach>,
     explorer: Explorer,
     steering: Steering,
     stuck_watch: ProgressWatch,
     stall_watch: ProgressWatch,
+    stuck_spots: Vec<(u64, (f64, f64))>,
+    stuck_marks: Vec<(usize, u64)>,
     last_drive: Drive,
     frame: u64,
     tally: SampleTally,
@@ -192,6 +230,7 @@ impl Machine {
                 home: None,
             },
             changed: true,
+            map: Grid::unknown(),
             grid: Grid::unknown(),
             map_version: 0,
             rocks: Vec::new(),
@@ -201,6 +240,8 @@ impl Machine {
             steering: Steering::default(),
             stuck_watch: ProgressWatch::default(),
             stall_watch: ProgressWatch::default(),
+            stuck_spots: Vec::new(),
+            stuck_marks: Vec::new(),
             last_drive: Drive::stop(0.0),
             frame: 0,
             tally: SampleTally::default(),
@@ -221,15 +262,33 @@ impl Machine {
         self.params = params;
     }
 
-    /// Takes a new map.
+    /// Takes a new map, with the cells where the rover got stuck lately marked as obstacles.
     /// A map without free cells (the mapping node's first publication, before any scan) says
     /// nothing yet and is ignored, so that it cannot end the exploration.
-    pub fn set_map(&mut self, grid: Grid) {
-        if grid.counts().0 == 0 {
+    pub fn set_map(&mut self, map: Grid) {
+        if map.counts().0 == 0 {
             return;
         }
-        self.grid = grid;
+        let frame = self.frame;
+        self.stuck_marks.retain(|&(_, until_frame)| frame < until_frame);
+        self.map = map;
+        self.apply_stuck_marks();
+    }
+
+    fn apply_stuck_marks(&mut self) {
+        self.grid = self.map.clone();
+        for &(cell, _) in &self.stuck_marks {
+            self.grid.block(cell);
+        }
         self.map_version += 1;
+    }
+
+    /// Forgets the cells marked where the rover got stuck; returns whether there were any.
+    fn forget_stuck_marks(&mut self) -> bool {
+        let any = !self.stuck_marks.is_empty();
+        self.stuck_marks.clear();
+        self.apply_stuck_marks();
+        any
     }
 
     /// Takes the located rocks, world positions.
@@ -309,8 +368,10 @@ impl Machine {
             if self.tilted(obs) {
                 self.start_recovery(obs, "tilted");
             } else if self.stuck(obs) {
+                self.mark_if_stuck_again(obs);
                 self.start_recovery(obs, "stuck");
             } else if self.stalled(obs) {
+                self.mark_if_stuck_again(obs);
                 self.start_recovery(obs, "no progress");
             }
         }
@@ -336,6 +397,7 @@ impl Machine {
             return false;
         }
         self.stuck_watch.frames_within(obs, STUCK_PROGRESS_M) >= self.params.frames(self.params.stuck_s)
+            && obs.speed_mps.abs() < STUCK_SPEED_MPS
     }
 
     /// Whether the rover has stayed in one spot for long, turning or not (a goal that the camera
@@ -344,10 +406,27 @@ impl Machine {
         self.stall_watch.frames_within(obs, STALL_PROGRESS_M) >= self.params.frames(self.params.stall_s)
     }
 
+    /// Remembers where the rover got stuck; at a spot where it got stuck lately, the cell ahead
+    /// becomes an obstacle for planning for a while, so that the next plan leads around it.
+    fn mark_if_stuck_again(&mut self, obs: &Observation) {
+        let here = (obs.position.x_m, obs.position.y_m);
+        let memory = self.params.frames(STUCK_AGAIN_S);
+        self.stuck_spots.retain(|&(frame, _)| obs.frame < frame + memory);
+        let again = self.stuck_spots.iter().any(|&(_, at)| obs.position.distance_to(at) < STUCK_AGAIN_M);
+        self.stuck_spots.push((obs.frame, here));
+        let ahead = obs.position.point_at(0.0, STUCK_MARK_AHEAD_M);
+        if let Some(cell) = Grid::index(ahead.0, ahead.1).filter(|_| again) {
+            tracing::debug!(cell = ?Grid::centre(cell), "stuck again here: the cell ahead is an obstacle for a while");
+            self.stuck_marks.push((cell, obs.frame + self.params.frames(STUCK_MARK_S)));
+            self.grid.block(cell);
+            self.map_version += 1;
+        }
+    }
+
     fn start_recovery(&mut self, obs: &Observation, reason: &str) {
         match &self.state {
             State::Explore => self.explorer.note_recovery(),
-            State::Approach(chase) => self.failed_approaches.push((chase.at, obs.frame)),
+            State::Approach(chase) => self.note_failed_approach(chase.at, obs),
             _ => {}
         }
         let turn_left = obs.free.most_open() >= 0.0;
@@ -363,7 +442,7 @@ impl Machine {
             self.enter(State::Approach(chase.clone()), "sample located");
             return self.approach(obs, chase);
         }
-        let p = &self.params;
+        let p = &self.params.clone();
         match self.explorer.waypoint(&self.grid, self.map_version, &obs.position, obs.frame, p) {
             Some(waypoint) => {
                 let bearing = obs.position.bearing_to(waypoint);
@@ -373,8 +452,15 @@ impl Machine {
             None if self.map_version == 0 => {
                 self.steering.around_obstacles(0.0, p.max_speed_mps, obs.speed_mps, &obs.free, p)
             }
+            None if self.forget_stuck_marks() => {
+                tracing::info!("no frontier reachable: the cells where the rover got stuck are free again");
+                Drive::stop(self.params.brake)
+            }
             None if obs.samples_remaining > 0 && self.explorer.forget_explored() => {
-                tracing::info!("no frontier left, {} samples not found: trying given-up frontiers again", obs.samples_remaining);
+                tracing::info!(
+                    "no frontier left, {} samples not found: trying given-up frontiers again",
+                    obs.samples_remaining
+                );
                 Drive::stop(p.brake)
             }
             None => match self.sample_to_chase(obs, f64::INFINITY) {
@@ -401,6 +487,14 @@ impl Machine {
             at,
             give_up_frame: obs.frame + p.frames(p.sample_timeout_s + way_m / p.max_speed_mps),
             route: None,
+            staging: Some(self.failed_from(at))
+                .filter(|failed| !failed.is_empty())
+                .and_then(|failed| {
+                    let area = (STAGING_RADIUS_CELLS, STAGING_AWAY_M);
+                    staging_cell(&self.grid, at, &obs.position, area, &failed, p)
+                })
+                .map(Grid::centre),
+            unseen_since: None,
         };
         let seen = obs
             .rock
@@ -419,12 +513,23 @@ impl Machine {
         .map(new)
     }
 
+    fn note_failed_approach(&mut self, sample: (f64, f64), obs: &Observation) {
+        let from = (obs.position.x_m, obs.position.y_m);
+        self.failed_approaches.push(FailedApproach { sample, frame: obs.frame, from });
+    }
+
+    /// Where the rover was when approaches to the rock at `at` failed.
+    fn failed_from(&self, at: (f64, f64)) -> Vec<(f64, f64)> {
+        let near = |(x, y): (f64, f64)| (x - at.0).hypot(y - at.1) < SAME_ROCK_M;
+        self.failed_approaches.iter().filter(|f| near(f.sample)).map(|f| f.from).collect()
+    }
+
     /// Whether the rock at `at` is collected, given up, or failed too often lately.
     fn is_ignored(&self, at: (f64, f64)) -> bool {
         let near = |(x, y): (f64, f64)| (x - at.0).hypot(y - at.1) < SAME_ROCK_M;
         let recent = |frame: u64| frame + self.params.frames(self.params.sample_retry_s) > self.frame;
         self.ignored_rocks.iter().any(|&p| near(p))
-            || self.failed_approaches.iter().filter(|&&(p, frame)| near(p) && recent(frame)).count()
+            || self.failed_approaches.iter().filter(|f| near(f.sample) && recent(f.frame)).count()
                 >= APPROACHES_PER_ROCK
     }
 
@@ -443,25 +548,50 @@ impl Machine {
             chase.at = obs.position.point_at(seen.bearing_rad, seen.distance_m);
         }
         if obs.frame >= chase.give_up_frame || obs.samples_remaining == 0 {
-            self.failed_approaches.push((chase.at, obs.frame));
+            self.note_failed_approach(chase.at, obs);
             self.enter(State::Explore, "sample not reached in time");
             return Drive::stop(p.brake);
         }
         let distance_m = obs.position.distance_to(chase.at);
         let bearing = obs.position.bearing_to(chase.at);
-        let drive = if distance_m > ROUTE_APPROACH_M {
-            let route =
-                chase.route.get_or_insert_with(|| Route::to(chase.at).expect("sample positions are on the map"));
-            let waypoint =
-                route.waypoint(&self.grid, self.map_version, &obs.position, obs.frame, &p).unwrap_or(chase.at);
-            let bearing = obs.position.bearing_to(waypoint);
-            self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, &p)
-        } else {
-            let speed = p.approach_speed_mps * (distance_m / ROUTE_APPROACH_M).clamp(0.5, 1.0);
-            self.steering.toward(bearing, speed, obs.speed_mps, &p)
+        let in_view = (CHECK_RANGE_M.0..=CHECK_RANGE_M.1).contains(&distance_m)
+            && bearing.abs() <= CHECK_BEARING_DEG.to_radians()
+            && Grid::index(chase.at.0, chase.at.1)
+                .is_some_and(|cell| self.grid.line_of_sight((obs.position.x_m, obs.position.y_m), cell, 0));
+        chase.unseen_since = (in_view && obs.rock.is_none()).then(|| chase.unseen_since.unwrap_or(obs.frame));
+        if chase.unseen_since.is_some_and(|since| obs.frame >= since + p.frames(UNSEEN_S)) {
+            self.note_failed_approach(chase.at, obs);
+            self.enter(State::Explore, "sample not where remembered");
+            return Drive::stop(p.brake);
+        }
+        if chase.staging.is_some_and(|point| obs.position.distance_to(point) < STAGING_REACHED_M) {
+            (chase.staging, chase.route) = (None, None);
+        }
+        let speed = p.approach_speed_mps * (distance_m / ROUTE_APPROACH_M).clamp(0.5, 1.0);
+        let drive = match self.approach_waypoint(obs, &mut chase, distance_m) {
+            Some(waypoint) if distance_m > ROUTE_APPROACH_M => {
+                let bearing = obs.position.bearing_to(waypoint);
+                self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, &p)
+            }
+            Some(waypoint) => self.steering.toward(obs.position.bearing_to(waypoint), speed, obs.speed_mps, &p),
+            None => self.steering.toward(bearing, speed, obs.speed_mps, &p),
         };
         self.state = State::Approach(chase);
         drive
+    }
+
+    /// Where to steer on the way to a sample: along a route on the map while it is far or while a
+    /// staging cell is still ahead; `None` to drive straight at it.
+    fn approach_waypoint(&self, obs: &Observation, chase: &mut Chase, distance_m: f64) -> Option<(f64, f64)> {
+        let goal = chase.staging.unwrap_or(chase.at);
+        if distance_m <= ROUTE_APPROACH_M && chase.staging.is_none() {
+            return None;
+        }
+        if chase.route.is_none() {
+            chase.route = Route::to(goal);
+        }
+        let route = chase.route.as_mut()?;
+        Some(route.waypoint(&self.grid, self.map_version, &obs.position, obs.frame, &self.params).unwrap_or(goal))
     }
 
     fn pickup(&mut self, obs: &Observation, since_frame: u64, arm_seen: bool) -> Drive {
@@ -528,7 +658,7 @@ impl Machine {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::SIDE;
+    use crate::grid::{Cell, SIDE};
 
     fn open_ahead() -> FreeSpace {
         FreeSpace { directions_rad: vec![-0.3, 0.0, 0.3], free_m: vec![6.0, 6.0, 6.0] }
@@ -611,6 +741,62 @@ mod tests {
         machine.step(&obs);
         assert_eq!(machine.status().mode, Mode::Explore);
         assert_eq!((machine.status().reason.as_str(), machine.status().samples_collected), ("sample collected", 1));
+    }
+
+    #[test]
+    fn a_remembered_sample_that_the_camera_does_not_see_from_close_by_is_given_up_for_a_while() {
+        let params = DecisionParams::default();
+        let mut machine = Machine::new(params.clone());
+        machine.set_map(corridor());
+        machine.set_rocks(vec![(102.5, 100.5)]);
+        machine.step(&observation(1, 100.5, 100.5));
+        let mut not_there = 0;
+        for frame in 2..10 * params.frames(UNSEEN_S) {
+            machine.step(&observation(frame, 100.5, 100.5));
+            not_there += (machine.take_change() && machine.status().reason == "sample not where remembered") as usize;
+        }
+        assert_eq!(not_there, APPROACHES_PER_ROCK, "approached and not seen, then given up");
+        assert!(machine.status().mode == Mode::Explore && machine.is_ignored((102.5, 100.5)));
+        machine.frame += params.frames(params.sample_retry_s);
+        assert!(!machine.is_ignored((102.5, 100.5)), "tried again later");
+    }
+
+    #[test]
+    fn a_slow_approach_is_not_stuck_a_stopped_rover_is() {
+        let params = DecisionParams::default();
+        let mut machine = Machine::new(params.clone());
+        machine.last_drive = Drive { throttle: 0.2, brake: 0.0, steering_deg: 0.0 };
+        let slow = |frame: u64, speed_mps: f64| {
+            let mut obs = observation(frame, 100.0 + 0.004 * frame as f64, 100.5);
+            obs.speed_mps = speed_mps;
+            obs
+        };
+        let watch = params.frames(params.stuck_s) + 2;
+        assert!((1..watch).all(|frame| !machine.stuck(&slow(frame, 0.15))), "0.15 m/s, less than 0.3 m in 1.5 s");
+        assert!((watch..2 * watch).any(|frame| machine.stuck(&slow(frame, 0.0))), "stopped");
+    }
+
+    #[test]
+    fn stuck_twice_at_one_spot_makes_the_cell_ahead_an_obstacle_until_nothing_else_is_left() {
+        let params = DecisionParams::default();
+        let mut machine = Machine::new(params.clone());
+        machine.set_map(corridor());
+        let ahead = Grid::index(101.4, 100.5).unwrap();
+        machine.mark_if_stuck_again(&observation(10, 100.5, 100.5));
+        assert_eq!(machine.grid.cell(ahead), Cell::Free, "stuck once: nothing marked");
+        machine.mark_if_stuck_again(&observation(200, 100.7, 100.4));
+        assert_eq!(machine.grid.cell(ahead), Cell::Blocked, "stuck again here: the cell ahead is an obstacle");
+        assert_eq!(machine.map.cell(ahead), Cell::Free, "the map itself is kept");
+        machine.set_map(corridor());
+        assert_eq!(machine.grid.cell(ahead), Cell::Blocked, "and stays marked in the next map");
+        assert!(machine.forget_stuck_marks() && machine.grid.cell(ahead) == Cell::Free);
+        machine.mark_if_stuck_again(&observation(300, 100.5, 100.5));
+        machine.frame = 300 + params.frames(STUCK_MARK_S) - 1;
+        machine.set_map(corridor());
+        assert_eq!(machine.grid.cell(ahead), Cell::Blocked, "marked again");
+        machine.frame += 1;
+        machine.set_map(corridor());
+        assert_eq!(machine.grid.cell(ahead), Cell::Free, "until the mark expires");
     }
 
     #[test]

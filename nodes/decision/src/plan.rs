@@ -64,6 +64,30 @@ pub fn lookahead(path: &[usize], at: &Position, lookahead_m: f64) -> Option<(f64
     ahead.iter().find(|cell| distance(cell) >= lookahead_m).or(ahead.last()).map(|&cell| Grid::centre(cell))
 }
 
+/// A free cell beside `goal` (within `radius_cells`) with a clear line of sight to it on the
+/// map (past the wall or bank cells right around it), at least `away_m` from every point of
+/// `avoid`, the cheapest to reach from `at`: where to start a straight final approach to a
+/// sample by a wall after one from `avoid` failed.
+pub fn staging_cell(
+    grid: &Grid,
+    goal: (f64, f64),
+    at: &Position,
+    (radius_cells, away_m): (usize, f64),
+    avoid: &[(f64, f64)],
+    params: &DecisionParams,
+) -> Option<usize> {
+    let (start, goal) = (Grid::index(at.x_m, at.y_m)?, Grid::index(goal.0, goal.1)?);
+    let costs = grid.costs_from(start, &path_costs(params));
+    let far_from_failures = |cell: usize| {
+        let (x, y) = Grid::centre(cell);
+        avoid.iter().all(|p| (p.0 - x).hypot(p.1 - y) >= away_m)
+    };
+    Grid::cells_around(goal, radius_cells)
+        .filter(|&cell| cell != goal && grid.cell(cell) == Cell::Free && costs.distance[cell].is_finite())
+        .filter(|&cell| far_from_failures(cell) && grid.line_of_sight(Grid::centre(cell), goal, 1))
+        .min_by(|&a, &b| costs.distance[a].total_cmp(&costs.distance[b]))
+}
+
 /// A path to one goal, replanned every few frames.
 #[derive(Debug, Clone)]
 pub struct Route {
@@ -393,6 +417,24 @@ mod tests {
             "{first:?} then {second:?}"
         );
         assert!(explorer.forget_explored());
+    }
+
+    #[test]
+    fn a_staging_cell_sees_the_goal_past_the_wall_corner() {
+        let mut data = vec![0i8; SIDE * SIDE];
+        let wall = (79..=83).flat_map(|x| (104..=110).map(move |y| (x, y)));
+        for (x, y) in wall.chain([(84, 109), (84, 110), (84, 111), (83, 111)]) {
+            data[y * SIDE + x] = 100;
+        }
+        let grid = Grid::from_occupancy(&data).unwrap();
+        let params = DecisionParams::default();
+        let rover = Position { x_m: 82.5, y_m: 111.5, yaw_rad: 0.0 };
+        let goal = Grid::index(84.5, 109.5).unwrap();
+        assert!(!grid.line_of_sight((82.5, 111.5), goal, 1), "the corner is in the way");
+        let cell = staging_cell(&grid, (84.5, 109.5), &rover, (2, 1.5), &[(82.5, 111.5)], &params).unwrap();
+        let centre = Grid::centre(cell);
+        assert!(grid.cell(cell) == Cell::Free && centre.0 > 84.0, "beside the goal, past the corner: {centre:?}");
+        assert!(grid.line_of_sight(centre, goal, 1));
     }
 
     #[test]
