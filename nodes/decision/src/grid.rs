@@ -27,6 +27,8 @@ pub struct Costs {
     pub near_wall: f32,
     /// Whether unknown cells may be crossed at all.
     pub cross_unknown: bool,
+    /// Extra cost of crossing an obstacle cell beyond the escape radius; `None`: they block.
+    pub obstacle: Option<f32>,
 }
 
 /// The occupancy grid with planning helpers.
@@ -85,14 +87,22 @@ impl Grid {
         ((i % SIDE) as f64 + 0.5, (i / SIDE) as f64 + 0.5)
     }
 
-    /// Whether a plan from `start` cannot cross `cell`: an obstacle beyond the escape radius.
-    fn walls_off(&self, cell: usize, start: usize) -> bool {
+    /// Whether `cell` is an obstacle beyond the escape radius of a plan from `start`.
+    fn beyond_escape(&self, cell: usize, start: usize) -> bool {
         self.cells[cell] == Cell::Blocked && chebyshev(cell, start) > ESCAPE_RADIUS_CELLS
+    }
+
+    /// Whether a plan from `start` with `costs` cannot cross `cell`.
+    fn walls_off(&self, cell: usize, start: usize, costs: &Costs) -> bool {
+        costs.obstacle.is_none() && self.beyond_escape(cell, start)
     }
 
     fn step_cost(&self, i: usize, costs: &Costs, start: usize) -> Option<f32> {
         match self.cells[i] {
-            Cell::Blocked if self.walls_off(i, start) => None,
+            Cell::Blocked if self.walls_off(i, start, costs) => None,
+            Cell::Blocked if self.beyond_escape(i, start) => {
+                Some(1.0 + costs.near_wall + costs.unknown + costs.obstacle.unwrap_or(0.0))
+            }
             Cell::Blocked => Some(1.0 + costs.near_wall + costs.unknown),
             Cell::Unknown if !costs.cross_unknown => None,
             Cell::Unknown => Some(1.0 + costs.unknown),
@@ -124,8 +134,8 @@ impl Grid {
                 let n = ny as usize * SIDE + nx as usize;
                 let diagonal = dx != 0 && dy != 0;
                 if diagonal
-                    && (self.walls_off(y as usize * SIDE + nx as usize, start)
-                        || self.walls_off(ny as usize * SIDE + x as usize, start))
+                    && (self.walls_off(y as usize * SIDE + nx as usize, start, costs)
+                        || self.walls_off(ny as usize * SIDE + x as usize, start, costs))
                 {
                     continue;
                 }
@@ -265,7 +275,7 @@ fn neighbours8(i: usize) -> impl Iterator<Item = usize> {
 mod tests {
     use super::*;
 
-    const COSTS: Costs = Costs { unknown: 2.0, near_wall: 3.0, cross_unknown: true };
+    const COSTS: Costs = Costs { unknown: 2.0, near_wall: 3.0, cross_unknown: true, obstacle: None };
 
     #[test]
     fn an_obstacle_hides_what_lies_behind_it() {

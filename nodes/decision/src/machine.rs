@@ -463,6 +463,13 @@ impl Machine {
                 );
                 Drive::stop(p.brake)
             }
+            None if obs.samples_remaining > 0 && self.explorer.look_past_obstacles() => {
+                tracing::info!(
+                    "no frontier left, {} samples not found: planning past obstacle cells",
+                    obs.samples_remaining
+                );
+                Drive::stop(self.params.brake)
+            }
             None => match self.sample_to_chase(obs, f64::INFINITY) {
                 Some(chase) => {
                     self.enter(State::Approach(chase.clone()), "map explored, sample left");

@@ -8,6 +8,9 @@ use crate::params::DecisionParams;
 const FRONTIER_RADIUS_CELLS: usize = 2;
 /// Cells within this distance of a reached or abandoned target stop being frontier candidates.
 const EXPLORED_RADIUS_CELLS: i64 = 3;
+/// Extra path cost of an obstacle cell once the explorer looks past obstacles (a narrow canyon
+/// whose floor the map got wrong).
+const OBSTACLE_CROSSING_COST: f32 = 50.0;
 /// Recoveries on the way to one target before it is abandoned.
 const RECOVERIES_PER_TARGET: u32 = 2;
 /// A goal on an obstacle cell is reached through the cheapest reachable cell this close, cells.
@@ -52,7 +55,12 @@ pub fn wrap_rad(angle_rad: f64) -> f64 {
 
 /// The path costs of `params`.
 pub fn path_costs(params: &DecisionParams) -> Costs {
-    Costs { unknown: params.unknown_cost as f32, near_wall: params.near_wall_cost as f32, cross_unknown: true }
+    Costs {
+        unknown: params.unknown_cost as f32,
+        near_wall: params.near_wall_cost as f32,
+        cross_unknown: true,
+        obstacle: None,
+    }
 }
 
 /// The point of `path` the rover steers toward: the first cell at least `lookahead_m` away, after
@@ -142,6 +150,7 @@ fn replan_due(planned: Option<(u64, u64)>, frame: u64, map_version: u64, params:
 pub struct Explorer {
     target: Option<Target>,
     look: Option<Look>,
+    past_obstacles: bool,
     inspected: Vec<bool>,
     explored: Vec<bool>,
     costs: Option<CostMap>,
@@ -169,6 +178,7 @@ impl Default for Explorer {
         Explorer {
             target: None,
             look: None,
+            past_obstacles: false,
             inspected: vec![false; cells],
             explored: vec![false; cells],
             costs: None,
@@ -219,6 +229,17 @@ impl Explorer {
                 self.abandon_target();
             }
         }
+    }
+
+    /// Plans past obstacle cells from now on, at a high cost: frontiers that the map walls off
+    /// become candidates. Returns whether it did not already.
+    pub fn look_past_obstacles(&mut self) -> bool {
+        !std::mem::replace(&mut self.past_obstacles, true)
+    }
+
+    fn costs(&self, params: &DecisionParams) -> Costs {
+        let obstacle = self.past_obstacles.then_some(OBSTACLE_CROSSING_COST);
+        Costs { obstacle, ..path_costs(params) }
     }
 
     /// Makes every frontier a candidate again; returns whether any had been ruled out.
@@ -280,7 +301,7 @@ impl Explorer {
     }
 
     fn replan(&mut self, grid: &Grid, start: usize, at: &Position, frame: u64, params: &DecisionParams) {
-        let costs = grid.costs_from(start, &path_costs(params));
+        let costs = grid.costs_from(start, &self.costs(params));
         let keep = self.target.as_ref().is_some_and(|t| self.is_candidate(grid, &costs, t.cell, params));
         if !keep {
             self.target = self.best_frontier(grid, &costs, at, params).map(|cell| Target {
@@ -435,6 +456,31 @@ mod tests {
         let centre = Grid::centre(cell);
         assert!(grid.cell(cell) == Cell::Free && centre.0 > 84.0, "beside the goal, past the corner: {centre:?}");
         assert!(grid.line_of_sight(centre, goal, 1));
+    }
+
+    #[test]
+    fn past_obstacles_a_walled_off_frontier_becomes_a_target() {
+        let mut data = vec![100i8; SIDE * SIDE];
+        for y in 50..54 {
+            for x in 20..40 {
+                data[y * SIDE + x] = match x {
+                    24 | 25 => 100,
+                    30.. => -1,
+                    _ => 0,
+                };
+            }
+        }
+        let grid = Grid::from_occupancy(&data).unwrap();
+        let params = DecisionParams::default();
+        let mut explorer = Explorer::default();
+        for yaw_deg in [0.0f64, 90.0, 180.0, 270.0] {
+            explorer.inspect(&Position { x_m: 22.0, y_m: 52.0, yaw_rad: yaw_deg.to_radians() }, &params);
+        }
+        let rover = at(22.0, 52.0);
+        assert_eq!(explorer.waypoint(&grid, 1, &rover, 0, &params), None, "the far side is walled off");
+        assert!(explorer.look_past_obstacles() && !explorer.look_past_obstacles());
+        explorer.waypoint(&grid, 2, &rover, 1, &params);
+        assert!(explorer.target().is_some_and(|t| t.0 > 26.0), "{:?}", explorer.target());
     }
 
     #[test]
