@@ -94,15 +94,7 @@ impl RunResult {
             && self.sim_seconds <= 1200.0
             && self.final_mode == "done"
     }
-}
 
-impl EvalArgs {
-    fn world(&self, seed: u64) -> anyhow::Result<rover_sim::world::World> {
-        rover_sim::cli::SimArgs::world_for(self.map.as_deref(), seed)
-    }
-}
-
-impl RunResult {
     /// The result of the mission of `seed` in a world with `samples` samples.
     pub fn of(seed: u64, samples: usize, report: &SimReport, progress: &Progress, wall_seconds: f64) -> Self {
         RunResult {
@@ -118,6 +110,12 @@ impl RunResult {
             frames_per_second: report.frames as f64 / wall_seconds.max(1e-9),
             final_mode: progress.mode.clone(),
         }
+    }
+}
+
+impl EvalArgs {
+    fn world(&self, seed: u64) -> anyhow::Result<rover_sim::world::World> {
+        rover_sim::cli::SimArgs::world_for(self.map.as_deref(), seed)
     }
 }
 

@@ -18,7 +18,7 @@ use support::{Domain, Latest, NoParams, rover, test_runtime};
 /// Sim time at which the decision node is killed, seconds.
 const KILL_AT_SIM_S: f64 = 20.0;
 /// The procedural world of the mission.
-const SEED: u64 = 3;
+const SEED: u64 = 0;
 /// Wall time the graph runs without a decision node.
 const DEAD_FOR: Duration = Duration::from_secs(4);
 
@@ -90,7 +90,6 @@ async fn a_killed_decision_node_brakes_the_rover_and_a_restarted_one_finishes_th
     let result = RunResult::of(SEED, samples, &outcome.report, &outcome.progress, started.elapsed().as_secs_f64());
     println!("{}", rover::eval::table(std::slice::from_ref(&result)));
     let collected_at_kill = collected_at_kill.expect("killed");
-    assert!(result.final_mode == "done" && result.home_distance_m <= 3.0, "back home and done: {result:?}");
-    assert!(result.mapped_pct >= 90.0 && result.fidelity_pct >= 85.0, "the map is done: {result:?}");
     assert!(result.collected > collected_at_kill, "samples collected after the restart: {result:?}");
+    assert!(result.complete(), "the mission completed (map, every sample, home, in time): {result:?}");
 }
