@@ -1,15 +1,15 @@
 #!/usr/bin/env python3
 """Evaluate the seed baseline (drive_baseline.py) against `rover sim`, one run per seed.
 
-For every seed it starts drive_baseline.py on a free port (with the map as its ground truth), waits
-for its "ready on" line, runs `rover sim --map PNG --seed N --port P --max-sim-seconds S --report
+For every seed it starts drive_baseline.py on a free port (with the world's ground truth), waits
+for its "ready on" line, runs `rover sim [--map PNG] --seed N --port P --max-sim-seconds S --report
 FILE`, then combines the simulator's report with the driver's statistics into one row with the
 fields of `rover eval --json`: seed, mapped_pct, fidelity_pct, located, collected, samples,
 home_distance_m, sim_seconds, wall_seconds, frames_per_second, final_mode.
 
-Only --map is supported: `rover sim` has no way to write the ground truth of a procedural world
-(neither an option nor a field of its --report), so mapped % and fidelity % of a procedural run
-could not be scored.
+With --map PNG the map is also the ground truth. With --procedural each seed's world is the
+simulator's procedural one, and `rover sim --seed N --export-map FILE` first writes its ground
+truth (same format as map_bw.png) for the driver.
 
 Progress goes to stderr; the table (or with --json the JSON list) goes to stdout. Ctrl-C stops the
 simulator and the driver, prints the runs finished so far and exits with status 130.
@@ -17,6 +17,7 @@ simulator and the driver, prints the runs finished so far and exits with status 
 import argparse
 import json
 import os
+import shlex
 import shutil
 import signal
 import socket
@@ -38,6 +39,7 @@ TARGET_FIDELITY_PCT = 85.0
 TARGET_HOME_DISTANCE_M = 3.0
 TARGET_SIM_SECONDS = 1200.0
 
+EXPORT_TIMEOUT_S = 60.0       # `rover sim --export-map` (builds the world, writes one PNG)
 READY_TIMEOUT_S = 60.0        # driver start-up (imports of eventlet, numpy, opencv)
 DRIVER_EXIT_TIMEOUT_S = 30.0  # the driver leaves 2 s after the simulator; then writes its stats
 STOP_GRACE_S = 10.0           # after a stop signal, before SIGKILL
@@ -97,15 +99,14 @@ def parse_args(argv):
         description='Run the seed baseline (drive_baseline.py) against `rover sim` once per seed '
                     'and print a table of the scores, or with --json a list with the fields of '
                     '`rover eval --json`.',
-        epilog='Only --map is supported: `rover sim` cannot write the ground truth of a procedural '
-               'world, so --procedural runs could not be scored. A run is "complete" when mapped '
-               '>= 90 %, fidelity >= 85 %, every sample collected, home distance <= 3 m and sim '
-               'time <= 1200 s.')
+        epilog='A run is "complete" when mapped >= 90 %, fidelity >= 85 %, every sample '
+               'collected, home distance <= 3 m and sim time <= 1200 s.')
     world = parser.add_mutually_exclusive_group(required=True)
     world.add_argument('--map', metavar='PNG',
                        help='world map (200x200 PNG, navigable > 0), also the ground truth')
     world.add_argument('--procedural', action='store_true',
-                       help='procedural worlds: NOT supported (no ground truth available)')
+                       help="the simulator's procedural world of each seed (its ground truth "
+                            'written by `rover sim --export-map`)')
     parser.add_argument('--seeds', default='0..9', type=parse_seeds,
                         help='seeds, e.g. 0..9 (inclusive) or 4 (default 0..9)')
     parser.add_argument('--json', action='store_true', help='print one JSON list instead of a table')
@@ -115,17 +116,15 @@ def parse_args(argv):
                         help='the rover binary (default: target/release/rover, built with '
                              '`cargo build --release` if missing)')
     parser.add_argument('--keep', metavar='DIR',
-                        help="keep each run's simulator report, driver stats, logs and world map in DIR")
+                        help="keep each run's simulator report, driver stats, logs, world map "
+                             'and (with --procedural) ground-truth PNG in DIR')
     parser.add_argument('--run-timeout', type=positive_float, default=7200.0, metavar='S',
                         help='wall-clock limit of one run, seconds (default 7200)')
     args = parser.parse_args(argv)
-    if args.procedural:
-        parser.error('--procedural is not supported: `rover sim` cannot write the ground truth of '
-                     'its procedural world (no option, and its --report has no map), so mapped % '
-                     'and fidelity % could not be scored; use --map PNG')
-    if not os.path.isfile(args.map):
-        parser.error(f'--map {args.map}: no such file')
-    args.map = os.path.abspath(args.map)
+    if args.map is not None:
+        if not os.path.isfile(args.map):
+            parser.error(f'--map {args.map}: no such file')
+        args.map = os.path.abspath(args.map)
     if args.rover != DEFAULT_ROVER and not os.path.isfile(args.rover):
         parser.error(f'--rover {args.rover}: no such file')
     return args
@@ -239,13 +238,32 @@ class RunFiles:
         self.driver_stats = f'{stem}_driver.json'
         self.driver_log = f'{stem}_driver.log'
         self.worldmap = f'{stem}_worldmap.npy'
+        self.truth = f'{stem}_truth.png'
 
     def clear(self):
         """Removes the outputs of an earlier run (with --keep), so none is taken for this one's."""
         for path in (self.sim_report, self.sim_log, self.driver_stats, self.driver_log,
-                     self.worldmap):
+                     self.worldmap, self.truth):
             if os.path.exists(path):
                 os.remove(path)
+
+
+def export_ground_truth(rover, seed, files):
+    """Writes the ground truth of the procedural world `seed` to files.truth with `rover sim
+    --seed N --export-map FILE` and returns that path; raises EvalError if it fails."""
+    command = [rover, 'sim', '--seed', str(seed), '--export-map', files.truth]
+    failed = f'seed {seed}: `{shlex.join(command)}`'
+    try:
+        export = subprocess.run(command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, timeout=EXPORT_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        raise EvalError(f'{failed} did not finish within {EXPORT_TIMEOUT_S:.0f} s') from None
+    output = export.stdout.decode('utf-8', 'replace').rstrip() or '(no output)'
+    if export.returncode != 0:
+        raise EvalError(f'{failed} exited with status {export.returncode}; its output:\n{output}')
+    if not os.path.isfile(files.truth):
+        raise EvalError(f'{failed} wrote no {files.truth}; its output:\n{output}')
+    return files.truth
 
 
 def start_driver(map_png, files):
@@ -301,8 +319,10 @@ def simulator_progress_relay(seed):
 
 
 def run_simulator(rover, args, seed, port, files):
-    """Runs `rover sim` for one seed until it exits; raises EvalError on a failure."""
-    command = [rover, 'sim', '--map', args.map, '--seed', str(seed), '--port', str(port),
+    """Runs `rover sim` for one seed (on --map, or else its procedural world) until it exits;
+    raises EvalError on a failure."""
+    world = ['--map', args.map] if args.map is not None else []
+    command = [rover, 'sim', *world, '--seed', str(seed), '--port', str(port),
                '--max-sim-seconds', f'{args.max_sim_seconds:g}', '--report', files.sim_report]
     with open(files.sim_log, 'a') as log:
         sim = start_process(command, log, 'stderr', simulator_progress_relay(seed))
@@ -343,7 +363,8 @@ def run_seed(rover, args, seed, work_dir):
     """One complete run (driver + simulator) for `seed`; returns its result row."""
     files = RunFiles(work_dir, seed)
     files.clear()
-    driver, port, driver_log = start_driver(args.map, files)
+    truth = args.map if args.map is not None else export_ground_truth(rover, seed, files)
+    driver, port, driver_log = start_driver(truth, files)
     progress(f'seed {seed}: driver ready on port {port} (pid {driver.pid}); starting rover sim')
     try:
         run_simulator(rover, args, seed, port, files)
