@@ -1,5 +1,6 @@
 //! The headless simulator against the real bridge: it reconnects when the bridge goes away and
-//! comes back, as the Unity client does, and the run then goes on.
+//! comes back, as the Unity client does, and the run then goes on; at its end the simulator closes
+//! the connection as Unity does on quit, and the bridge sees a clean close.
 
 mod support;
 
@@ -8,7 +9,7 @@ use std::time::Duration;
 
 use rover_sim::sim::{SimConfig, Simulator};
 use rover_sim::wire::client::{ClientConfig, run_client};
-use support::{Domain, Process, echo_node, rover, wait_for_port};
+use support::{Domain, Process, echo_node, eventually, rover, wait_for_port};
 
 fn start_bridge(domain: &Domain) -> Process {
     let port = format!("port:={}", domain.port());
@@ -45,4 +46,9 @@ async fn the_simulator_reconnects_after_the_bridge_restarts() {
     assert!(stats.connections >= 2, "reconnected: {stats:?}");
     assert!((simulator.report().sim_seconds - 40.0).abs() < 1e-6, "the run went on to its end");
     assert_eq!(stats.commands_dropped, 0);
+    let bridge = bridge.lock().unwrap().take().expect("the restarted bridge");
+    let closed = eventually(Duration::from_secs(5), || bridge.log_text().contains("simulator disconnected (closed)"));
+    let log = bridge.log_text();
+    assert!(closed, "the bridge saw a clean close: {log}");
+    assert!(!log.contains("cannot send the reply"), "no reply failed: {log}");
 }

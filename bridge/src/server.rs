@@ -14,6 +14,7 @@ use bytes::Bytes;
 use engineioxide::handler::EngineIoHandler;
 use engineioxide::socket::{DisconnectReason, Socket};
 use engineioxide::{Str, config::EngineIoConfig, layer::EngineIoLayer};
+use tokio::sync::mpsc::error::TrySendError;
 use tower::util::MapRequestLayer;
 
 use crate::lockstep::{FrameSink, InFlight, LockStep};
@@ -166,14 +167,22 @@ fn send_reply<S: FrameSink>(socket: &Socket<()>, core: &LockStep<S>, reply: &Rep
         Reply::Pickup => sio::encode_event("pickup", &empty),
         Reply::Manual => sio::encode_event("manual", &empty),
     };
-    let sent = match encoded {
-        Ok(text) => socket.emit(text).map_err(|e| e.to_string()),
-        Err(e) => Err(e.to_string()),
+    let text = match encoded {
+        Ok(text) => text,
+        Err(e) => return reply_not_sent(socket, core, &e.to_string()),
     };
-    if let Err(e) = sent {
-        tracing::warn!(sid = %socket.id, "cannot send the reply: {e}");
-        core.stats().problem("reply_not_sent");
+    match socket.emit(text) {
+        Ok(()) => {}
+        Err(TrySendError::Closed(_)) => {
+            tracing::debug!(sid = %socket.id, "no reply sent: the simulator has closed the connection")
+        }
+        Err(e) => reply_not_sent(socket, core, &e.to_string()),
     }
+}
+
+fn reply_not_sent<S: FrameSink>(socket: &Socket<()>, core: &LockStep<S>, problem: &str) {
+    tracing::warn!(sid = %socket.id, "cannot send the reply: {problem}");
+    core.stats().problem("reply_not_sent");
 }
 
 #[cfg(test)]

@@ -20,6 +20,8 @@ use super::packet::{self, Inbound};
 
 /// websocket-sharp splits outgoing messages into frames of this many bytes.
 pub const FRAGMENT_BYTES: usize = 1016;
+/// How long a closing client waits for the server to close its side.
+const CLOSE_WAIT: Duration = Duration::from_secs(1);
 
 /// The URL the Unity client connects to on `host:port`.
 pub fn unity_url(host: &str, port: u16) -> String {
@@ -98,11 +100,15 @@ impl Connection {
         None
     }
 
-    /// Closes as Unity does on quit: `41`, then `1`, then the websocket close.
+    /// Closes as Unity does on quit: `41`, then `1`, then the websocket close, and waits (at most
+    /// `CLOSE_WAIT`) for the server's close: a socket dropped with a reply still unread is reset,
+    /// and the server loses the close packets with it.
     pub async fn close(mut self) {
         let _ = self.send_text(packet::DISCONNECT).await;
         let _ = self.send_text(packet::CLOSE).await;
         let _ = self.socket.close(None).await;
+        let drained = async { while let Some(Ok(_)) = self.socket.next().await {} };
+        let _ = tokio::time::timeout(CLOSE_WAIT, drained).await;
     }
 }
 
@@ -172,7 +178,7 @@ pub async fn run_client<S: Simulation>(
             opened = Connection::open(&config.url) => opened,
             () = &mut stop => break,
         };
-        let connection = match opened {
+        let mut connection = match opened {
             Ok(connection) => connection,
             Err(e) => {
                 if !std::mem::replace(&mut waiting_logged, true) {
@@ -187,11 +193,12 @@ pub async fn run_client<S: Simulation>(
         waiting_logged = false;
         stats.connections += 1;
         tracing::info!("connected to {}", config.url);
-        let finished = tokio::select! {
-            finished = serve_connection(connection, simulation, config, &mut stats) => finished,
-            () = &mut stop => break,
+        let over = tokio::select! {
+            finished = serve_connection(&mut connection, simulation, config, &mut stats) => finished,
+            () = &mut stop => true,
         };
-        if finished {
+        if over {
+            connection.close().await;
             break;
         }
         tracing::warn!("connection to {} lost; reconnecting", config.url);
@@ -201,14 +208,13 @@ pub async fn run_client<S: Simulation>(
 
 /// Runs one connection; returns true when the simulation finished, false when the connection dropped.
 async fn serve_connection<S: Simulation>(
-    mut connection: Connection,
+    connection: &mut Connection,
     simulation: &mut S,
     config: &ClientConfig,
     stats: &mut ClientStats,
 ) -> bool {
     let mut next_ping: Option<Instant> = None;
-    if emit_telemetry(&mut connection, simulation, stats).await.is_err()
-        || connection.send_text(packet::PING).await.is_err()
+    if emit_telemetry(connection, simulation, stats).await.is_err() || connection.send_text(packet::PING).await.is_err()
     {
         return false;
     }
@@ -229,7 +235,7 @@ async fn serve_connection<S: Simulation>(
         };
         let Some(inbound) = inbound else { return false };
         let sent = match inbound {
-            Inbound::Open { .. } => emit_telemetry(&mut connection, simulation, stats).await,
+            Inbound::Open { .. } => emit_telemetry(connection, simulation, stats).await,
             Inbound::Ping => connection.send_text(packet::PONG).await,
             Inbound::Pong => {
                 next_ping = Some(Instant::now() + config.ping_interval);
@@ -243,7 +249,7 @@ async fn serve_connection<S: Simulation>(
                     if let Some(due) = simulation.due_at() {
                         tokio::time::sleep_until(due.into()).await;
                     }
-                    emit_telemetry(&mut connection, simulation, stats).await
+                    emit_telemetry(connection, simulation, stats).await
                 }
                 Ok(None) => {
                     stats.events_ignored += 1;
@@ -266,7 +272,6 @@ async fn serve_connection<S: Simulation>(
             return false;
         }
         if simulation.finished() {
-            connection.close().await;
             return true;
         }
     }
