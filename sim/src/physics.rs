@@ -269,10 +269,7 @@ impl Rover {
             (step, 1.0)
         } else {
             let slide = contact_normal(world, samples, self.x_m + step[0], self.y_m + step[1], FOOTPRINT_RADIUS_M)
-                .map(|normal| {
-                    let into = step[0] * normal[0] + step[1] * normal[1];
-                    [step[0] - into * normal[0], step[1] - into * normal[1]]
-                })
+                .map(|normal| without_part_along(step, normal))
                 .filter(|slide| free_at(slide[0], slide[1]));
             let length = step[0].hypot(step[1]);
             let slide = slide.or_else(|| {
@@ -355,12 +352,17 @@ fn contact_normals(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) ->
 fn slide_along_contacts(world: &World, samples: &[Sample], x: f64, y: f64, step: [f64; 2]) -> [f64; 2] {
     let mut slide = step;
     for normal in contact_normals(world, samples, x, y, FOOTPRINT_RADIUS_M + CONTACT_MARGIN_M) {
-        let into = slide[0] * normal[0] + slide[1] * normal[1];
-        if into < 0.0 {
-            slide = [slide[0] - into * normal[0], slide[1] - into * normal[1]];
+        if slide[0] * normal[0] + slide[1] * normal[1] < 0.0 {
+            slide = without_part_along(slide, normal);
         }
     }
     slide
+}
+
+/// `step` less its component along the unit vector `normal`.
+fn without_part_along(step: [f64; 2], normal: [f64; 2]) -> [f64; 2] {
+    let along = step[0] * normal[0] + step[1] * normal[1];
+    [step[0] - along * normal[0], step[1] - along * normal[1]]
 }
 
 /// The largest fraction of a move in [0, 1] that stays free, by bisection (`blocked(0)` is false).

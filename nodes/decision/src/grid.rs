@@ -99,9 +99,8 @@ impl Grid {
 
     fn step_cost(&self, i: usize, costs: &Costs, start: usize) -> Option<f32> {
         match self.cells[i] {
-            Cell::Blocked if self.walls_off(i, start, costs) => None,
             Cell::Blocked if self.beyond_escape(i, start) => {
-                Some(1.0 + costs.near_wall + costs.unknown + costs.obstacle.unwrap_or(0.0))
+                costs.obstacle.map(|extra| 1.0 + costs.near_wall + costs.unknown + extra)
             }
             Cell::Blocked => Some(1.0 + costs.near_wall + costs.unknown),
             Cell::Unknown if !costs.cross_unknown => None,

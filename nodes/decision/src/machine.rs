@@ -50,6 +50,11 @@ const STUCK_MARK_S: f64 = 120.0;
 /// The marked cell is the one this far ahead of the rover's position: its front, metres.
 const STUCK_MARK_AHEAD_M: f64 = 0.9;
 
+/// Whether rocks located at `a` and `b` are taken to be one.
+fn same_rock(a: (f64, f64), b: (f64, f64)) -> bool {
+    (a.0 - b.0).hypot(a.1 - b.1) < SAME_ROCK_M
+}
+
 /// Watches the rover's progress: how long it has stayed within some distance of one spot.
 #[derive(Debug, Clone, Copy, Default)]
 struct ProgressWatch {
@@ -285,10 +290,12 @@ impl Machine {
 
     /// Forgets the cells marked where the rover got stuck; returns whether there were any.
     fn forget_stuck_marks(&mut self) -> bool {
-        let any = !self.stuck_marks.is_empty();
+        if self.stuck_marks.is_empty() {
+            return false;
+        }
         self.stuck_marks.clear();
         self.apply_stuck_marks();
-        any
+        true
     }
 
     /// Takes the located rocks, world positions.
@@ -418,8 +425,7 @@ impl Machine {
         if let Some(cell) = Grid::index(ahead.0, ahead.1).filter(|_| again) {
             tracing::debug!(cell = ?Grid::centre(cell), "stuck again here: the cell ahead is an obstacle for a while");
             self.stuck_marks.push((cell, obs.frame + self.params.frames(STUCK_MARK_S)));
-            self.grid.block(cell);
-            self.map_version += 1;
+            self.apply_stuck_marks();
         }
     }
 
@@ -454,7 +460,7 @@ impl Machine {
             }
             None if self.forget_stuck_marks() => {
                 tracing::info!("no frontier reachable: the cells where the rover got stuck are free again");
-                Drive::stop(self.params.brake)
+                Drive::stop(p.brake)
             }
             None if obs.samples_remaining > 0 && self.explorer.forget_explored() => {
                 tracing::info!(
@@ -468,7 +474,7 @@ impl Machine {
                     "no frontier left, {} samples not found: planning past obstacle cells",
                     obs.samples_remaining
                 );
-                Drive::stop(self.params.brake)
+                Drive::stop(p.brake)
             }
             None => match self.sample_to_chase(obs, f64::INFINITY) {
                 Some(chase) => {
@@ -527,16 +533,14 @@ impl Machine {
 
     /// Where the rover was when approaches to the rock at `at` failed.
     fn failed_from(&self, at: (f64, f64)) -> Vec<(f64, f64)> {
-        let near = |(x, y): (f64, f64)| (x - at.0).hypot(y - at.1) < SAME_ROCK_M;
-        self.failed_approaches.iter().filter(|f| near(f.sample)).map(|f| f.from).collect()
+        self.failed_approaches.iter().filter(|f| same_rock(f.sample, at)).map(|f| f.from).collect()
     }
 
     /// Whether the rock at `at` is collected, given up, or failed too often lately.
     fn is_ignored(&self, at: (f64, f64)) -> bool {
-        let near = |(x, y): (f64, f64)| (x - at.0).hypot(y - at.1) < SAME_ROCK_M;
         let recent = |frame: u64| frame + self.params.frames(self.params.sample_retry_s) > self.frame;
-        self.ignored_rocks.iter().any(|&p| near(p))
-            || self.failed_approaches.iter().filter(|f| near(f.sample) && recent(f.frame)).count()
+        self.ignored_rocks.iter().any(|&p| same_rock(p, at))
+            || self.failed_approaches.iter().filter(|f| same_rock(f.sample, at) && recent(f.frame)).count()
                 >= APPROACHES_PER_ROCK
     }
 

@@ -246,9 +246,10 @@ impl WorldMap {
     /// The located rocks, world metres: rock cells within `merge_m` are one rock (see
     /// [`rock_positions`]).
     pub fn rocks(&self, merge_m: f64) -> Vec<(f64, f64)> {
-        let cells: Vec<RockCell> = (0..MAP_SIDE * MAP_SIDE)
-            .filter(|&c| self.is_rock(c))
-            .map(|c| RockCell { x: c % MAP_SIDE, y: c / MAP_SIDE, range_m: self.rock_range_m[c] })
+        let cells: Vec<RockCell> = self
+            .rock_cells()
+            .into_iter()
+            .map(|(x, y)| RockCell { x, y, range_m: self.rock_range_m[y * MAP_SIDE + x] })
             .collect();
         rock_positions(&cells, merge_m)
     }
