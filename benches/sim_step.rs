@@ -7,6 +7,7 @@
 use std::time::{Duration, Instant};
 
 use rover_sim::sim::{SimConfig, Simulator};
+use rover_sim::unity_world::unity_world;
 use rover_sim::wire::command::Command;
 use rover_sim::world::World;
 
@@ -53,11 +54,15 @@ fn measure(name: &str, world: World) -> (f64, f64) {
     (step_ms, jpeg_ms)
 }
 
+fn shared(path: &str) -> Vec<u8> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared").join(path);
+    std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
 fn main() {
-    let map = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/udacity/calibration_images/map_bw.png");
-    let png = std::fs::read(&map).unwrap_or_else(|e| panic!("{}: {e}", map.display()));
+    let (map, floor) = (shared("udacity/calibration_images/map_bw.png"), shared("udacity-world/floor_flat.png"));
     println!("simulator step = physics + render + JPEG (q75, 4:2:0) + telemetry JSON, {STEPS} steps each");
-    let (unity, _) = measure("Unity world (seed 1)", World::from_map_png(&png, 1).expect("map"));
+    let (unity, _) = measure("Unity world (seed 1)", unity_world(&map, Some(&floor), 1).expect("map"));
     let (procedural, _) = measure("procedural (seed 1)", rover_sim::procgen::procedural_world(1));
     let worst = unity.max(procedural);
     println!("target: median <= 2 ms: {}", if worst <= 2.0 { "met" } else { "MISSED" });

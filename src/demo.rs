@@ -21,10 +21,9 @@ const LINE_EVERY_SIM_S: f64 = 50.0;
 /// Options of `rover demo`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct DemoArgs {
-    /// World map: a 200x200 PNG, e.g. ../shared/udacity/calibration_images/map_bw.png.
-    /// Default: the procedural world of --seed, built in.
-    #[arg(long, value_name = "PNG")]
-    pub map: Option<PathBuf>,
+    /// The world (default: the built-in procedural world of --seed).
+    #[command(flatten)]
+    pub world: rover_sim::cli::WorldArgs,
     /// Seed of the world, the sample choice and the start yaw.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -50,13 +49,13 @@ struct DemoReport<'a> {
 /// Runs the demo mission; `ros_args` go to every node.
 pub async fn run_demo(args: &DemoArgs, runtime: &Runtime, ros_args: &[String]) -> anyhow::Result<RunResult> {
     std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
-    let world = rover_sim::cli::SimArgs::world_for(args.map.as_deref(), args.seed)?;
+    let world = args.world.world(args.seed)?;
     let samples = world.samples.len();
     let mut config = GraphConfig::of_current_exe(free_port()?, args.out.join("logs"))?;
     config.ros_args = ros_args.to_vec();
     eprintln!(
         "rover demo: {} (seed {}), {samples} samples; node logs in {}; Ctrl-C stops",
-        args.map.as_ref().map_or("procedural world".to_string(), |p| p.display().to_string()),
+        args.world.describe(),
         args.seed,
         config.log_dir.display()
     );

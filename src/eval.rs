@@ -18,10 +18,10 @@ use crate::mission::{NodeSettings, Progress, run_in_process};
 /// Options of `rover eval`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct EvalArgs {
-    /// World map: a 200x200 PNG, e.g. ../shared/udacity/calibration_images/map_bw.png.
-    #[arg(long, value_name = "PNG", conflicts_with = "procedural", required_unless_present = "procedural")]
-    pub map: Option<PathBuf>,
-    /// Procedural worlds, one per seed.
+    /// The world: --map PNG, or --procedural for the procedural world of each seed.
+    #[command(flatten)]
+    pub world: rover_sim::cli::WorldArgs,
+    /// Procedural worlds, one per seed (instead of --map).
     #[arg(long)]
     pub procedural: bool,
     /// Seeds, e.g. 0..9 (inclusive) or 4.
@@ -115,7 +115,11 @@ impl RunResult {
 
 impl EvalArgs {
     fn world(&self, seed: u64) -> anyhow::Result<rover_sim::world::World> {
-        rover_sim::cli::SimArgs::world_for(self.map.as_deref(), seed)
+        anyhow::ensure!(
+            self.world.map.is_some() != self.procedural,
+            "give either --map PNG or --procedural (one procedural world per seed)"
+        );
+        self.world.world(seed)
     }
 }
 

@@ -9,3 +9,4 @@ pub mod graph_mission;
 pub mod mission;
 pub mod replay;
 pub mod replay_dds;
+pub mod sim_check;

@@ -55,6 +55,11 @@ enum Command {
     /// the simulator's true world, samples, distance home, time, frames per second).
     #[command(after_help = ROS_ARGS_HELP)]
     Eval(rover::eval::EvalArgs),
+    /// Compare the simulated world with a recorded one: render the simulator at every logged pose,
+    /// classify the real and the simulated image with the perception pipeline, and report how far
+    /// their bird's-eye masks agree. Parameters: -p perception:NAME:=VALUE.
+    #[command(name = "sim-check", after_help = ROS_ARGS_HELP)]
+    SimCheck(rover::sim_check::SimCheckArgs),
     /// Run the headless simulator: connects to the bridge as the Unity simulator does, renders the
     /// camera, simulates the rover and prints a report at the end (or on Ctrl-C).
     Sim(rover_sim::cli::SimArgs),
@@ -175,6 +180,16 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
         }
         Command::Demo(args) => {
             rover::demo::run_demo(&args, dds(participant, ros_args, shutdown)?, &raw_ros_args()).await.map(drop)
+        }
+        Command::SimCheck(args) => {
+            let perception = rover_node::resolve_params("perception", &ros_args)?;
+            let report = rover::sim_check::check(&args, &perception)?;
+            if args.json {
+                println!("{}", serde_json::to_string_pretty(&report)?);
+            } else {
+                print!("{}", rover::sim_check::table(&report));
+            }
+            Ok(())
         }
         Command::Sim(args) => rover_sim::cli::run(&args, async move { shutdown.wait().await }).await.map(drop),
     }

@@ -15,6 +15,8 @@ pub struct BodyPose {
     pub pitch_deg: f64,
     /// Roll, degrees, positive right side down.
     pub roll_deg: f64,
+    /// Height of the ground under the body above the floor, metres (0 on the floor).
+    pub ground_m: f64,
 }
 
 /// The camera's intrinsics and mounting.
@@ -55,7 +57,7 @@ impl CameraModel {
     /// Camera position in the world (x, y, height above the floor) for a body pose.
     pub fn position(&self, pose: &BodyPose) -> [f64; 3] {
         let offset = body_to_world(pose, [self.forward_m, 0.0, self.mount_height_m]);
-        [pose.x_m + offset[0], pose.y_m + offset[1], offset[2] - self.origin_below_floor_m]
+        [pose.x_m + offset[0], pose.y_m + offset[1], pose.ground_m + offset[2] - self.origin_below_floor_m]
     }
 }
 
@@ -87,6 +89,8 @@ mod tests {
         let [x, y, z] = camera.position(&pose);
         assert!((x - 10.0).abs() < 1e-9 && (y - 20.4287).abs() < 1e-9, "({x}, {y})");
         assert!((z - 0.2144).abs() < 1e-9, "{z}");
+        let on_a_bank = BodyPose { ground_m: 0.3, ..pose };
+        assert!((camera.position(&on_a_bank)[2] - 0.5144).abs() < 1e-9);
     }
 
     #[test]

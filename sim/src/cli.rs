@@ -1,21 +1,71 @@
 //! `rover sim`: runs the headless simulator against a bridge, as the Unity simulator would.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 
+use crate::look::Look;
 use crate::procgen::procedural_world;
 use crate::sim::{SimConfig, SimReport, Simulator};
+use crate::unity_world::unity_world;
 use crate::wire::client::{ClientConfig, run_client};
 use crate::world::World;
 
-/// Options of `rover sim`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct SimArgs {
+/// Which world to simulate: the options every command that builds a world shares.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct WorldArgs {
     /// World map: a 200x200 PNG, navigable pixels > 0 (row = y, column = x), e.g.
     /// ../shared/udacity/calibration_images/map_bw.png. Default: a procedural world.
     #[arg(long, value_name = "PNG")]
     pub map: Option<PathBuf>,
+    /// Where the terrain is flat floor: a 200x200 PNG like the map, white where the floor is,
+    /// containing the map's navigable cells (e.g. ../shared/udacity-world/floor_flat.png for
+    /// map_bw.png). Default: the map widened by one cell. Only with --map.
+    #[arg(long, value_name = "PNG", requires = "map")]
+    pub floor: Option<PathBuf>,
+    /// Appearance seed: 0 is the look calibrated against the real Unity frames; other seeds vary
+    /// the sun, colours and texture within what those frames show.
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub appearance_seed: u64,
+}
+
+impl WorldArgs {
+    /// The world these options describe for `seed` (the procedural world's layout, the sample
+    /// choice and the start yaw).
+    pub fn world(&self, seed: u64) -> anyhow::Result<World> {
+        let world = match &self.map {
+            None => procedural_world(seed),
+            Some(map) => {
+                let read = |path: &Path| std::fs::read(path).with_context(|| format!("cannot read {}", path.display()));
+                let floor = self.floor.as_deref().map(read).transpose()?;
+                unity_world(&read(map)?, floor.as_deref(), seed).with_context(|| match &self.floor {
+                    Some(floor) => format!("map {} with floor {}", map.display(), floor.display()),
+                    None => format!("map {}", map.display()),
+                })?
+            }
+        };
+        Ok(world.with_look(Look::from_seed(self.appearance_seed)))
+    }
+
+    /// A short description of the world, for logs.
+    pub fn describe(&self) -> String {
+        let mut text = self.map.as_ref().map_or("a procedural world".to_string(), |p| p.display().to_string());
+        if let Some(floor) = &self.floor {
+            text += &format!(" (floor {})", floor.display());
+        }
+        if self.appearance_seed != 0 {
+            text += &format!(", appearance seed {}", self.appearance_seed);
+        }
+        text
+    }
+}
+
+/// Options of `rover sim`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SimArgs {
+    /// The world.
+    #[command(flatten)]
+    pub world: WorldArgs,
     /// Seed of the procedural world, the sample choice and the start yaw.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -47,22 +97,6 @@ pub struct SimArgs {
 }
 
 impl SimArgs {
-    /// The world these options describe.
-    pub fn world(&self) -> anyhow::Result<World> {
-        Self::world_for(self.map.as_deref(), self.seed)
-    }
-
-    /// The world of map `map` (procedural when `None`) and `seed`.
-    pub fn world_for(map: Option<&std::path::Path>, seed: u64) -> anyhow::Result<World> {
-        match map {
-            None => Ok(procedural_world(seed)),
-            Some(path) => {
-                let png = std::fs::read(path).with_context(|| format!("cannot read the map {}", path.display()))?;
-                World::from_map_png(&png, seed).with_context(|| format!("map {}", path.display()))
-            }
-        }
-    }
-
     fn config(&self) -> anyhow::Result<SimConfig> {
         anyhow::ensure!(
             self.step_seconds > 0.0 && self.step_seconds <= 1.0,
@@ -84,7 +118,7 @@ impl SimArgs {
 /// Runs the simulator until its time limit or until `stop` resolves; prints and returns the report.
 /// With `--export-map`, writes the world's map instead and returns `None`.
 pub async fn run(args: &SimArgs, stop: impl std::future::Future<Output = ()>) -> anyhow::Result<Option<SimReport>> {
-    let world = args.world()?;
+    let world = args.world.world(args.seed)?;
     if let Some(path) = &args.export_map {
         let png = world.ground_truth_png()?;
         std::fs::write(path, png).with_context(|| format!("cannot write the map to {}", path.display()))?;
@@ -95,7 +129,7 @@ pub async fn run(args: &SimArgs, stop: impl std::future::Future<Output = ()>) ->
     let mut simulator = Simulator::new(world, config);
     tracing::info!(
         "simulating {} (seed {}), start ({:.2}, {:.2}) yaw {:.1} deg, {} samples",
-        args.map.as_ref().map_or("a procedural world".to_string(), |p| p.display().to_string()),
+        args.world.describe(),
         args.seed,
         simulator.world().start.x_m,
         simulator.world().start.y_m,

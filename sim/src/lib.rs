@@ -2,12 +2,17 @@
 //! that speaks its client's exact Socket.IO dialect ([`wire`]), renders the rover camera from a
 //! world map ([`camera`]), simulates the rover ([`physics`]) and reports each run.
 
+pub mod boulder;
 pub mod camera;
 pub mod cli;
+pub mod distance;
+pub mod look;
 pub mod physics;
 pub mod procgen;
 pub mod random;
 pub mod render;
 pub mod sim;
+pub mod terrain;
+pub mod unity_world;
 pub mod wire;
 pub mod world;

@@ -1,6 +1,7 @@
 //! The rover's dynamics (unity-sim-spec 3 and 5.4): throttle, brake and speed caps, steering that
 //! shrinks with speed, turning in place, collisions, body pitch and roll, the sample pickup.
 
+use crate::terrain::TERRAIN_STEP_M;
 use crate::wire::command::Command;
 use crate::world::{Sample, World};
 
@@ -17,6 +18,8 @@ pub const PICKUP_SECONDS: f64 = 10.0;
 /// Physics step of the Unity project, seconds.
 pub const PHYSICS_STEP_S: f64 = 0.02;
 const WHEELBASE_M: f64 = 0.722;
+/// Distance between the left and right wheels, metres.
+const TRACK_M: f64 = 0.64;
 /// Drive acceleration per unit throttle and speed damping under throttle (fit to robot_log.csv).
 const THROTTLE_ACCEL: f64 = 0.944;
 const THROTTLE_DAMPING: f64 = 0.140;
@@ -81,10 +84,12 @@ pub struct Rover {
     pub yaw_deg: f64,
     /// Signed forward speed, m/s.
     pub speed_mps: f64,
-    /// Pitch, degrees, positive nose down.
+    /// Pitch, degrees, positive nose down: the ground's under the wheels plus the body's sway.
     pub pitch_deg: f64,
-    /// Roll, degrees, positive right side down.
+    /// Roll, degrees, positive right side down: the ground's plus the body's sway.
     pub roll_deg: f64,
+    /// Height of the ground under the rover above the floor, metres.
+    pub ground_m: f64,
     /// Last accepted throttle.
     pub throttle: f64,
     /// Last accepted brake.
@@ -95,6 +100,8 @@ pub struct Rover {
     pub near_sample: bool,
     /// A pickup is running (or just ended this frame).
     pub picking_up: bool,
+    sway_pitch_deg: f64,
+    sway_roll_deg: f64,
     turning_in_place: bool,
     reversing: bool,
     in_contact: bool,
@@ -112,11 +119,14 @@ impl Rover {
             speed_mps: 0.0,
             pitch_deg: 0.0,
             roll_deg: 0.0,
+            ground_m: 0.0,
             throttle: 0.0,
             brake: 0.0,
             steer_deg: 0.0,
             near_sample: false,
             picking_up: false,
+            sway_pitch_deg: 0.0,
+            sway_roll_deg: 0.0,
             turning_in_place: false,
             reversing: false,
             in_contact: false,
@@ -241,6 +251,23 @@ impl Rover {
         self.yaw_deg = wrap_degrees(self.yaw_deg + yaw_rate_dps * h);
         self.move_forward(h, world, samples, events);
         self.settle_body(h, acceleration, self.speed_mps * yaw_rate_dps.to_radians());
+        self.follow_ground(world);
+    }
+
+    /// Sets the ground height, pitch and roll from the ground under the four wheels.
+    pub fn follow_ground(&mut self, world: &World) {
+        let (s, c) = self.yaw_deg.to_radians().sin_cos();
+        let wheel = |ahead: f64, left: f64| {
+            world.ground_height(self.x_m + ahead * c - left * s, self.y_m + ahead * s + left * c) as f64
+        };
+        let (half_base, half_track) = (WHEELBASE_M / 2.0, TRACK_M / 2.0);
+        let [front_left, front_right] = [wheel(half_base, half_track), wheel(half_base, -half_track)];
+        let [rear_left, rear_right] = [wheel(-half_base, half_track), wheel(-half_base, -half_track)];
+        self.ground_m = (front_left + front_right + rear_left + rear_right) / 4.0;
+        let nose_drop = (rear_left + rear_right - front_left - front_right) / 2.0;
+        let right_drop = (front_left + rear_left - front_right - rear_right) / 2.0;
+        self.pitch_deg = self.sway_pitch_deg + nose_drop.atan2(WHEELBASE_M).to_degrees();
+        self.roll_deg = self.sway_roll_deg + right_drop.atan2(TRACK_M).to_degrees();
     }
 
     fn next_speed(&self, h: f64) -> f64 {
@@ -309,12 +336,13 @@ impl Rover {
         }
     }
 
+    /// The body's sway on its suspension under acceleration and turning.
     fn settle_body(&mut self, h: f64, forward_accel: f64, lateral_accel: f64) {
         let blend = 1.0 - (-h / TILT_TIME_CONSTANT_S).exp();
         let pitch_target = (PITCH_PER_ACCEL * forward_accel).clamp(-PITCH_LIMIT_DEG, PITCH_LIMIT_DEG);
         let roll_target = (ROLL_PER_ACCEL * lateral_accel).clamp(-ROLL_LIMIT_DEG, ROLL_LIMIT_DEG);
-        self.pitch_deg += (pitch_target - self.pitch_deg) * blend;
-        self.roll_deg += (roll_target - self.roll_deg) * blend;
+        self.sway_pitch_deg += (pitch_target - self.sway_pitch_deg) * blend;
+        self.sway_roll_deg += (roll_target - self.sway_roll_deg) * blend;
     }
 }
 
@@ -333,12 +361,8 @@ fn contact_normals(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) ->
             contacts.push((length - clearance, [(x - qx) / length, (y - qy) / length]));
         }
     };
-    for iy in (y - r).floor() as i64..=(y + r).floor() as i64 {
-        for ix in (x - r).floor() as i64..=(x + r).floor() as i64 {
-            if !world.is_floor(ix, iy) {
-                consider(x.clamp(ix as f64, ix as f64 + 1.0), y.clamp(iy as f64, iy as f64 + 1.0), 0.0);
-            }
-        }
+    for [sx, sy] in world.blocked_squares_near(x, y, r) {
+        consider(x.clamp(sx, sx + TERRAIN_STEP_M), y.clamp(sy, sy + TERRAIN_STEP_M), 0.0);
     }
     for sample in samples {
         consider(sample.x_m, sample.y_m, sample.radius_m);
@@ -375,20 +399,10 @@ fn furthest_free_fraction(blocked: impl Fn(f64) -> bool) -> f64 {
     free
 }
 
-/// True if a footprint of radius `r` at (x, y) overlaps a non-floor cell or a sample.
+/// True if a footprint of radius `r` at (x, y) overlaps ground the rover cannot drive on or a sample.
 pub fn footprint_blocked(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) -> bool {
-    for iy in (y - r).floor() as i64..=(y + r).floor() as i64 {
-        for ix in (x - r).floor() as i64..=(x + r).floor() as i64 {
-            if world.is_floor(ix, iy) {
-                continue;
-            }
-            let (qx, qy) = (x.clamp(ix as f64, ix as f64 + 1.0), y.clamp(iy as f64, iy as f64 + 1.0));
-            if (qx - x).hypot(qy - y) < r {
-                return true;
-            }
-        }
-    }
-    samples.iter().any(|s| (s.x_m - x).hypot(s.y_m - y) < r + s.radius_m)
+    world.blocked_squares_near(x, y, r).next().is_some()
+        || samples.iter().any(|s| (s.x_m - x).hypot(s.y_m - y) < r + s.radius_m)
 }
 
 /// -1, 0 or 1 (unlike `f64::signum`, 0 for 0).
@@ -411,14 +425,12 @@ mod tests {
     use super::*;
     use crate::world::{StartPose, WORLD_SIZE};
 
+    /// Floor on cells 20..180 in x and y, walls around.
     fn open_world() -> World {
-        let mut heights = vec![5.0f32; WORLD_SIZE * WORLD_SIZE];
-        for y in 20..180 {
-            for x in 20..180 {
-                heights[y * WORLD_SIZE + x] = 0.0;
-            }
-        }
-        World::from_heights(heights, vec![], StartPose { x_m: 100.0, y_m: 100.0, yaw_deg: 0.0 })
+        let floor = (0..WORLD_SIZE * WORLD_SIZE)
+            .map(|i| (20..180).contains(&(i % WORLD_SIZE)) && (20..180).contains(&(i / WORLD_SIZE)))
+            .collect();
+        World::open(floor, StartPose { x_m: 100.0, y_m: 100.0, yaw_deg: 0.0 })
     }
 
     fn drive(throttle: f64, brake: f64, steering_deg: f64) -> Command {
@@ -479,18 +491,32 @@ mod tests {
     }
 
     #[test]
-    fn a_rover_touching_two_corners_can_back_out_of_the_gap() {
-        let mut heights = vec![0.0f32; WORLD_SIZE * WORLD_SIZE];
-        heights[83 * WORLD_SIZE + 28] = 5.0;
-        heights[81 * WORLD_SIZE + 29] = 5.0;
-        let world = World::from_heights(heights, vec![], StartPose { x_m: 29.0, y_m: 82.5, yaw_deg: 0.0 });
-        let mut rover = Rover::new(29.0, 82.5, 33.0);
-        assert!(!footprint_blocked(&world, &[], 29.0, 82.5, FOOTPRINT_RADIUS_M), "touching, not overlapping");
-        rover.apply(drive(-0.8, 0.0, 0.0), &[]);
-        for _ in 0..50 {
-            rover.step(0.04, &world, &[]);
+    fn a_rover_between_two_mounds_is_never_wedged() {
+        let floor =
+            (0..WORLD_SIZE * WORLD_SIZE).map(|i| i != 83 * WORLD_SIZE + 28 && i != 81 * WORLD_SIZE + 29).collect();
+        let world = World::open(floor, StartPose { x_m: 29.0, y_m: 82.5, yaw_deg: 0.0 });
+        let mut poses = 0;
+        for (ix, iy) in (0..20).flat_map(|ix| (0..20).map(move |iy| (ix, iy))) {
+            let (x, y) = (28.0 + ix as f64 * 0.1, 81.5 + iy as f64 * 0.1);
+            if footprint_blocked(&world, &[], x, y, FOOTPRINT_RADIUS_M) {
+                continue;
+            }
+            poses += 1;
+            let headings = [0.0, 33.0, 90.0, 123.0, 180.0, 213.0, 270.0, 303.0];
+            let escapes = headings.iter().filter(|&&yaw| {
+                let mut rover = Rover::new(x, y, yaw);
+                rover.apply(drive(0.8, 0.0, 0.0), &[]);
+                for _ in 0..50 {
+                    rover.step(0.04, &world, &[]);
+                }
+                (rover.x_m - x).hypot(rover.y_m - y) > 0.3
+            });
+            assert!(
+                escapes.count() >= 2,
+                "wedged at ({x:.1}, {y:.1}): turning in place frees it in fewer than two ways"
+            );
         }
-        assert!(rover.x_m < 28.8, "slid back along the gap between the corners: x = {}", rover.x_m);
+        assert!(poses > 50, "{poses} free poses around the gap");
     }
 
     #[test]
@@ -502,22 +528,46 @@ mod tests {
         for _ in 0..400 {
             collisions += rover.step(0.04, &world, &[]).1.collision as u32;
         }
-        assert!(rover.x_m <= 180.0 - FOOTPRINT_RADIUS_M + 1e-9, "stopped at the wall: x = {}", rover.x_m);
+        assert!(
+            (179.0..180.5 - FOOTPRINT_RADIUS_M).contains(&rover.x_m),
+            "stopped at the wall's foot: x = {}",
+            rover.x_m
+        );
         assert_eq!(collisions, 1, "one collision while pushing against the wall");
-        let mut glancing = Rover::new(100.0, 179.3, 10.0);
+        let mut glancing = Rover::new(100.0, 179.0, 10.0);
         glancing.apply(drive(1.0, 0.0, 0.0), &[]);
         let mut glancing_collisions = 0;
         for _ in 0..200 {
             glancing_collisions += glancing.step(0.04, &world, &[]).1.collision as u32;
         }
         assert!(glancing.x_m > 102.0, "slides along a wall it meets at a shallow angle: x = {}", glancing.x_m);
-        assert!(glancing.y_m < 180.0 - FOOTPRINT_RADIUS_M + 1e-9);
+        assert!(glancing.y_m < 180.5 - FOOTPRINT_RADIUS_M);
         assert_eq!(glancing_collisions, 0, "a glancing contact is not a collision");
         let sample = [Sample { x_m: 110.0, y_m: 50.0, radius_m: 0.1 }];
         let mut rover = Rover::new(100.0, 50.0, 0.0);
         rover.apply(drive(1.0, 0.0, 0.0), &sample);
         rover.step(20.0, &world, &sample);
         assert!(rover.x_m < 110.0 - FOOTPRINT_RADIUS_M, "cannot drive through a sample: x = {}", rover.x_m);
+    }
+
+    #[test]
+    fn the_body_follows_the_foot_of_a_wall_but_cannot_climb_it() {
+        let world = open_world();
+        let mut rover = Rover::new(100.0, 176.0, 80.0);
+        rover.apply(drive(0.6, 0.0, 0.0), &[]);
+        let (mut steepest_pitch, mut steepest_roll) = (0.0f64, 0.0f64);
+        for _ in 0..300 {
+            rover.step(0.04, &world, &[]);
+            steepest_pitch = steepest_pitch.min(rover.pitch_deg);
+            steepest_roll = steepest_roll.max(rover.roll_deg);
+        }
+        assert!(rover.y_m < 180.5, "stopped at the foot: y = {}", rover.y_m);
+        assert!(rover.ground_m > 0.02 && rover.ground_m < 0.25, "on the foot, not up the wall: {} m", rover.ground_m);
+        assert!(steepest_pitch < -3.0, "climbing the foot lifts the nose: {steepest_pitch} deg");
+        assert!(steepest_roll > 0.5, "meeting it at an angle lifts the left wheels first: {steepest_roll} deg");
+        let mut flat = Rover::new(100.0, 100.0, 80.0);
+        flat.follow_ground(&world);
+        assert_eq!((flat.pitch_deg, flat.roll_deg, flat.ground_m), (0.0, 0.0, 0.0));
     }
 
     #[test]

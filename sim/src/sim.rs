@@ -92,8 +92,13 @@ pub struct Simulator {
 impl Simulator {
     /// A simulation of `world` with the rover at the world's start pose.
     pub fn new(world: World, config: SimConfig) -> Self {
-        let renderer = Renderer::new(&world, CameraModel::rover(), RenderOptions { grid: config.grid });
-        let rover = Rover::new(world.start.x_m, world.start.y_m, world.start.yaw_deg);
+        let renderer = Renderer::new(
+            &world,
+            CameraModel::rover(),
+            RenderOptions { grid: config.grid, ..RenderOptions::default() },
+        );
+        let mut rover = Rover::new(world.start.x_m, world.start.y_m, world.start.yaw_deg);
+        rover.follow_ground(&world);
         let samples = world.samples.clone();
         let report = SimReport { samples_total: samples.len(), ..SimReport::default() };
         Simulator {
@@ -142,6 +147,7 @@ impl Simulator {
             yaw_deg: self.rover.yaw_deg,
             pitch_deg: self.rover.pitch_deg,
             roll_deg: self.rover.roll_deg,
+            ground_m: self.rover.ground_m,
         }
     }
 

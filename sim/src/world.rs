@@ -1,14 +1,25 @@
-//! The world: a 200 m x 200 m height field (1 cell = 1 m, row = y, column = x), the floor being the
-//! navigable ground, plus the rock samples and the start pose.
+//! The world: a 200 m x 200 m terrain (row = y, column = x) with its boulders, the ground truth
+//! the run is scored against, the rock samples and the start pose, and how it looks.
 
-use crate::random::SplitMix64;
+use crate::boulder::Boulder;
+use crate::look::Look;
+use crate::terrain::{NODES_PER_M, TERRAIN_STEP_M, Terrain};
 
-/// Side of the world, metres and cells.
+/// Floor under a boulder up to this height has the floor's colour, metres: Unity's floor runs on
+/// under its overhanging rock, although the map leaves that ground out.
+const PAINT_UNDER_ROCK_M: f64 = 8.0;
+/// Side of the world, metres and map cells.
 pub const WORLD_SIZE: usize = 200;
-/// Height of the highest terrain, which is also the terrain outside the map, metres.
-pub const MAX_TERRAIN_HEIGHT_M: f32 = 25.0;
-/// Resolution of the wall-distance field used for shading, metres.
-const DISTANCE_FIELD_RESOLUTION_M: f64 = 0.25;
+/// Number of samples spawned per run.
+pub const SAMPLE_COUNT: usize = 6;
+/// The rover cannot drive where the terrain rises more than this per metre (50 degrees)...
+const MAX_DRIVABLE_SLOPE: f64 = 1.2;
+/// ...nor where it is higher than this above the floor, metres: its wheels climb the gentle foot
+/// of a wall, not the wall.
+const MAX_DRIVABLE_HEIGHT_M: f32 = 0.25;
+/// A boulder blocks the rover where it fills the space up to this height above the ground, the
+/// top of the rover's body, metres.
+pub const BODY_TOP_M: f64 = 0.55;
 
 /// A rock sample on the ground.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,125 +43,154 @@ pub struct StartPose {
     pub yaw_deg: f64,
 }
 
+/// Everything a world is made of, before the derived fields are computed.
+#[derive(Debug, Clone)]
+pub struct WorldPlan {
+    /// Cells where the terrain is flat floor (`WORLD_SIZE` x `WORLD_SIZE`, row = y).
+    pub floor: Vec<bool>,
+    /// Cells that count as navigable when the map is scored.
+    pub ground_truth: Vec<bool>,
+    /// Rocks standing on the ground.
+    pub boulders: Vec<Boulder>,
+    /// Samples, in the order the simulator reports them.
+    pub samples: Vec<Sample>,
+    /// The rover's start pose.
+    pub start: StartPose,
+    /// Varies the shape of the walls.
+    pub terrain_salt: u64,
+}
+
 /// The world the rover drives in.
 #[derive(Debug, Clone)]
 pub struct World {
-    heights_m: Vec<f32>,
+    terrain: Terrain,
+    boulders: Vec<Boulder>,
     ground_truth: Vec<bool>,
-    wall_distance: DistanceField,
+    painted: Vec<bool>,
+    blocked: Vec<bool>,
     /// Samples on the ground, in the order the simulator reports them.
     pub samples: Vec<Sample>,
     /// The rover's start pose.
     pub start: StartPose,
+    /// How the world looks to the camera.
+    pub look: Look,
 }
 
-/// Errors building a world from a map image.
+/// Errors building a world from map images.
 #[derive(Debug, thiserror::Error)]
 pub enum WorldError {
-    /// The map is not a 200x200 image.
-    #[error("map image is {0}x{1}, expected 200x200 (1 px = 1 m, row = y, column = x)")]
-    WrongSize(usize, usize),
-    /// The map cannot be decoded.
-    #[error("cannot read the map image: {0}")]
-    Unreadable(String),
+    /// A map image is not 200x200.
+    #[error("{name} image is {width}x{height}, expected 200x200 (1 px = 1 m, row = y, column = x)")]
+    WrongSize {
+        /// Which image.
+        name: &'static str,
+        /// Its width.
+        width: usize,
+        /// Its height.
+        height: usize,
+    },
+    /// A map image cannot be decoded.
+    #[error("cannot read the {name} image: {reason}")]
+    Unreadable {
+        /// Which image.
+        name: &'static str,
+        /// What went wrong.
+        reason: String,
+    },
     /// Too little navigable ground.
     #[error("map has only {0} navigable pixels (values > 0); a world needs at least 100")]
     TooSmall(usize),
+    /// The floor image leaves navigable map cells out.
+    #[error("the floor image leaves out {0} navigable cells of the map; it must contain all of them")]
+    FloorMissesMap(usize),
 }
 
-/// The 33 sample placeholders of the Unity scene (unity-sim-spec 5.3), x and z in metres.
-pub const UNITY_SAMPLE_CANDIDATES: [(f64, f64); 33] = [
-    (97.44, 74.65),
-    (104.56, 80.78),
-    (109.78, 89.84),
-    (113.27, 12.97),
-    (122.28, 51.66),
-    (108.997, 101.96),
-    (144.631, 94.533),
-    (148.776, 109.56),
-    (110.699, 165.008),
-    (103.774, 192.692),
-    (76.22, 71.358),
-    (61.86, 105.154),
-    (39.6647, 94.2979),
-    (21.724, 102.178),
-    (12.096, 101.04),
-    (21.69, 94.143),
-    (32.631, 99.635),
-    (62.626, 96.247),
-    (62.705, 88.004),
-    (70.31, 87.774),
-    (76.47, 78.364),
-    (82.8, 75.0),
-    (86.03, 83.67),
-    (102.953, 96.36),
-    (106.962, 66.13),
-    (106.115, 53.507),
-    (110.14, 36.94),
-    (117.486, 20.447),
-    (125.22, 99.41),
-    (127.463, 121.259),
-    (116.034, 131.28),
-    (115.726, 151.234),
-    (102.46, 170.09),
-];
-
-/// The Unity scene's rover start position (unity-sim-spec 5.2).
-pub const UNITY_START: (f64, f64) = (99.67, 85.589);
-
-/// Height of the bank along the foot of the walls, metres: drivable, but rock to the camera.
-pub const BANK_HEIGHT_M: f32 = 0.08;
-
-/// Number of samples spawned per run.
-pub const SAMPLE_COUNT: usize = 6;
-
 impl World {
-    /// Builds a world from a height field (row-major, `WORLD_SIZE` x `WORLD_SIZE`, 0 = floor) whose
-    /// ground truth for scoring is its floor.
-    pub fn from_heights(heights_m: Vec<f32>, samples: Vec<Sample>, start: StartPose) -> Self {
-        let ground_truth = heights_m.iter().map(|&h| h <= 0.0).collect();
-        Self::with_ground_truth(heights_m, ground_truth, samples, start)
+    /// Builds the world of `plan`, with the default look.
+    pub fn build(plan: WorldPlan) -> Self {
+        assert_eq!(plan.floor.len(), WORLD_SIZE * WORLD_SIZE, "floor must be 200x200");
+        assert_eq!(plan.ground_truth.len(), WORLD_SIZE * WORLD_SIZE, "ground truth must be 200x200");
+        let terrain = Terrain::from_floor(&plan.floor, plan.terrain_salt);
+        let blocked = blocked_nodes(&terrain, &plan.boulders);
+        let mut painted = plan.ground_truth.clone();
+        let floor_under_rock = plan.boulders.iter().flat_map(|b| b.cells_under(&plan.floor, PAINT_UNDER_ROCK_M));
+        floor_under_rock.collect::<Vec<_>>().into_iter().for_each(|cell| painted[cell] = true);
+        World {
+            terrain,
+            boulders: plan.boulders,
+            ground_truth: plan.ground_truth,
+            painted,
+            blocked,
+            samples: plan.samples,
+            start: plan.start,
+            look: Look::default(),
+        }
     }
 
-    /// Builds a world whose scoring ground truth differs from its floor.
-    pub fn with_ground_truth(
-        heights_m: Vec<f32>,
-        ground_truth: Vec<bool>,
-        samples: Vec<Sample>,
-        start: StartPose,
-    ) -> Self {
-        assert_eq!(heights_m.len(), WORLD_SIZE * WORLD_SIZE, "height field must be 200x200");
-        assert_eq!(ground_truth.len(), WORLD_SIZE * WORLD_SIZE, "ground truth must be 200x200");
-        let wall_distance = DistanceField::build(&heights_m);
-        World { heights_m, ground_truth, wall_distance, samples, start }
+    /// A world whose floor is also its ground truth, without boulders or samples (for tests).
+    pub fn open(floor: Vec<bool>, start: StartPose) -> Self {
+        World::build(WorldPlan {
+            ground_truth: floor.clone(),
+            floor,
+            boulders: vec![],
+            samples: vec![],
+            start,
+            terrain_salt: 0,
+        })
     }
 
-    /// The Unity world from `map_bw.png`-style bytes: terrain for the map ([`terrain_for_map`]);
-    /// 6 of the 33 placeholders get samples and the start yaw is drawn from `seed`, as Unity does in
-    /// autonomous mode. The scoring ground truth is the map itself.
-    pub fn from_map_png(png: &[u8], seed: u64) -> Result<Self, WorldError> {
-        let image = rover_imaging::decode_png(png).map_err(|e| WorldError::Unreadable(e.to_string()))?;
-        if (image.width, image.height) != (WORLD_SIZE, WORLD_SIZE) {
-            return Err(WorldError::WrongSize(image.width, image.height));
-        }
-        let navigable: Vec<bool> = image.data.chunks_exact(3).map(|p| p[0] > 0).collect();
-        let count = navigable.iter().filter(|&&n| n).count();
-        if count < 100 {
-            return Err(WorldError::TooSmall(count));
-        }
-        let mut rng = SplitMix64::new(seed);
-        let mut heights_m = terrain_for_map(&navigable, &mut SplitMix64::new(0));
-        for &(x, y) in &UNITY_SAMPLE_CANDIDATES {
-            carve_access(&mut heights_m, x, y);
-        }
-        let mut candidates: Vec<(f64, f64)> = UNITY_SAMPLE_CANDIDATES.to_vec();
-        let mut samples = Vec::with_capacity(SAMPLE_COUNT);
-        while samples.len() < SAMPLE_COUNT && !candidates.is_empty() {
-            let (x_m, y_m) = candidates.swap_remove(rng.below(candidates.len()));
-            samples.push(Sample { x_m, y_m, radius_m: rng.range(0.07, 0.10) });
-        }
-        let start = StartPose { x_m: UNITY_START.0, y_m: UNITY_START.1, yaw_deg: rng.range(0.0, 360.0) };
-        Ok(World::with_ground_truth(heights_m, navigable, samples, start))
+    /// The same world with another look.
+    pub fn with_look(mut self, look: Look) -> Self {
+        self.look = look;
+        self
+    }
+
+    /// The terrain.
+    pub fn terrain(&self) -> &Terrain {
+        &self.terrain
+    }
+
+    /// The boulders.
+    pub fn boulders(&self) -> &[Boulder] {
+        &self.boulders
+    }
+
+    /// The ground-truth navigable map for scoring, row-major (row = y, column = x).
+    pub fn ground_truth(&self) -> &[bool] {
+        &self.ground_truth
+    }
+
+    /// The cells whose ground has the floor's colour: the navigable map, and the floor it leaves out
+    /// under boulders (row-major).
+    pub fn painted(&self) -> &[bool] {
+        &self.painted
+    }
+
+    /// Height of the ground at (x, y) above the floor, metres.
+    pub fn ground_height(&self, x_m: f64, y_m: f64) -> f32 {
+        self.terrain.height_at(x_m, y_m)
+    }
+
+    /// True if the rover can drive at (x, y): gentle terrain, no boulder, inside the world.
+    pub fn is_drivable(&self, x_m: f64, y_m: f64) -> bool {
+        let side = (WORLD_SIZE * NODES_PER_M) as f64;
+        let (nx, ny) = (x_m / TERRAIN_STEP_M, y_m / TERRAIN_STEP_M);
+        (0.0..side).contains(&nx)
+            && (0.0..side).contains(&ny)
+            && !self.blocked[ny as usize * side as usize + nx as usize]
+    }
+
+    /// The squares (side [`TERRAIN_STEP_M`], lower corner given) within `r` of (x, y) where the
+    /// rover cannot drive.
+    pub fn blocked_squares_near(&self, x_m: f64, y_m: f64, r: f64) -> impl Iterator<Item = [f64; 2]> + '_ {
+        let step = TERRAIN_STEP_M;
+        let range = move |c: f64| ((c - r) / step).floor() as i64..=((c + r) / step).floor() as i64;
+        range(y_m).flat_map(move |ny| range(x_m).map(move |nx| [nx as f64 * step, ny as f64 * step])).filter(
+            move |&[sx, sy]| {
+                let (cx, cy) = (sx + step / 2.0, sy + step / 2.0);
+                !self.is_drivable(cx, cy) && (x_m.clamp(sx, sx + step) - x_m).hypot(y_m.clamp(sy, sy + step) - y_m) < r
+            },
+        )
     }
 
     /// The scoring ground truth as a `map_bw.png`-style PNG: navigable pixels white, the rest
@@ -162,42 +202,41 @@ impl World {
         }
         rover_imaging::encode_png(&image)
     }
+}
 
-    /// Terrain height of the cell containing (x, y), metres; 0 is floor. Outside the map: a wall.
-    pub fn height_at(&self, x_m: f64, y_m: f64) -> f32 {
-        self.cell_height(x_m.floor() as i64, y_m.floor() as i64)
-    }
-
-    /// Terrain height of cell (column `ix`, row `iy`).
-    pub fn cell_height(&self, ix: i64, iy: i64) -> f32 {
-        if ix < 0 || iy < 0 || ix >= WORLD_SIZE as i64 || iy >= WORLD_SIZE as i64 {
-            return MAX_TERRAIN_HEIGHT_M;
+/// The terrain nodes the rover cannot drive on: too steep, too high, or in a boulder.
+fn blocked_nodes(terrain: &Terrain, boulders: &[Boulder]) -> Vec<bool> {
+    let side = WORLD_SIZE * NODES_PER_M;
+    let mut blocked: Vec<bool> = terrain
+        .nodes()
+        .map(|(x, y, h)| {
+            let [gx, gy] = terrain.gradient_at(x, y);
+            h > MAX_DRIVABLE_HEIGHT_M || gx.hypot(gy) > MAX_DRIVABLE_SLOPE
+        })
+        .collect();
+    for boulder in boulders {
+        let reach = boulder.reach_m();
+        let range = |c: f64| {
+            ((c - reach) / TERRAIN_STEP_M).floor().max(0.0) as usize
+                ..=(((c + reach) / TERRAIN_STEP_M) as usize).min(side - 1)
+        };
+        for ny in range(boulder.centre[1]) {
+            for nx in range(boulder.centre[0]) {
+                let (x, y) = ((nx as f64 + 0.5) * TERRAIN_STEP_M, (ny as f64 + 0.5) * TERRAIN_STEP_M);
+                if boulder.covers(x, y, terrain.height_at(x, y) as f64, BODY_TOP_M) {
+                    blocked[ny * side + nx] = true;
+                }
+            }
         }
-        self.heights_m[iy as usize * WORLD_SIZE + ix as usize]
     }
-
-    /// True if the rover can drive on the cell (column `ix`, row `iy`): floor or bank.
-    pub fn is_floor(&self, ix: i64, iy: i64) -> bool {
-        self.cell_height(ix, iy) <= BANK_HEIGHT_M
-    }
-
-    /// The ground-truth navigable map for scoring, row-major (row = y, column = x).
-    pub fn ground_truth(&self) -> &[bool] {
-        &self.ground_truth
-    }
-
-    /// Distance from (x, y) to the nearest non-floor cell, metres (capped at a few metres).
-    pub fn wall_distance(&self, x_m: f64, y_m: f64) -> f32 {
-        self.wall_distance.at(x_m, y_m)
-    }
+    blocked
 }
 
 /// The drivable ground of a map: its navigable cells plus every cell next to one (8-neighbourhood)
 /// that belongs to the outer non-navigable region. The Unity terrain is flat (below 0.5 m) on 829
 /// cells around the 1993 navigable ones of `map_bw.png`, mostly along the walls: the map is
-/// conservative, and the rover drives where the map says it cannot (the narrow north canyon is
-/// passable). One cell of widening adds 874 cells. Enclosed non-navigable spots (rocks on the
-/// floor) stay solid.
+/// conservative, and the rover drives where the map says it cannot. One cell of widening adds 874
+/// cells. Enclosed non-navigable spots (rocks on the floor) stay solid.
 pub fn widen_floor(navigable: &[bool]) -> Vec<bool> {
     let outer = outer_region(navigable);
     (0..navigable.len())
@@ -216,7 +255,7 @@ pub fn widen_floor(navigable: &[bool]) -> Vec<bool> {
 }
 
 /// The non-navigable cells connected (4-neighbourhood) to the map's border.
-fn outer_region(navigable: &[bool]) -> Vec<bool> {
+pub fn outer_region(navigable: &[bool]) -> Vec<bool> {
     let side = WORLD_SIZE as i64;
     let mut outer = vec![false; navigable.len()];
     let border = (0..side).flat_map(|i| [(i, 0), (i, side - 1), (0, i), (side - 1, i)]);
@@ -231,103 +270,8 @@ fn outer_region(navigable: &[bool]) -> Vec<bool> {
     outer
 }
 
-/// Heights for a navigable map: 0 on its cells, a low drivable bank ([`BANK_HEIGHT_M`]) on the
-/// cells that [`widen_floor`] adds, then the walls. The camera sees the bank as rock, not as
-/// navigable ground, as it sees the wall foot in the recorded Unity frames.
-pub fn terrain_for_map(navigable: &[bool], rng: &mut SplitMix64) -> Vec<f32> {
-    let drivable = widen_floor(navigable);
-    let mut heights_m = terrain_from_mask(&drivable, rng);
-    for (index, height_m) in heights_m.iter_mut().enumerate() {
-        if drivable[index] && !navigable[index] {
-            *height_m = BANK_HEIGHT_M;
-        }
-    }
-    heights_m
-}
-
-/// Heights for a floor mask: 0 on the floor, then steep rock walls rising with the distance
-/// from the floor to ridges of uneven height, with noise.
-pub fn terrain_from_mask(navigable: &[bool], rng: &mut SplitMix64) -> Vec<f32> {
-    let distance = cell_distance_to(navigable, true);
-    let salt = rng.next_u64();
-    let ridge_salt = rng.next_u64();
-    (0..navigable.len())
-        .map(|index| {
-            if navigable[index] {
-                return 0.0;
-            }
-            let (x, y) = ((index % WORLD_SIZE) as f64, (index / WORLD_SIZE) as f64);
-            let roughness = crate::random::value_noise(x, y, 4.0, salt) as f64;
-            let d = distance[index] as f64;
-            let ridge =
-                9.0 + (MAX_TERRAIN_HEIGHT_M as f64 - 9.0) * crate::random::value_noise(x, y, 9.0, ridge_salt) as f64;
-            (0.6 + 2.4 * d + 3.0 * roughness * d.sqrt()).min(ridge) as f32
-        })
-        .collect()
-}
-
-/// Makes the ground around a sample placeholder drivable, with a path to the nearest floor: in the
-/// Unity scene the samples lie on flat ground that `map_bw.png` (which is conservative) may not
-/// mark navigable. The ground truth for scoring stays the map itself.
-fn carve_access(heights_m: &mut [f32], x_m: f64, y_m: f64) {
-    let (sx, sy) = (x_m.floor() as i64, y_m.floor() as i64);
-    let index = |x: i64, y: i64| {
-        (y.clamp(0, WORLD_SIZE as i64 - 1) as usize) * WORLD_SIZE + x.clamp(0, WORLD_SIZE as i64 - 1) as usize
-    };
-    let mut came_from = vec![usize::MAX; heights_m.len()];
-    let start = index(sx, sy);
-    came_from[start] = start;
-    let mut queue = std::collections::VecDeque::from([start]);
-    let mut reached = None;
-    while let Some(cell) = queue.pop_front() {
-        let (x, y) = ((cell % WORLD_SIZE) as i64, (cell / WORLD_SIZE) as i64);
-        if heights_m[cell] <= 0.0 && (x - sx).abs().max((y - sy).abs()) > 1 {
-            reached = Some(cell);
-            break;
-        }
-        for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
-            let next = index(x + dx, y + dy);
-            if came_from[next] == usize::MAX {
-                came_from[next] = cell;
-                queue.push_back(next);
-            }
-        }
-    }
-    let mut cell = reached.unwrap_or(start);
-    while cell != start {
-        heights_m[cell] = 0.0;
-        cell = came_from[cell];
-    }
-    for dy in -1..=1 {
-        for dx in -1..=1 {
-            heights_m[index(sx + dx, sy + dy)] = 0.0;
-        }
-    }
-}
-
-/// Chessboard-ish distance (in cells) from each cell to the nearest cell where `mask == target`.
-fn cell_distance_to(mask: &[bool], target: bool) -> Vec<u16> {
-    let mut distance = vec![u16::MAX; mask.len()];
-    let mut queue = std::collections::VecDeque::new();
-    for (index, &m) in mask.iter().enumerate() {
-        if m == target {
-            distance[index] = 0;
-            queue.push_back(index);
-        }
-    }
-    while let Some(index) = queue.pop_front() {
-        for next in neighbours4(index) {
-            if distance[next] == u16::MAX {
-                distance[next] = distance[index] + 1;
-                queue.push_back(next);
-            }
-        }
-    }
-    distance
-}
-
 /// The cells left, right, below and above `index` that lie on the map.
-fn neighbours4(index: usize) -> impl Iterator<Item = usize> {
+pub fn neighbours4(index: usize) -> impl Iterator<Item = usize> {
     let (x, y) = ((index % WORLD_SIZE) as i64, (index / WORLD_SIZE) as i64);
     [(x + 1, y), (x - 1, y), (x, y + 1), (x, y - 1)]
         .into_iter()
@@ -335,109 +279,52 @@ fn neighbours4(index: usize) -> impl Iterator<Item = usize> {
         .map(|(nx, ny)| ny as usize * WORLD_SIZE + nx as usize)
 }
 
-/// Distance to the nearest wall on a fine grid, for shading the floor near walls.
-#[derive(Debug, Clone)]
-struct DistanceField {
-    side: usize,
-    values_cm: Vec<u16>,
-}
-
-impl DistanceField {
-    fn build(heights_m: &[f32]) -> Self {
-        let per_cell = (1.0 / DISTANCE_FIELD_RESOLUTION_M) as usize;
-        let side = WORLD_SIZE * per_cell;
-        let inside_wall = |fx: usize, fy: usize| heights_m[(fy / per_cell) * WORLD_SIZE + fx / per_cell] > 0.0;
-        let mut values = vec![f32::INFINITY; side * side];
-        for fy in 0..side {
-            for fx in 0..side {
-                if inside_wall(fx, fy) {
-                    values[fy * side + fx] = 0.0;
-                }
-            }
-        }
-        chamfer(&mut values, side, DISTANCE_FIELD_RESOLUTION_M as f32);
-        let values_cm = values.iter().map(|&d| (d * 100.0).min(u16::MAX as f32) as u16).collect();
-        DistanceField { side, values_cm }
+/// A `map_bw.png`-style mask: a 200x200 image, true where the pixel is brighter than black.
+pub fn read_mask(png: &[u8], name: &'static str) -> Result<Vec<bool>, WorldError> {
+    let image = rover_imaging::decode_png(png).map_err(|e| WorldError::Unreadable { name, reason: e.to_string() })?;
+    if (image.width, image.height) != (WORLD_SIZE, WORLD_SIZE) {
+        return Err(WorldError::WrongSize { name, width: image.width, height: image.height });
     }
-
-    fn at(&self, x_m: f64, y_m: f64) -> f32 {
-        let gx = (x_m / DISTANCE_FIELD_RESOLUTION_M - 0.5).clamp(0.0, (self.side - 1) as f64);
-        let gy = (y_m / DISTANCE_FIELD_RESOLUTION_M - 0.5).clamp(0.0, (self.side - 1) as f64);
-        let (ix, iy) = (gx as usize, gy as usize);
-        let (jx, jy) = ((ix + 1).min(self.side - 1), (iy + 1).min(self.side - 1));
-        let (fx, fy) = ((gx - ix as f64) as f32, (gy - iy as f64) as f32);
-        let v = |x: usize, y: usize| self.values_cm[y * self.side + x] as f32 / 100.0;
-        let top = v(ix, iy) + (v(jx, iy) - v(ix, iy)) * fx;
-        let bottom = v(ix, jy) + (v(jx, jy) - v(ix, jy)) * fx;
-        top + (bottom - top) * fy
-    }
-}
-
-/// Two-pass 3x3 chamfer distance transform in place (0 = source), `step` metres per cell.
-fn chamfer(values: &mut [f32], side: usize, step: f32) {
-    let diagonal = step * std::f32::consts::SQRT_2;
-    let forward = [(-1i64, -1i64, diagonal), (0, -1, step), (1, -1, diagonal), (-1, 0, step)];
-    let backward = [(1i64, 1i64, diagonal), (0, 1, step), (-1, 1, diagonal), (1, 0, step)];
-    let side_i = side as i64;
-    let relax = |values: &mut [f32], x: i64, y: i64, offsets: &[(i64, i64, f32)]| {
-        let mut best = values[(y * side_i + x) as usize];
-        for &(dx, dy, cost) in offsets {
-            let (nx, ny) = (x + dx, y + dy);
-            if nx >= 0 && ny >= 0 && nx < side_i && ny < side_i {
-                best = best.min(values[(ny * side_i + nx) as usize] + cost);
-            }
-        }
-        values[(y * side_i + x) as usize] = best;
-    };
-    for y in 0..side_i {
-        for x in 0..side_i {
-            relax(values, x, y, &forward);
-        }
-    }
-    for y in (0..side_i).rev() {
-        for x in (0..side_i).rev() {
-            relax(values, x, y, &backward);
-        }
-    }
+    Ok(image.data.chunks_exact(3).map(|p| p[0] > 0).collect())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::boulder::{BoulderKind, BoulderSpec};
+    use crate::random::SplitMix64;
 
-    fn corridor_world() -> World {
-        let mut heights = vec![5.0f32; WORLD_SIZE * WORLD_SIZE];
-        for y in 95..105 {
-            for x in 50..150 {
-                heights[y * WORLD_SIZE + x] = 0.0;
-            }
-        }
-        World::from_heights(heights, vec![], StartPose { x_m: 100.0, y_m: 100.0, yaw_deg: 0.0 })
+    fn corridor() -> Vec<bool> {
+        (0..WORLD_SIZE * WORLD_SIZE)
+            .map(|i| (95..105).contains(&(i / WORLD_SIZE)) && (50..150).contains(&(i % WORLD_SIZE)))
+            .collect()
     }
 
     #[test]
-    fn heights_and_floor() {
-        let world = corridor_world();
-        assert!(world.is_floor(100, 100));
-        assert!(!world.is_floor(100, 94));
-        assert_eq!(world.height_at(-1.0, 5.0), MAX_TERRAIN_HEIGHT_M);
+    fn the_rover_drives_on_the_floor_and_the_foot_but_not_up_the_wall() {
+        let world = World::open(corridor(), StartPose { x_m: 100.0, y_m: 100.0, yaw_deg: 0.0 });
+        assert!(world.is_drivable(100.0, 100.0) && world.is_drivable(100.0, 95.1));
+        assert!(!world.is_drivable(100.0, 93.5), "1.5 m into the wall");
+        assert!(!world.is_drivable(-1.0, 100.0) && !world.is_drivable(100.0, 200.5));
         assert_eq!(world.ground_truth().iter().filter(|&&n| n).count(), 1000);
+        assert_eq!(world.blocked_squares_near(100.0, 100.0, 1.0).count(), 0);
+        assert!(world.blocked_squares_near(100.0, 94.0, 0.5).count() > 0);
     }
 
     #[test]
-    fn the_exported_map_is_the_ground_truth() {
-        let world = crate::procgen::procedural_world(3);
-        let png = world.ground_truth_png().unwrap();
-        let reloaded = World::from_map_png(&png, 3).unwrap();
-        assert_eq!(reloaded.ground_truth(), world.ground_truth());
-    }
-
-    #[test]
-    fn wall_distance_grows_away_from_walls() {
-        let world = corridor_world();
-        assert!(world.wall_distance(100.0, 95.1) < 0.3);
-        let middle = world.wall_distance(100.0, 100.0);
-        assert!((middle - 5.0).abs() < 0.3, "{middle}");
+    fn boulders_block_the_rover() {
+        let spec = BoulderSpec { x_m: 100.0, y_m: 100.0, footprint_radius_m: 1.0, kind: BoulderKind::Lump };
+        let boulder = Boulder::new(&spec, &mut SplitMix64::new(1));
+        let plan = WorldPlan {
+            floor: corridor(),
+            ground_truth: corridor(),
+            boulders: vec![boulder],
+            samples: vec![],
+            start: StartPose { x_m: 60.0, y_m: 100.0, yaw_deg: 0.0 },
+            terrain_salt: 0,
+        };
+        let world = World::build(plan);
+        assert!(!world.is_drivable(100.0, 100.0) && world.is_drivable(102.0, 100.0));
     }
 
     #[test]
@@ -456,25 +343,10 @@ mod tests {
     }
 
     #[test]
-    fn the_unity_map_builds_with_six_samples_and_a_random_yaw() {
-        let png =
-            std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/udacity/calibration_images/map_bw.png"))
-                .expect("../shared/udacity/calibration_images/map_bw.png");
-        let world = World::from_map_png(&png, 3).unwrap();
-        assert_eq!(world.ground_truth().iter().filter(|&&n| n).count(), 1993);
-        let floor =
-            (0..WORLD_SIZE * WORLD_SIZE).filter(|&i| world.is_floor((i % WORLD_SIZE) as i64, (i / WORLD_SIZE) as i64));
-        assert!((2800..2950).contains(&floor.count()), "the rover drives on the map widened by one cell");
-        let bank = (0..WORLD_SIZE * WORLD_SIZE).filter(|&i| world.heights_m[i] == BANK_HEIGHT_M).count();
-        assert!((700..900).contains(&bank), "{bank} bank cells");
-        for &(x, y) in &UNITY_SAMPLE_CANDIDATES {
-            assert!(world.is_floor(x as i64, y as i64), "sample placeholder ({x}, {y}) is reachable");
-        }
-        assert_eq!(world.samples.len(), 6);
-        assert!(world.samples.iter().all(|s| UNITY_SAMPLE_CANDIDATES.contains(&(s.x_m, s.y_m))));
-        assert!(world.is_floor(UNITY_START.0 as i64, UNITY_START.1 as i64));
-        let other = World::from_map_png(&png, 4).unwrap();
-        assert_ne!(world.start.yaw_deg, other.start.yaw_deg);
-        assert_eq!(World::from_map_png(&png, 3).unwrap().samples, world.samples);
+    fn the_exported_map_is_the_ground_truth() {
+        let world = crate::procgen::procedural_world(3);
+        let png = world.ground_truth_png().unwrap();
+        assert_eq!(read_mask(&png, "map").unwrap(), world.ground_truth());
+        assert!(matches!(read_mask(b"not a png", "map"), Err(WorldError::Unreadable { name: "map", .. })));
     }
 }

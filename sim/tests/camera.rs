@@ -1,5 +1,6 @@
 //! The rendered camera against the real one: the students' calibration points on the 1 m grid,
-//! and the colours of floor, walls, sky and samples against the Unity frames.
+//! and the samples and the usual colour thresholds. (Floor, walls and sky are compared with the
+//! 283 real frames themselves by `rover sim-check`, in `tests/sim_check.rs`.)
 
 use rover_imaging::RgbImage;
 use rover_sim::camera::{BodyPose, CameraModel};
@@ -7,7 +8,7 @@ use rover_sim::render::{RenderOptions, Renderer, Surface};
 use rover_sim::world::{Sample, StartPose, WORLD_SIZE, World};
 
 fn open_floor() -> World {
-    World::from_heights(vec![0.0; WORLD_SIZE * WORLD_SIZE], vec![], StartPose { x_m: 100.0, y_m: 100.0, yaw_deg: 0.0 })
+    World::open(vec![true; WORLD_SIZE * WORLD_SIZE], StartPose { x_m: 100.0, y_m: 100.0, yaw_deg: 0.0 })
 }
 
 fn darkness(image: &RgbImage, u: usize, v: usize) -> u32 {
@@ -57,7 +58,7 @@ fn line_row(image: &RgbImage, expected: usize) -> f64 {
 fn the_calibration_points_fall_on_the_corners_of_the_grid_cell_ahead() {
     let world = open_floor();
     let camera = CameraModel::rover();
-    let mut renderer = Renderer::new(&world, camera, RenderOptions { grid: true });
+    let mut renderer = Renderer::new(&world, camera, RenderOptions { grid: true, ..RenderOptions::default() });
     // The fitted cell of unity-sim-spec 4.2: near edge 0.3992 m ahead of the camera, centred 0.007 m
     // to the right. Grid lines lie at k + 0.5 m.
     let pose = BodyPose { x_m: 100.5 - 0.3992 - camera.forward_m, y_m: 100.5 - 0.507, ..Default::default() };
@@ -80,9 +81,12 @@ fn the_calibration_points_fall_on_the_corners_of_the_grid_cell_ahead() {
 }
 
 fn unity_world() -> World {
-    let png = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/udacity/calibration_images/map_bw.png"))
-        .expect("../shared/udacity/calibration_images/map_bw.png");
-    World::from_map_png(&png, 0).unwrap()
+    let shared = |path: &str| {
+        let path = format!("{}/../../shared/{path}", env!("CARGO_MANIFEST_DIR"));
+        std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
+    };
+    let (map, floor) = (shared("udacity/calibration_images/map_bw.png"), shared("udacity-world/floor_flat.png"));
+    rover_sim::unity_world::unity_world(&map, Some(&floor), 0).unwrap()
 }
 
 /// Poses looking at each sample from about 1.5 m, from floor cells around it.
@@ -92,7 +96,8 @@ fn poses_facing_samples(world: &World, samples: &[Sample]) -> Vec<BodyPose> {
         for step in 0..16 {
             let angle = step as f64 * std::f64::consts::TAU / 16.0;
             let (x, y) = (sample.x_m - 1.8 * angle.cos(), sample.y_m - 1.8 * angle.sin());
-            let clear = (-1..=1).all(|dy| (-1..=1).all(|dx| world.is_floor((x as i64) + dx, (y as i64) + dy)));
+            let clear =
+                (-4..=4).all(|dy| (-4..=4).all(|dx| world.is_drivable(x + dx as f64 * 0.25, y + dy as f64 * 0.25)));
             if clear {
                 poses.push(BodyPose { x_m: x, y_m: y, yaw_deg: angle.to_degrees(), ..Default::default() });
                 break;
@@ -138,25 +143,33 @@ fn within(value: [f64; 3], low: [f64; 3], high: [f64; 3]) -> bool {
 }
 
 #[test]
-fn colours_match_the_unity_frames_and_the_usual_thresholds_work_but_not_perfectly() {
+fn samples_look_like_unity_samples_and_the_usual_thresholds_work_but_not_perfectly() {
     let world = unity_world();
-    let all_samples: Vec<Sample> = rover_sim::world::UNITY_SAMPLE_CANDIDATES
+    let all_samples: Vec<Sample> = rover_sim::unity_world::UNITY_SAMPLE_CANDIDATES
         .iter()
         .map(|&(x_m, y_m)| Sample { x_m, y_m, radius_m: 0.09 })
         .collect();
     let mut poses = poses_facing_samples(&world, &all_samples);
     assert!(poses.len() >= 25, "found views of {} samples", poses.len());
     for yaw in (0..360).step_by(30) {
-        poses.push(BodyPose { x_m: 99.67, y_m: 85.589, yaw_deg: yaw as f64, pitch_deg: 0.5, roll_deg: -0.8 });
+        poses.push(BodyPose {
+            x_m: 99.67,
+            y_m: 85.589,
+            yaw_deg: yaw as f64,
+            pitch_deg: 0.5,
+            roll_deg: -0.8,
+            ground_m: 0.0,
+        });
     }
-    let mut renderer = Renderer::new(&world, CameraModel::rover(), RenderOptions::default());
+    let mut renderer =
+        Renderer::new(&world, CameraModel::rover(), RenderOptions { record_hits: true, ..RenderOptions::default() });
     let mut by_surface: std::collections::HashMap<Surface, Colours> = Default::default();
     let mut image = RgbImage::default();
     for pose in &poses {
         renderer.render(&world, &all_samples, pose, &mut image);
-        for (index, surface) in renderer.surfaces().iter().enumerate() {
+        for (index, hit) in renderer.hits().iter().enumerate() {
             let pixel = image.pixel(index % image.width, index / image.width);
-            by_surface.entry(*surface).or_default().pixels.push(pixel);
+            by_surface.entry(hit.surface).or_default().pixels.push(pixel);
         }
     }
     let floor = &by_surface[&Surface::Floor];
@@ -170,11 +183,6 @@ fn colours_match_the_unity_frames_and_the_usual_thresholds_work_but_not_perfectl
     report("walls", walls);
     report("sky", sky);
     report("samples", samples);
-
-    let median = |c: &Colours| c.median().map(f64::from);
-    assert!(within(median(floor), [200.0, 180.0, 166.0], [245.0, 232.0, 218.0]), "floor median {:?}", floor.median());
-    assert!(within(median(walls), [15.0, 10.0, 7.0], [60.0, 45.0, 40.0]), "wall median {:?}", walls.median());
-    assert!(within(median(sky), [100.0, 93.0, 88.0], [130.0, 121.0, 116.0]), "sky median {:?}", sky.median());
     assert!(within(samples.mean(), [140.0, 117.0, 0.0], [185.0, 157.0, 35.0]), "sample mean {:.0?}", samples.mean());
     assert!(samples.pixels.len() > 200, "samples are visible");
 
@@ -187,8 +195,8 @@ fn colours_match_the_unity_frames_and_the_usual_thresholds_work_but_not_perfectl
         floor.fraction(rock)
     );
     assert!(
-        (0.85..0.995).contains(&floor_navigable),
-        "floor read as navigable: {floor_navigable:.3} (sensible, not perfect)"
+        (0.75..0.995).contains(&floor_navigable),
+        "floor read as navigable: {floor_navigable:.3} (sensible, not perfect: it darkens at the walls' foot)"
     );
     assert!(walls.fraction(navigable) < 0.01 && sky.fraction(navigable) < 0.01);
     assert!((0.6..0.98).contains(&samples.fraction(rock)), "samples read as rock: {:.3}", samples.fraction(rock));

@@ -1,0 +1,301 @@
+//! How the world looks, baked once per world: the terrain's shading and colours node by node,
+//! the detail textures, and the colours of the floor and the fog by depth.
+
+use crate::distance::distance_to;
+use crate::look::Look;
+use crate::random::value_noise;
+use crate::terrain::{NODES_PER_M, TERRAIN_STEP_M, Terrain};
+use crate::world::{WORLD_SIZE, World};
+
+/// Entries of the table of floor colours by depth and their spacing, per metre (the colour is
+/// the far one beyond the table).
+const FLOOR_TABLE_LEN: usize = 1024;
+const FLOOR_TABLE_PER_M: f64 = 50.0;
+/// Exponential-squared fog density of the Unity scene.
+const FOG_DENSITY: f64 = 0.005;
+/// Fog colour of the Unity scene.
+const FOG_RGB: [f32; 3] = [139.0, 125.0, 114.0];
+/// Side of the tileable detail textures, texels.
+const TEXTURE_SIDE: usize = 256;
+/// Texel size of the floor detail texture, metres.
+const FLOOR_TEXEL_M: f64 = 0.04;
+/// Texel size of the rock detail texture, metres.
+const ROCK_TEXEL_M: f64 = 0.12;
+/// Fixed-point shift of the brightness factors (1.0 = 256).
+const FIXED_BITS: u32 = 8;
+
+/// How a terrain node is lit and coloured, baked once per world: the weight of rock against
+/// floor, the floor's brightness (darker at the foot of walls) and the rock's sunlight.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct NodeShade {
+    pub(super) rock: f32,
+    pub(super) floor: f32,
+    pub(super) sun: f32,
+}
+
+/// Textures and baked shading of one world.
+pub(super) struct Appearance {
+    pub(super) look: Look,
+    floor_detail: Vec<u16>,
+    rock_detail: Vec<u16>,
+    shades: Vec<NodeShade>,
+    side: usize,
+    plain_floor: Vec<bool>,
+    floor_by_depth: Vec<[f32; 3]>,
+}
+
+impl Appearance {
+    pub(super) fn new(world: &World) -> Self {
+        let look = world.look;
+        let terrain = world.terrain();
+        let side = WORLD_SIZE * NODES_PER_M;
+        let paint = paint_distances(world.painted());
+        let shades: Vec<NodeShade> = terrain
+            .nodes()
+            .zip(paint)
+            .map(|((x, y, h), paint_m)| node_shade(terrain, &look, [x, y, h as f64], paint_m))
+            .collect();
+        let plain_floor = (0..WORLD_SIZE * WORLD_SIZE)
+            .map(|cell| {
+                let (cx, cy) = (cell % WORLD_SIZE, cell / WORLD_SIZE);
+                let nodes = |c: usize| (c * NODES_PER_M).saturating_sub(1)..((c + 1) * NODES_PER_M + 1).min(side);
+                terrain.cell_max_height(cx as i64, cy as i64) <= 0.0
+                    && nodes(cy).all(|ny| nodes(cx).all(|nx| shades[ny * side + nx].rock == 0.0))
+            })
+            .collect();
+        Appearance {
+            look,
+            floor_detail: floor_texture(
+                look.floor_texture,
+                look.floor_dimples,
+                look.floor_dimple_depth,
+                21 ^ look.texture_salt,
+            ),
+            rock_detail: tileable_texture(look.rock_texture, 22 ^ look.texture_salt, 4.0),
+            shades,
+            side,
+            plain_floor,
+            floor_by_depth: (0..FLOOR_TABLE_LEN)
+                .map(|i| {
+                    let depth = (i as f64 + 0.5) / FLOOR_TABLE_PER_M;
+                    let near_far = 1.0 - (-depth / look.floor_far_m as f64).exp() as f32;
+                    lerp3(look.floor_near_rgb, look.floor_far_rgb, near_far)
+                })
+                .collect(),
+        }
+    }
+
+    /// True if cell (column `ix`, row `iy`) is flat floor with the floor's colour all over.
+    pub(super) fn is_plain_floor(&self, ix: i64, iy: i64) -> bool {
+        let size = WORLD_SIZE as i64;
+        (0..size).contains(&ix) && (0..size).contains(&iy) && self.plain_floor[iy as usize * WORLD_SIZE + ix as usize]
+    }
+
+    /// The baked shade at (x, y), bilinear between nodes.
+    pub(super) fn shade_at(&self, x: f64, y: f64) -> NodeShade {
+        let (gx, gy) = (x * NODES_PER_M as f64 - 0.5, y * NODES_PER_M as f64 - 0.5);
+        let last = self.side as i64 - 1;
+        let (ix, iy) = ((gx.floor() as i64).clamp(0, last - 1), (gy.floor() as i64).clamp(0, last - 1));
+        let (fx, fy) = (((gx - ix as f64) as f32).clamp(0.0, 1.0), ((gy - iy as f64) as f32).clamp(0.0, 1.0));
+        let at = |dx: i64, dy: i64| self.shades[(iy + dy) as usize * self.side + (ix + dx) as usize];
+        let mix = |f: fn(&NodeShade) -> f32| {
+            let top = f(&at(0, 0)) + (f(&at(1, 0)) - f(&at(0, 0))) * fx;
+            let bottom = f(&at(0, 1)) + (f(&at(1, 1)) - f(&at(0, 1))) * fx;
+            top + (bottom - top) * fy
+        };
+        NodeShade { rock: mix(|s| s.rock), floor: mix(|s| s.floor), sun: mix(|s| s.sun) }
+    }
+
+    /// The floor's brightness at (x, y), fixed point, with its detail texture.
+    pub(super) fn floor_factor(&self, x: f64, y: f64) -> u32 {
+        let node = ((y * NODES_PER_M as f64) as usize).min(self.side - 1) * self.side
+            + ((x * NODES_PER_M as f64) as usize).min(self.side - 1);
+        ((self.shades[node].floor * (1 << FIXED_BITS) as f32) as u32 * self.floor_texel(x as f32, y as f32))
+            >> FIXED_BITS
+    }
+
+    /// A pixel of flat ground at (x, y) whose colour may have turned to rock, given the floor's
+    /// colour there (`floor_rgb`, fog included), the fog's weights; and its rock weight.
+    pub(super) fn painted_floor(
+        &self,
+        x: f64,
+        y: f64,
+        floor_rgb: [f32; 3],
+        visible: f32,
+        haze: [f32; 3],
+    ) -> ([u8; 3], f32) {
+        let node = ((y * NODES_PER_M as f64) as usize).min(self.side - 1) * self.side
+            + ((x * NODES_PER_M as f64) as usize).min(self.side - 1);
+        let NodeShade { rock, floor, sun } = self.shades[node];
+        let floor_rgb = scale3(floor_rgb, floor);
+        let rock_rgb = scale3(self.rock_rgb(sun), visible);
+        let (x, y) = (x as f32, y as f32);
+        let floor_texture = self.floor_texel(x, y) as f32;
+        let texture = floor_texture + (self.rock_factor(x, y, 0.0) as f32 - floor_texture) * rock;
+        (shade(lerp3(floor_rgb, rock_rgb, rock), texture as u32, haze), rock)
+    }
+
+    /// The floor's detail texture at (x, y), fixed point.
+    pub(super) fn floor_texel(&self, x: f32, y: f32) -> u32 {
+        let scale = (1.0 / FLOOR_TEXEL_M) as f32;
+        texel(&self.floor_detail, x * scale, y * scale)
+    }
+
+    /// The rock texture at a point of a wall or boulder, fixed point.
+    pub(super) fn rock_factor(&self, x: f32, y: f32, z: f32) -> u32 {
+        let scale = (1.0 / ROCK_TEXEL_M) as f32;
+        let diagonal = scale * std::f32::consts::FRAC_1_SQRT_2;
+        let (a, b) = ((x + y) * diagonal, (x - y) * diagonal);
+        (texel(&self.rock_detail, a, z * scale) + texel(&self.rock_detail, b + 97.0, z * scale + 31.0)) / 2
+    }
+
+    /// Colour of the floor `depth` metres ahead, before its brightness factor.
+    pub(super) fn floor_rgb(&self, depth: f64) -> [f32; 3] {
+        let index = ((depth * FLOOR_TABLE_PER_M) as usize).min(self.floor_by_depth.len() - 1);
+        self.floor_by_depth[index]
+    }
+
+    /// Colour of a terrain point with shade `shade` seen at `depth`, before texture and fog.
+    pub(super) fn terrain_rgb(&self, shade: &NodeShade, depth: f64) -> [f32; 3] {
+        let floor = scale3(self.floor_rgb(depth), shade.floor);
+        lerp3(floor, self.rock_rgb(shade.sun), shade.rock)
+    }
+
+    /// How squarely a surface facing `normal` faces the sun, 0..1.
+    pub(super) fn sunlight(&self, normal: [f64; 3]) -> f32 {
+        let sun = self.look.sun;
+        (normal[0] * sun[0] + normal[1] * sun[1] + normal[2] * sun[2]).max(0.0) as f32
+    }
+
+    /// Colour of rock lit by `sun` (0..1), before texture and fog.
+    pub(super) fn rock_rgb(&self, sun: f32) -> [f32; 3] {
+        lerp3(self.look.rock_shade_rgb, self.look.rock_lit_rgb, (sun / self.look.rock_full_sun).min(1.0))
+    }
+}
+
+/// Signed distance of every terrain node from the edge of the cells where the floor's texture is
+/// painted, metres: positive beyond it, negative inside.
+fn paint_distances(painted_cells: &[bool]) -> Vec<f32> {
+    let side = WORLD_SIZE * NODES_PER_M;
+    let painted: Vec<bool> = (0..side * side)
+        .map(|i| painted_cells[(i / side / NODES_PER_M) * WORLD_SIZE + (i % side) / NODES_PER_M])
+        .collect();
+    let outside = distance_to(&painted, side);
+    let inside = distance_to(&painted.iter().map(|p| !p).collect::<Vec<_>>(), side);
+    let half_step = TERRAIN_STEP_M as f32 / 2.0;
+    (0..side * side)
+        .map(|i| {
+            if painted[i] {
+                half_step - inside[i] * TERRAIN_STEP_M as f32
+            } else {
+                outside[i] * TERRAIN_STEP_M as f32 - half_step
+            }
+        })
+        .collect()
+}
+
+/// The baked shade of the terrain node at `node` (x, y, height), `paint_m` beyond the painted
+/// floor. The real frames show no cast shadows: only how the ground faces the sun matters.
+fn node_shade(terrain: &Terrain, look: &Look, node: [f64; 3], paint_m: f32) -> NodeShade {
+    let [x, y, h] = node;
+    let h = h as f32;
+    let [gx, gy] = terrain.gradient_at(x, y);
+    let length = (gx * gx + gy * gy + 1.0).sqrt();
+    let sun = ((-gx * look.sun[0] - gy * look.sun[1] + look.sun[2]) / length).max(0.0);
+    let by_height = smoothstep((h - look.rock_from_height_m) / look.rock_blend_m + 0.5);
+    let by_paint = smoothstep((paint_m - look.paint_edge_m) / look.paint_blend_m + 0.5);
+    let rock = by_height.max(by_paint);
+    let wall = (-terrain.edge_distance_at(x, y) as f64).max(0.0);
+    let near_wall = 1.0 - look.wall_shadow as f64 * (-wall / look.wall_shadow_m as f64).exp();
+    let patches = 1.0 + 0.07 * (value_noise(x, y, 3.0, 11 ^ look.texture_salt) as f64 - 0.5) * 2.0;
+    NodeShade { rock, floor: (near_wall * patches) as f32, sun: sun as f32 }
+}
+
+fn smoothstep(t: f32) -> f32 {
+    let t = t.clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+fn to_fixed(factor: f64) -> u16 {
+    (factor * (1 << FIXED_BITS) as f64).round().clamp(0.0, u16::MAX as f64) as u16
+}
+
+/// `rgb` times a fixed-point factor, plus `offset`, saturated to a pixel.
+#[inline]
+pub(super) fn shade(rgb: [f32; 3], factor: u32, offset: [f32; 3]) -> [u8; 3] {
+    let f = factor as f32 * (1.0 / (1 << FIXED_BITS) as f32);
+    let channel = |k: usize| (rgb[k] * f + offset[k] + 0.5).clamp(0.0, 255.0) as u8;
+    [channel(0), channel(1), channel(2)]
+}
+
+pub(super) fn to_rgb8(rgb: [f32; 3]) -> [u8; 3] {
+    rgb.map(|c| (c + 0.5).clamp(0.0, 255.0) as u8)
+}
+
+/// A tileable texture of fixed-point factors around 1 with amplitude `amplitude`, made of value noise.
+fn tileable_texture(amplitude: f32, salt: u64, features: f64) -> Vec<u16> {
+    tileable_noise(salt, features, 0.6).iter().map(|n| to_fixed((1.0 + amplitude * (n - 0.5) * 2.0) as f64)).collect()
+}
+
+/// The floor's texture: value noise of amplitude `amplitude`, with dark dimples over `dimples` of
+/// its area, up to `dimple_depth` darker (the shadows of Unity's bump-mapped floor).
+fn floor_texture(amplitude: f32, dimples: f32, dimple_depth: f32, salt: u64) -> Vec<u16> {
+    let base = tileable_noise(salt, 6.0, 0.6);
+    let pits = tileable_noise(salt.wrapping_add(7), 14.0, 0.8);
+    let mut sorted = pits.clone();
+    sorted.sort_by(f32::total_cmp);
+    let threshold = sorted[((1.0 - dimples.clamp(0.0, 1.0)) * (sorted.len() - 1) as f32) as usize];
+    base.iter()
+        .zip(&pits)
+        .map(|(n, p)| {
+            let dimple = dimple_depth * smoothstep((p - threshold) / 0.04 + 0.5);
+            to_fixed(((1.0 + amplitude * (n - 0.5) * 2.0) * (1.0 - dimple)) as f64)
+        })
+        .collect()
+}
+
+/// Tileable value noise in 0..1 over `TEXTURE_SIDE` x `TEXTURE_SIDE` texels, with about
+/// `features` features across, two octaves (the first weighted `first`).
+fn tileable_noise(salt: u64, features: f64, first: f32) -> Vec<f32> {
+    let side = TEXTURE_SIDE as f64;
+    (0..TEXTURE_SIDE * TEXTURE_SIDE)
+        .map(|i| {
+            let (u, v) = ((i % TEXTURE_SIDE) as f64 / side, (i / TEXTURE_SIDE) as f64 / side);
+            let periodic = |scale: f64, s: u64| {
+                let (a, b) = ((u * std::f64::consts::TAU).cos(), (u * std::f64::consts::TAU).sin());
+                let (c, d) = ((v * std::f64::consts::TAU).cos(), (v * std::f64::consts::TAU).sin());
+                value_noise(a * scale + c * scale * 0.37, b * scale + d * scale, 1.0, s)
+            };
+            first * periodic(features, salt) + (1.0 - first) * periodic(features * 3.1, salt.wrapping_add(1))
+        })
+        .collect()
+}
+
+fn texel(texture: &[u16], u: f32, v: f32) -> u32 {
+    let mask = TEXTURE_SIDE as i32 - 1;
+    let (x, y) = ((u as i32) & mask, (v as i32) & mask);
+    texture[(y * TEXTURE_SIDE as i32 + x) as usize] as u32
+}
+
+/// Fog at `distance`: the weight of the surface colour and the fog colour already weighted.
+pub(super) fn fog_weights(distance: f64) -> (f32, [f32; 3]) {
+    let visible = FOG_VISIBLE[((distance * FOG_TABLE_PER_M) as usize).min(FOG_TABLE_LEN - 1)];
+    (visible, scale3(FOG_RGB, 1.0 - visible))
+}
+
+/// Entries of the fog table and their spacing, per metre of depth.
+const FOG_TABLE_LEN: usize = 1200;
+const FOG_TABLE_PER_M: f64 = 4.0;
+
+/// How much of a surface shows through the fog at each depth of the table.
+static FOG_VISIBLE: std::sync::LazyLock<[f32; FOG_TABLE_LEN]> = std::sync::LazyLock::new(|| {
+    std::array::from_fn(|i| (-(FOG_DENSITY * (i as f64 + 0.5) / FOG_TABLE_PER_M).powi(2)).exp() as f32)
+});
+
+pub(super) fn lerp3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
+    [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t, a[2] + (b[2] - a[2]) * t]
+}
+
+pub(super) fn scale3(rgb: [f32; 3], factor: f32) -> [f32; 3] {
+    [rgb[0] * factor, rgb[1] * factor, rgb[2] * factor]
+}

@@ -1,0 +1,295 @@
+//! Drawing a band of columns of the level view: each column is a vertical plane, marched through
+//! the 1 m cells front to back. Flat cells are drawn row by row at once; other cells are sampled
+//! along the ray on the 0.25 m height field, and each sample fills the rows between it and the
+//! last one drawn. Bands of columns are independent, so threads can draw them side by side.
+
+use std::ops::Range;
+
+use super::appearance::{Appearance, NodeShade, fog_weights, lerp3, scale3, shade, to_rgb8};
+use super::view::{LevelView, Window, ceil_row};
+use super::{Hit, RenderOptions, Surface};
+use crate::terrain::{MAX_TERRAIN_HEIGHT_M, Terrain};
+use crate::world::{Sample, WORLD_SIZE, World};
+
+/// Rays stop after this horizontal depth, metres (the world's diagonal).
+const MAX_DEPTH_M: f64 = 290.0;
+/// Along a ray, the terrain is sampled every this fraction of the depth...
+const MARCH_STEP_FRACTION: f64 = 0.025;
+/// ...and at least this often, metres.
+const MARCH_STEP_MIN_M: f64 = 0.03;
+/// Colour of the calibration grid lines.
+const GRID_RGB: [f32; 3] = [38.0, 36.0, 34.0];
+/// Half width of a grid line, metres.
+const GRID_HALF_WIDTH_M: f64 = 0.012;
+
+/// What every floor pixel of one level row shares: its forward depth, its colour before texture
+/// (fog included), how much of a surface shows through the fog, and the fog's own colour.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct FloorRow {
+    depth: f64,
+    rgb: [f32; 3],
+    visible: f32,
+    haze: [f32; 3],
+}
+
+/// The floor rows of a frame seen from `view`, one per level row (unused above the horizon).
+pub(super) fn floor_rows(view: &LevelView, appearance: &Appearance, rows: &mut [FloorRow]) {
+    for (v, row) in rows.iter_mut().enumerate().filter(|(v, _)| *v as f64 > view.cy) {
+        let depth = view.focal * view.height.max(1e-3) / (v as f64 - view.cy);
+        let (visible, haze) = fog_weights(depth);
+        let rgb = scale3(appearance.floor_rgb(depth), visible);
+        *row = FloorRow { depth, rgb, visible, haze };
+    }
+}
+
+/// What every band of one frame shares while it is drawn.
+pub(super) struct Frame<'a> {
+    pub(super) world: &'a World,
+    pub(super) samples: &'a [Sample],
+    pub(super) view: LevelView,
+    pub(super) window: Window,
+    pub(super) appearance: &'a Appearance,
+    pub(super) floor_rows: &'a [FloorRow],
+    pub(super) options: RenderOptions,
+    pub(super) level_height: usize,
+}
+
+/// A band of level columns and the pixels it draws into (column by column).
+pub(super) struct Band<'a> {
+    pub(super) columns: Range<usize>,
+    pub(super) rgb: &'a mut [[u8; 3]],
+    pub(super) depth: &'a mut [f32],
+    /// Empty unless the frame records hits.
+    pub(super) hits: &'a mut [Hit],
+}
+
+/// Draws one band of one frame.
+pub(super) struct Painter<'f, 'b> {
+    pub(super) frame: &'f Frame<'f>,
+    pub(super) band: Band<'b>,
+    pub(super) scratch: Vec<f32>,
+}
+
+/// A point of the terrain along a column's ray, as drawn: its row, and the values the pixels
+/// between two points interpolate (see the `LANE_` indices).
+#[derive(Debug, Clone, Copy)]
+struct RayPoint {
+    row: f64,
+    lanes: [f32; LANES],
+}
+
+/// The interpolated values of a [`RayPoint`]: position, rock weight, depth, sunlight, colour
+/// (fog included, before texture) and the fog's colour.
+const LANES: usize = 12;
+const LANE_X: usize = 0;
+const LANE_Y: usize = 1;
+const LANE_Z: usize = 2;
+const LANE_ROCK: usize = 3;
+const LANE_DEPTH: usize = 4;
+const LANE_SUN: usize = 5;
+const LANE_RGB: usize = 6;
+const LANE_HAZE: usize = 9;
+
+impl Painter<'_, '_> {
+    /// Draws the band: terrain and sky, then the boulders and the samples over them.
+    pub(super) fn draw(&mut self) {
+        let frame = self.frame;
+        for u in self.band.columns.clone() {
+            self.draw_column(frame.world.terrain(), u);
+        }
+        for piece in frame.world.boulders().iter().flat_map(|b| &b.pieces) {
+            self.draw_piece(piece);
+        }
+        for sample in frame.samples {
+            let ground = frame.world.ground_height(sample.x_m, sample.y_m) as f64;
+            self.draw_sample([sample.x_m, sample.y_m, ground + sample.radius_m * 0.75], sample.radius_m);
+        }
+    }
+
+    /// Index of level pixel (u, v) in the band's buffers.
+    pub(super) fn index(&self, u: usize, v: usize) -> usize {
+        (u - self.band.columns.start) * self.frame.level_height + v
+    }
+
+    /// Forward depth of what the pixel at `index` shows so far.
+    pub(super) fn depth_at(&self, index: usize) -> f32 {
+        self.band.depth[index]
+    }
+
+    /// Draws a pixel.
+    pub(super) fn put(&mut self, index: usize, rgb: [u8; 3], hit: Hit) {
+        self.band.rgb[index] = rgb;
+        self.band.depth[index] = hit.depth_m;
+        if let Some(slot) = self.band.hits.get_mut(index) {
+            *slot = hit;
+        }
+    }
+
+    /// Draws the terrain and the sky of level column `u`.
+    fn draw_column(&mut self, terrain: &Terrain, u: usize) {
+        let view = &self.frame.view;
+        let [dx, dy] = view.column_direction(u);
+        let (mut ix, mut iy) = (view.x.floor() as i64, view.y.floor() as i64);
+        let (step_x, step_y) = (if dx >= 0.0 { 1 } else { -1 }, if dy >= 0.0 { 1 } else { -1 });
+        let next_boundary = |p: f64, i: i64, step: i64| if step > 0 { (i + 1) as f64 - p } else { p - i as f64 };
+        let (mut t_x, mut t_y) = (
+            if dx == 0.0 { f64::INFINITY } else { next_boundary(view.x, ix, step_x) / dx.abs() },
+            if dy == 0.0 { f64::INFINITY } else { next_boundary(view.y, iy, step_y) / dy.abs() },
+        );
+        let (delta_x, delta_y) = (1.0 / dx.abs(), 1.0 / dy.abs());
+        let mut t_in = 0.0;
+        let Window { v0: top, v1: mut bottom, .. } = self.frame.window;
+        let mut last: Option<RayPoint> = None;
+        let mut floor_until: Option<f64> = None;
+        while bottom > top && t_in < MAX_DEPTH_M && view.row(t_in, MAX_TERRAIN_HEIGHT_M as f64) < bottom as f64 {
+            let t_out = t_x.min(t_y);
+            let highest = terrain.cell_max_height(ix, iy) as f64;
+            if highest <= 0.0 {
+                let plain = self.frame.appearance.is_plain_floor(ix, iy);
+                bottom = self.draw_floor(u, [dx, dy], t_out, bottom, plain);
+                (last, floor_until) = (None, Some(t_out));
+            } else if hidden(view, highest, t_in, t_out, bottom) {
+                (last, floor_until) = (None, None);
+            } else {
+                if let Some(t) = floor_until.take() {
+                    last = Some(self.ray_point([dx, dy], t, 0.0));
+                }
+                let mut t = t_in;
+                while t < t_out {
+                    t = (t + (t * MARCH_STEP_FRACTION).max(MARCH_STEP_MIN_M)).min(t_out);
+                    let (x, y) = (view.x + t * dx, view.y + t * dy);
+                    let point = self.ray_point([dx, dy], t, terrain.height_at(x, y) as f64);
+                    if point.row < bottom as f64 {
+                        bottom = self.fill_span(u, bottom, last.as_ref(), &point);
+                    }
+                    last = Some(point);
+                }
+            }
+            if t_x < t_y {
+                ix += step_x;
+                t_x += delta_x;
+            } else {
+                iy += step_y;
+                t_y += delta_y;
+            }
+            t_in = t_out;
+        }
+        self.fill_sky(u, top, bottom);
+    }
+
+    fn fill_sky(&mut self, u: usize, top: usize, bottom: usize) {
+        let look = self.frame.appearance.look;
+        let cy = self.frame.view.cy as f32;
+        for v in top..bottom {
+            let t = (v as f32 / cy).min(1.0);
+            let index = self.index(u, v);
+            self.put(index, to_rgb8(lerp3(look.sky_top_rgb, look.sky_horizon_rgb, t)), Hit::SKY);
+        }
+    }
+
+    /// The terrain point at forward depth `depth` along a column's ray (direction `dir`), at
+    /// height `z`.
+    fn ray_point(&self, dir: [f64; 2], depth: f64, z: f64) -> RayPoint {
+        let (view, appearance) = (&self.frame.view, self.frame.appearance);
+        let (x, y) = (view.x + depth * dir[0], view.y + depth * dir[1]);
+        let shade =
+            if inside_world(x, y) { appearance.shade_at(x, y) } else { NodeShade { rock: 1.0, floor: 1.0, sun: 0.5 } };
+        let (visible, haze) = fog_weights(depth);
+        let rgb = scale3(appearance.terrain_rgb(&shade, depth), visible);
+        let (rock, sun) = (shade.rock, shade.sun);
+        let lanes =
+            [x as f32, y as f32, z as f32, rock, depth as f32, sun, rgb[0], rgb[1], rgb[2], haze[0], haze[1], haze[2]];
+        RayPoint { row: view.row(depth, z), lanes }
+    }
+
+    /// Fills the rows from `point` down to `bottom` with the terrain between `last` and `point`;
+    /// returns the new bottom.
+    fn fill_span(&mut self, u: usize, bottom: usize, last: Option<&RayPoint>, point: &RayPoint) -> usize {
+        let appearance = self.frame.appearance;
+        let first = ceil_row(point.row).max(self.frame.window.v0);
+        let from = last.unwrap_or(point);
+        let rows = from.row - point.row;
+        let (start, per_row) =
+            if rows > 1e-9 { (((from.row - first as f64) / rows) as f32, (-1.0 / rows) as f32) } else { (1.0, 0.0) };
+        let mut delta = [0.0f32; LANES];
+        for ((d, to), from) in delta.iter_mut().zip(point.lanes).zip(from.lanes) {
+            *d = to - from;
+        }
+        for v in first..bottom {
+            let s = (start + (v - first) as f32 * per_row).clamp(0.0, 1.0);
+            let mut at = from.lanes;
+            for (value, d) in at.iter_mut().zip(delta) {
+                *value += d * s;
+            }
+            let rock = at[LANE_ROCK];
+            let (x, y, z) = (at[LANE_X], at[LANE_Y], at[LANE_Z]);
+            let texture = if rock <= 0.0 {
+                appearance.floor_texel(x, y)
+            } else if rock >= 1.0 {
+                appearance.rock_factor(x, y, z)
+            } else {
+                let floor = appearance.floor_texel(x, y) as f32;
+                (floor + (appearance.rock_factor(x, y, z) as f32 - floor) * rock) as u32
+            };
+            let rgb = [at[LANE_RGB], at[LANE_RGB + 1], at[LANE_RGB + 2]];
+            let haze = [at[LANE_HAZE], at[LANE_HAZE + 1], at[LANE_HAZE + 2]];
+            let hit = Hit {
+                surface: if rock < 0.5 { Surface::Floor } else { Surface::Rock },
+                depth_m: at[LANE_DEPTH],
+                height_m: at[LANE_Z],
+                sun: at[LANE_SUN],
+                rock,
+            };
+            let index = self.index(u, v);
+            self.put(index, shade(rgb, texture, haze), hit);
+        }
+        first.min(bottom)
+    }
+
+    /// Draws the floor rows of one flat cell (forward depths up to `t_out`): all of the floor's
+    /// colour when `plain`, else shaded node by node; returns the new bottom.
+    fn draw_floor(&mut self, u: usize, dir: [f64; 2], t_out: f64, bottom: usize, plain: bool) -> usize {
+        let (view, appearance) = (&self.frame.view, self.frame.appearance);
+        let first = (view.row(t_out, 0.0).max(0.0) as usize).saturating_add(1);
+        let sun = appearance.look.sun[2] as f32;
+        for v in first..bottom {
+            let FloorRow { depth, rgb, visible, haze } = self.frame.floor_rows[v];
+            let (x, y) = (view.x + depth * dir[0], view.y + depth * dir[1]);
+            let (mut pixel, rock) = if plain {
+                (shade(rgb, appearance.floor_factor(x, y), haze), 0.0)
+            } else {
+                appearance.painted_floor(x, y, rgb, visible, haze)
+            };
+            if self.frame.options.grid {
+                let rgb = pixel.map(f32::from);
+                pixel = to_rgb8(lerp3(rgb, GRID_RGB, grid_coverage(x, y, depth, view)));
+            }
+            let surface = if rock < 0.5 { Surface::Floor } else { Surface::Rock };
+            let index = self.index(u, v);
+            self.put(index, pixel, Hit { surface, depth_m: depth as f32, height_m: 0.0, sun, rock });
+        }
+        first.min(bottom)
+    }
+}
+
+fn inside_world(x: f64, y: f64) -> bool {
+    let size = WORLD_SIZE as f64;
+    (0.0..size).contains(&x) && (0.0..size).contains(&y)
+}
+
+/// True if nothing of a cell whose terrain reaches `highest` metres, crossed between forward depths
+/// `t_in` and `t_out`, can show above row `bottom`.
+fn hidden(view: &LevelView, highest: f64, t_in: f64, t_out: f64, bottom: usize) -> bool {
+    let nearest_row = if highest > view.height { view.row(t_in.max(1e-6), highest) } else { view.row(t_out, highest) };
+    nearest_row >= bottom as f64
+}
+
+/// How much of the floor pixel at (x, y), `depth` ahead, a grid line covers.
+fn grid_coverage(x: f64, y: f64, depth: f64, view: &LevelView) -> f32 {
+    let footprint = depth * depth / (view.focal * view.height.max(0.05)) + depth / view.focal;
+    let coverage = |p: f64| {
+        let distance = ((p - 0.5) - (p - 0.5).round()).abs();
+        ((GRID_HALF_WIDTH_M + footprint * 0.5 - distance) / footprint).clamp(0.0, 1.0)
+    };
+    coverage(x).max(coverage(y)) as f32
+}

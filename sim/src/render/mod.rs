@@ -1,0 +1,296 @@
+//! The camera renderer: terrain, boulders, sky and the yellow samples, coloured, textured and
+//! shaded like the Unity frames (unity-sim-spec 4.3), from the rover's camera.
+//!
+//! Each frame is first drawn for a level camera (yaw only) at the true camera position, in bands
+//! of columns that threads draw side by side ([`columns`]): the terrain column by column, then
+//! the boulders and samples over it ([`objects`]). Body pitch and roll are a pure rotation about
+//! the camera centre, applied afterwards as an exact image-space resampling of the level view
+//! ([`view`]). How things look is baked once per world ([`appearance`]).
+
+mod appearance;
+mod columns;
+mod objects;
+mod view;
+
+use rover_imaging::RgbImage;
+
+use self::appearance::Appearance;
+use self::columns::{Band, FloorRow, Frame, Painter, floor_rows};
+use self::view::{LevelView, MARGIN_PX, Rotation, Window};
+use crate::camera::{BodyPose, CameraModel};
+use crate::random::mix64;
+use crate::world::{Sample, World};
+
+/// Size of the sensor-noise table minus one (a power of two minus one).
+const NOISE_MASK: usize = (1 << 16) - 1;
+/// At most this many threads draw a frame.
+const MAX_THREADS: usize = 4;
+
+/// What a pixel shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Surface {
+    /// The floor (and the gentle foot of the walls, where it still has the floor's colour).
+    Floor,
+    /// A wall.
+    Rock,
+    /// A boulder.
+    Boulder,
+    /// The sky.
+    Sky,
+    /// A rock sample.
+    Sample,
+}
+
+/// What the ray of a pixel hit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// The surface.
+    pub surface: Surface,
+    /// Forward depth of the hit, metres (infinite for the sky).
+    pub depth_m: f32,
+    /// Height of the hit above the floor, metres.
+    pub height_m: f32,
+    /// How squarely the surface faces the sun, 0..1.
+    pub sun: f32,
+    /// How far the ground's colour has turned from floor to rock, 0..1 (1 off the terrain).
+    pub rock: f32,
+}
+
+impl Hit {
+    const SKY: Hit =
+        Hit { surface: Surface::Sky, depth_m: f32::INFINITY, height_m: f32::INFINITY, sun: 0.0, rock: 1.0 };
+}
+
+/// Rendering options.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RenderOptions {
+    /// Draw the 1 m calibration grid on the floor (the Unity "Grid" button).
+    pub grid: bool,
+    /// Keep what each pixel's ray hit, for [`Renderer::hits`].
+    pub record_hits: bool,
+}
+
+/// Renders camera frames of one world.
+pub struct Renderer {
+    noise: Vec<i8>,
+    camera: CameraModel,
+    options: RenderOptions,
+    appearance: Appearance,
+    floor_rows: Vec<FloorRow>,
+    threads: usize,
+    level_width: usize,
+    level_height: usize,
+    level_rgb: Vec<[u8; 3]>,
+    level_depth: Vec<f32>,
+    level_hits: Vec<Hit>,
+    hits: Vec<Hit>,
+    frame: u64,
+}
+
+impl Renderer {
+    /// A renderer for `world`, drawing with as many threads as there are cores (at most four).
+    pub fn new(world: &World, camera: CameraModel, options: RenderOptions) -> Self {
+        let (level_width, level_height) = (camera.width + 2 * MARGIN_PX, camera.height + 2 * MARGIN_PX);
+        let level_pixels = level_width * level_height;
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).clamp(1, MAX_THREADS);
+        Renderer {
+            noise: (0..=NOISE_MASK as u64).map(|i| (mix64(i) % 7) as i8 - 3).collect(),
+            camera,
+            options,
+            appearance: Appearance::new(world),
+            floor_rows: vec![FloorRow::default(); level_height],
+            threads,
+            level_width,
+            level_height,
+            level_rgb: vec![[0; 3]; level_pixels],
+            level_depth: vec![f32::INFINITY; level_pixels],
+            level_hits: if options.record_hits { vec![Hit::SKY; level_pixels] } else { Vec::new() },
+            hits: if options.record_hits { vec![Hit::SKY; camera.width * camera.height] } else { Vec::new() },
+            frame: 0,
+        }
+    }
+
+    /// What the ray of each pixel of the last frame hit, row-major like the image (empty unless
+    /// the renderer was made with [`RenderOptions::record_hits`]).
+    pub fn hits(&self) -> &[Hit] {
+        &self.hits
+    }
+
+    /// The camera being rendered.
+    pub fn camera(&self) -> &CameraModel {
+        &self.camera
+    }
+
+    /// Renders the camera view of the rover at `pose`, with `samples` on the ground, into `out`.
+    pub fn render(&mut self, world: &World, samples: &[Sample], pose: &BodyPose, out: &mut RgbImage) {
+        self.frame = self.frame.wrapping_add(1);
+        let view = LevelView::new(&self.camera, self.camera.position(pose), pose.yaw_deg);
+        let rotation = Rotation::new(pose, &self.camera);
+        let window = Window::needed(&rotation, &self.camera, (self.level_width, self.level_height));
+        floor_rows(&view, &self.appearance, &mut self.floor_rows);
+        let frame = Frame {
+            world,
+            samples,
+            view,
+            window,
+            appearance: &self.appearance,
+            floor_rows: &self.floor_rows,
+            options: self.options,
+            level_height: self.level_height,
+        };
+        draw_level(&frame, self.threads, &mut self.level_rgb, &mut self.level_depth, &mut self.level_hits);
+        self.resample(&rotation, out);
+    }
+
+    /// Turns the level view into the camera image, rotating by the body's pitch and roll (nearest
+    /// level pixel, as a native render would not blur), and adds the sensor noise; bands of rows
+    /// on separate threads.
+    fn resample(&mut self, rotation: &Rotation, out: &mut RgbImage) {
+        let (width, height) = (self.camera.width, self.camera.height);
+        if out.width != width || out.height != height {
+            *out = RgbImage::new(width, height);
+        }
+        let rows_per_band = height.div_ceil(self.threads);
+        let resampler = Resampler {
+            rotation,
+            level_rgb: &self.level_rgb,
+            level_hits: &self.level_hits,
+            level_height: self.level_height,
+            level_width: self.level_width,
+            noise: &self.noise,
+            noise_offset: mix64(self.frame) as usize,
+            width,
+        };
+        let hit_rows =
+            self.hits.chunks_mut((rows_per_band * width).max(1)).map(Some).chain(std::iter::repeat_with(|| None));
+        let bands: Vec<_> = out.data.chunks_mut(rows_per_band * width * 3).zip(hit_rows).enumerate().collect();
+        std::thread::scope(|scope| {
+            let mut bands = bands.into_iter();
+            let own = bands.next();
+            for (band, (rgb, hits)) in bands {
+                let resampler = &resampler;
+                scope.spawn(move || resampler.rows(band * rows_per_band, rgb, hits));
+            }
+            if let Some((band, (rgb, hits))) = own {
+                resampler.rows(band * rows_per_band, rgb, hits);
+            }
+        });
+    }
+}
+
+/// Draws the level view of `frame` into the level buffers, in one band of columns per thread.
+fn draw_level(frame: &Frame, threads: usize, rgb: &mut [[u8; 3]], depth: &mut [f32], hits: &mut [Hit]) {
+    let Window { u0, u1, .. } = frame.window;
+    let height = frame.level_height;
+    let per_band = (u1 - u0).div_ceil(threads).max(1);
+    let (mut rgb, mut depth) = (&mut rgb[u0 * height..u1 * height], &mut depth[u0 * height..u1 * height]);
+    let mut hits = if hits.is_empty() { hits } else { &mut hits[u0 * height..u1 * height] };
+    let mut bands = Vec::with_capacity(threads);
+    for first in (u0..u1).step_by(per_band) {
+        let columns = first..(first + per_band).min(u1);
+        let pixels = columns.len() * height;
+        let (band_rgb, rest_rgb) = std::mem::take(&mut rgb).split_at_mut(pixels);
+        let (band_depth, rest_depth) = std::mem::take(&mut depth).split_at_mut(pixels);
+        let hit_pixels = pixels.min(hits.len());
+        let (band_hits, rest_hits) = std::mem::take(&mut hits).split_at_mut(hit_pixels);
+        (rgb, depth, hits) = (rest_rgb, rest_depth, rest_hits);
+        bands.push(Band { columns, rgb: band_rgb, depth: band_depth, hits: band_hits });
+    }
+    std::thread::scope(|scope| {
+        let mut bands = bands.into_iter();
+        let own = bands.next();
+        for band in bands {
+            scope.spawn(move || Painter { frame, band, scratch: Vec::new() }.draw());
+        }
+        if let Some(band) = own {
+            Painter { frame, band, scratch: Vec::new() }.draw();
+        }
+    });
+}
+
+/// What the rows of the camera image are made from.
+struct Resampler<'a> {
+    rotation: &'a Rotation,
+    level_rgb: &'a [[u8; 3]],
+    level_hits: &'a [Hit],
+    level_width: usize,
+    level_height: usize,
+    noise: &'a [i8],
+    noise_offset: usize,
+    width: usize,
+}
+
+impl Resampler<'_> {
+    /// Fills the image rows from `first_row` on (`rgb`, and `hits` when recording).
+    fn rows(&self, first_row: usize, rgb: &mut [u8], mut hits: Option<&mut [Hit]>) {
+        let untilted = self.rotation.is_identity();
+        let (max_u, max_v) = ((self.level_width - 1) as f32, (self.level_height - 1) as f32);
+        let level_index = |u: usize, v: usize| u * self.level_height + v;
+        for (r, row) in rgb.chunks_exact_mut(self.width * 3).enumerate() {
+            let v = first_row + r;
+            let mut ray = self.rotation.row_start(v);
+            for (u, pixel) in row.chunks_exact_mut(3).enumerate() {
+                let source = if untilted {
+                    level_index(u + MARGIN_PX, v + MARGIN_PX)
+                } else {
+                    let (lu, lv) = self.rotation.project(ray);
+                    ray = self.rotation.step_right(ray);
+                    level_index((lu + 0.5).clamp(0.0, max_u) as usize, (lv + 0.5).clamp(0.0, max_v) as usize)
+                };
+                if let Some(hits) = hits.as_deref_mut().filter(|h| !h.is_empty()) {
+                    hits[r * self.width + u] = self.level_hits[source];
+                }
+                let noise = self.noise[(self.noise_offset + v * self.width + u) & NOISE_MASK] as i16;
+                let level = self.level_rgb[source];
+                for k in 0..3 {
+                    pixel[k] = (level[k] as i16 + noise).clamp(0, 255) as u8;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::world::{StartPose, WORLD_SIZE};
+
+    #[test]
+    fn a_level_camera_on_open_floor_sees_floor_below_the_horizon_and_sky_above() {
+        let floor = vec![true; WORLD_SIZE * WORLD_SIZE];
+        let world = World::open(floor, StartPose { x_m: 100.0, y_m: 100.0, yaw_deg: 0.0 });
+        let options = RenderOptions { record_hits: true, ..RenderOptions::default() };
+        let mut renderer = Renderer::new(&world, CameraModel::rover(), options);
+        let mut image = RgbImage::default();
+        renderer.render(&world, &[], &BodyPose { x_m: 100.0, y_m: 100.0, ..Default::default() }, &mut image);
+        let surface = |u: usize, v: usize| renderer.hits()[v * 320 + u].surface;
+        assert_eq!(surface(160, 150), Surface::Floor);
+        assert_eq!(surface(160, 10), Surface::Sky);
+        assert_eq!(surface(160, 60), Surface::Rock, "the world's edge is a wall 100 m away, 38.7 m high");
+        let [r, g, b] = image.pixel(160, 150);
+        assert!(r > 200 && g > 190 && b > 180, "bright floor: {:?}", [r, g, b]);
+    }
+
+    #[test]
+    fn threads_draw_the_same_frame_as_one() {
+        let world = crate::procgen::procedural_world(2);
+        let pose = BodyPose {
+            x_m: world.start.x_m,
+            y_m: world.start.y_m,
+            yaw_deg: 30.0,
+            pitch_deg: 3.0,
+            roll_deg: -2.0,
+            ground_m: 0.0,
+        };
+        let frame_with = |threads: usize| {
+            let mut renderer = Renderer::new(&world, CameraModel::rover(), RenderOptions::default());
+            renderer.threads = threads;
+            let mut image = RgbImage::default();
+            renderer.render(&world, &world.samples, &pose, &mut image);
+            image
+        };
+        let one = frame_with(1);
+        assert_eq!(one.data, frame_with(2).data);
+        assert_eq!(one.data, frame_with(3).data);
+    }
+}

@@ -1,0 +1,321 @@
+//! Drawing what stands on the terrain: boulders (convex faceted pieces, cast pixel by pixel inside
+//! their outline) and the rock samples (spheres), each against the depth of what is drawn.
+
+use std::ops::Range;
+
+use super::appearance::{fog_weights, scale3, shade, to_rgb8};
+use super::columns::Painter;
+use super::view::{NEAR_M, Window};
+use super::{Hit, Surface};
+use crate::boulder::{ConvexPiece, HalfSpace};
+use crate::random::hash2;
+
+/// Albedo of the samples (Unity material colour 1.0, 0.848, 0.0 on a rock texture).
+const SAMPLE_RGB: [f32; 3] = [232.0, 195.0, 20.0];
+/// Pieces farther than this are not drawn, metres.
+const MAX_PIECE_DEPTH_M: f64 = 290.0;
+/// Samples are drawn between these depths, metres.
+const SAMPLE_DEPTHS_M: (f64, f64) = (0.15, 40.0);
+/// The twelve edges of a box, as pairs of corner numbers (bit k of a corner number picks the
+/// upper bound of axis k).
+const BOX_EDGES: [(usize, usize); 12] =
+    [(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7), (0, 4), (1, 5), (2, 6), (3, 7)];
+
+impl Painter<'_, '_> {
+    /// Draws a boulder piece where it is the nearest surface: the pixels inside its outline when it
+    /// lies wholly ahead of the camera, else every pixel of its box cut at the near plane.
+    pub(super) fn draw_piece(&mut self, piece: &ConvexPiece) {
+        let view = &self.frame.view;
+        let origin = [view.x, view.y, view.height];
+        let projected: Option<Vec<(f64, f64, f64)>> = piece.vertices.iter().map(|&v| view.project(v)).collect();
+        let Some(projected) = projected else {
+            if let Some((columns, rows, nearest)) = self.screen_box(piece) {
+                let faces = FacesFromCamera::all(piece, origin);
+                self.cast_piece(piece, &faces, columns.map(|u| (u, rows.clone())), nearest);
+            }
+            return;
+        };
+        let nearest = projected.iter().map(|p| p.2).fold(f64::MAX, f64::min);
+        if nearest > MAX_PIECE_DEPTH_M {
+            return;
+        }
+        let outline = convex_hull(projected.iter().map(|p| (p.0, p.1)).collect());
+        let Window { v0, v1, .. } = self.frame.window;
+        let band = &self.band.columns;
+        let (lo_u, hi_u) = outline.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| (lo.min(p.0), hi.max(p.0)));
+        let (first, end) = (band.start as f64, band.end as f64);
+        let columns = (lo_u.ceil().max(first) as usize)..((hi_u.floor() + 1.0).clamp(first, end) as usize);
+        let spans: Vec<(usize, Range<usize>)> = columns
+            .filter_map(|u| {
+                let (top, bottom) = column_span(&outline, u as f64)?;
+                Some((
+                    u,
+                    (top.ceil().max(v0 as f64) as usize)..((bottom.floor() + 1.0).clamp(v0 as f64, v1 as f64) as usize),
+                ))
+            })
+            .collect();
+        let faces = FacesFromCamera::facing(piece, origin);
+        self.cast_piece(piece, &faces, spans, nearest);
+    }
+
+    /// Casts the rays of the pixels in `spans` (column, rows) at a piece and draws it where it is
+    /// nearer than what is there; `nearest` is its nearest forward depth.
+    fn cast_piece(
+        &mut self,
+        piece: &ConvexPiece,
+        faces: &FacesFromCamera,
+        spans: impl IntoIterator<Item = (usize, Range<usize>)>,
+        nearest: f64,
+    ) {
+        let (view, appearance) = (&self.frame.view, self.frame.appearance);
+        let origin = [view.x, view.y, view.height];
+        let mut across = std::mem::take(&mut self.scratch);
+        for (u, rows) in spans {
+            let [dx, dy] = view.column_direction(u);
+            faces.across_column(dx, dy, &mut across);
+            for v in rows {
+                let index = self.index(u, v);
+                if self.depth_at(index) <= nearest as f32 {
+                    continue;
+                }
+                let rise = view.row_rise(v);
+                let Some((t, face)) = faces.entry(&across, rise as f32) else {
+                    continue;
+                };
+                if t >= self.depth_at(index) {
+                    continue;
+                }
+                let t = t as f64;
+                let point = [origin[0] + t * dx, origin[1] + t * dy, origin[2] + t * rise];
+                let (visible, haze) = fog_weights(t);
+                let sun = appearance.sunlight(piece.faces[face].normal);
+                let rgb = scale3(appearance.rock_rgb(sun), visible);
+                let texture = appearance.rock_factor(point[0] as f32, point[1] as f32, point[2] as f32);
+                let hit =
+                    Hit { surface: Surface::Boulder, depth_m: t as f32, height_m: point[2] as f32, sun, rock: 1.0 };
+                self.put(index, shade(rgb, texture, haze), hit);
+            }
+        }
+        self.scratch = across;
+    }
+
+    /// The band's pixels a piece can cover (columns, rows) and its nearest forward depth, or `None`
+    /// when it is out of sight: the box around the piece, cut at the near plane, projected.
+    fn screen_box(&self, piece: &ConvexPiece) -> Option<(Range<usize>, Range<usize>, f64)> {
+        let view = &self.frame.view;
+        let corner = |k: usize| {
+            let pick = |axis: usize| if k >> axis & 1 == 0 { piece.min[axis] } else { piece.max[axis] };
+            [pick(0), pick(1), pick(2)]
+        };
+        let depth = |p: [f64; 3]| (p[0] - view.x) * view.forward[0] + (p[1] - view.y) * view.forward[1];
+        let mut points: Vec<[f64; 3]> = (0..8).map(corner).filter(|&c| depth(c) >= NEAR_M).collect();
+        for (a, b) in BOX_EDGES {
+            let (pa, pb) = (corner(a), corner(b));
+            let (da, db) = (depth(pa), depth(pb));
+            if (da < NEAR_M) != (db < NEAR_M) {
+                let f = (NEAR_M - da) / (db - da);
+                points.push([0, 1, 2].map(|k| pa[k] + f * (pb[k] - pa[k])));
+            }
+        }
+        let projected: Vec<(f64, f64, f64)> = points.iter().filter_map(|&p| view.project_near(p)).collect();
+        let nearest = projected.iter().map(|p| p.2).fold(f64::MAX, f64::min);
+        if projected.is_empty() || nearest > MAX_PIECE_DEPTH_M {
+            return None;
+        }
+        let (mut lo_u, mut hi_u, mut lo_v, mut hi_v) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for &(u, v, _) in &projected {
+            (lo_u, hi_u, lo_v, hi_v) = (lo_u.min(u), hi_u.max(u), lo_v.min(v), hi_v.max(v));
+        }
+        let (columns, Window { v0, v1, .. }) = (&self.band.columns, self.frame.window);
+        let clamp_u = |p: f64| p.clamp(columns.start as f64, columns.end as f64) as usize;
+        let clamp_v = |p: f64| p.clamp(v0 as f64, v1 as f64) as usize;
+        let (u_range, v_range) = (clamp_u(lo_u)..clamp_u(hi_u + 1.0), clamp_v(lo_v)..clamp_v(hi_v + 1.0));
+        (!u_range.is_empty() && !v_range.is_empty()).then_some((u_range, v_range, nearest))
+    }
+
+    /// Draws a sample: a sphere of `radius` around `centre`, where it is the nearest surface.
+    pub(super) fn draw_sample(&mut self, centre: [f64; 3], radius: f64) {
+        let view = &self.frame.view;
+        let Some((u_mid, v_mid, depth)) = view.project(centre) else {
+            return;
+        };
+        if !(SAMPLE_DEPTHS_M.0..=SAMPLE_DEPTHS_M.1).contains(&depth) {
+            return;
+        }
+        let reach = view.focal * radius * 1.6 / depth + 1.0;
+        let (columns, Window { v0, v1, .. }) = (self.band.columns.clone(), self.frame.window);
+        let clamp_u = |p: f64| p.clamp(columns.start as f64, columns.end as f64) as usize;
+        let clamp_v = |p: f64| p.clamp(v0 as f64, v1 as f64) as usize;
+        let sun = self.frame.appearance.look.sun;
+        let origin = [view.x - centre[0], view.y - centre[1], view.height - centre[2]];
+        for u in clamp_u(u_mid - reach)..clamp_u(u_mid + reach + 1.0) {
+            let [dx, dy] = view.column_direction(u);
+            for v in clamp_v(v_mid - reach)..clamp_v(v_mid + reach + 1.0) {
+                let dz = view.row_rise(v);
+                let a = dx * dx + dy * dy + dz * dz;
+                let b = 2.0 * (dx * origin[0] + dy * origin[1] + dz * origin[2]);
+                let c = origin.iter().map(|o| o * o).sum::<f64>() - radius * radius;
+                let discriminant = b * b - 4.0 * a * c;
+                if discriminant < 0.0 {
+                    continue;
+                }
+                let t = (-b - discriminant.sqrt()) / (2.0 * a);
+                let index = self.index(u, v);
+                if t <= 0.0 || t as f32 >= self.depth_at(index) {
+                    continue;
+                }
+                let normal = [0, 1, 2].map(|k| (origin[k] + t * [dx, dy, dz][k]) / radius);
+                let light = (normal[0] * sun[0] + normal[1] * sun[1] + normal[2] * sun[2]).max(0.0);
+                let texture =
+                    0.85 + 0.3 * hash2((normal[0] * 9.0) as i64, (normal[1] * 9.0 + normal[2] * 5.0) as i64, 31);
+                let brightness = (0.55 + 0.5 * light) as f32 * texture;
+                let height_m = (centre[2] + origin[2] + t * dz) as f32;
+                let hit = Hit { surface: Surface::Sample, depth_m: t as f32, height_m, sun: light as f32, rock: 1.0 };
+                self.put(index, to_rgb8(scale3(SAMPLE_RGB, brightness)), hit);
+            }
+        }
+    }
+}
+
+/// A piece's faces as seen from the camera of one frame, for casting many rays at it.
+struct FacesFromCamera {
+    /// Index of each face among the piece's.
+    index: Vec<usize>,
+    normals: Vec<[f32; 3]>,
+    /// How far the camera is inside each face's half-space (negative outside), metres.
+    rooms: Vec<f32>,
+    /// Only the faces that face the camera, for rays known to hit the piece.
+    facing_only: bool,
+}
+
+impl FacesFromCamera {
+    /// Every face, for rays that may miss the piece.
+    fn all(piece: &ConvexPiece, camera: [f64; 3]) -> Self {
+        Self::select(piece, camera, false)
+    }
+
+    /// The faces that face the camera (a ray that hits enters through one of them).
+    fn facing(piece: &ConvexPiece, camera: [f64; 3]) -> Self {
+        Self::select(piece, camera, true)
+    }
+
+    fn select(piece: &ConvexPiece, camera: [f64; 3], facing_only: bool) -> Self {
+        let room = |f: &HalfSpace| {
+            (f.offset - (f.normal[0] * camera[0] + f.normal[1] * camera[1] + f.normal[2] * camera[2])) as f32
+        };
+        let index: Vec<usize> =
+            (0..piece.faces.len()).filter(|&k| !facing_only || room(&piece.faces[k]) < 0.0).collect();
+        let normals = index.iter().map(|&k| piece.faces[k].normal.map(|c| c as f32)).collect();
+        let rooms = index.iter().map(|&k| room(&piece.faces[k])).collect();
+        FacesFromCamera { index, normals, rooms, facing_only }
+    }
+
+    /// The horizontal part of each face normal along a column's ray direction (dx, dy).
+    fn across_column(&self, dx: f64, dy: f64, out: &mut Vec<f32>) {
+        out.clear();
+        out.extend(self.normals.iter().map(|n| n[0] * dx as f32 + n[1] * dy as f32));
+    }
+
+    /// Where the ray of a row rising `rise` per metre (in the column of `across`) enters the
+    /// piece: forward depth and the piece's face, if it does beyond the near plane.
+    fn entry(&self, across: &[f32], rise: f32) -> Option<(f32, usize)> {
+        let (mut enter, mut exit, mut face) = (f32::NEG_INFINITY, f32::INFINITY, 0);
+        for (k, (across, (normal, room))) in across.iter().zip(self.normals.iter().zip(&self.rooms)).enumerate() {
+            let (along, room) = (across + normal[2] * rise, *room);
+            if along < 0.0 {
+                let t = room / along;
+                if t > enter {
+                    (enter, face) = (t, k);
+                }
+            } else if self.facing_only {
+                continue;
+            } else if along > 0.0 {
+                exit = exit.min(room / along);
+            } else if room < 0.0 {
+                return None;
+            }
+            if enter > exit {
+                return None;
+            }
+        }
+        (enter > NEAR_M as f32).then(|| (enter, self.index[face]))
+    }
+}
+
+/// The convex hull of points (Andrew's monotone chain), counter-clockwise without repeats.
+fn convex_hull(mut points: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    points.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    points.dedup();
+    if points.len() < 3 {
+        return points;
+    }
+    let turn = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0);
+    let mut hull: Vec<(f64, f64)> = Vec::with_capacity(points.len() * 2);
+    for pass in [points.clone(), points.into_iter().rev().collect()] {
+        let start = hull.len();
+        for p in pass {
+            while hull.len() >= start + 2 && turn(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull
+}
+
+/// The rows (top, bottom) where the vertical line at column `u` crosses a convex outline.
+fn column_span(outline: &[(f64, f64)], u: f64) -> Option<(f64, f64)> {
+    let mut span: Option<(f64, f64)> = None;
+    for (i, &a) in outline.iter().enumerate() {
+        let b = outline[(i + 1) % outline.len()];
+        if (a.0 - u) * (b.0 - u) > 0.0 || a.0 == b.0 && a.0 != u {
+            continue;
+        }
+        let rows = if a.0 == b.0 { [a.1, b.1] } else { [a.1 + (b.1 - a.1) * (u - a.0) / (b.0 - a.0); 2] };
+        for v in rows {
+            span = Some(span.map_or((v, v), |(top, bottom)| (top.min(v), bottom.max(v))));
+        }
+    }
+    span
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::boulder::Ellipsoid;
+    use crate::random::SplitMix64;
+
+    #[test]
+    fn rays_enter_a_piece_through_the_facet_facing_them() {
+        let ellipsoid = Ellipsoid { centre: [10.0, 20.0, 0.5], radii: [2.0, 1.0, 1.0], yaw_rad: 0.0 };
+        let piece = ConvexPiece::cut(&ellipsoid, &mut SplitMix64::new(3));
+        let camera = [0.0, 20.0, 0.5];
+        for faces in [FacesFromCamera::all(&piece, camera), FacesFromCamera::facing(&piece, camera)] {
+            let mut across = Vec::new();
+            faces.across_column(1.0, 0.0, &mut across);
+            let (t, face) = faces.entry(&across, 0.0).expect("hits");
+            assert!((8.0..=8.4).contains(&t), "enters between 80 % and 100 % of the half-axis: t = {t}");
+            assert!(piece.faces[face].normal[0] < -0.3, "the facet faces the ray");
+            assert!(piece.contains([t as f64 + 0.01, 20.0, 0.5]) && !piece.contains([t as f64 - 0.01, 20.0, 0.5]));
+        }
+        let all = FacesFromCamera::all(&piece, camera);
+        let mut across = Vec::new();
+        all.across_column(1.0, 0.5, &mut across);
+        assert_eq!(all.entry(&across, 0.0), None, "passes beside");
+        all.across_column(-1.0, 0.0, &mut across);
+        assert_eq!(all.entry(&across, 0.0), None, "points away");
+    }
+
+    #[test]
+    fn the_hull_of_a_square_and_its_centre_is_the_square() {
+        let hull = convex_hull(vec![(0.0, 0.0), (2.0, 0.0), (1.0, 1.0), (2.0, 2.0), (0.0, 2.0), (2.0, 2.0)]);
+        assert_eq!(hull.len(), 4, "{hull:?}");
+        assert!(!hull.contains(&(1.0, 1.0)));
+        assert_eq!(column_span(&hull, 1.0), Some((0.0, 2.0)));
+        assert_eq!(column_span(&hull, 3.0), None);
+        let triangle = convex_hull(vec![(0.0, 0.0), (4.0, 0.0), (0.0, 4.0)]);
+        let (top, bottom) = column_span(&triangle, 1.0).unwrap();
+        assert!((top - 0.0).abs() < 1e-12 && (bottom - 3.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,169 @@
+//! The geometry of a frame: the level camera, the part of its view a frame needs, and the rotation
+//! by the body's pitch and roll that turns the level view into the camera image.
+
+use crate::camera::{BodyPose, CameraModel, tilt};
+
+/// Extra pixels around the level view, so that pitch and roll up to about 19 degrees stay inside.
+pub(super) const MARGIN_PX: usize = 40;
+/// Rays closer than this do not hit boulders or samples, metres.
+pub(super) const NEAR_M: f64 = 0.05;
+
+/// The rectangle of the level view drawn for a frame: columns u0..u1, rows v0..v1.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(super) struct Window {
+    pub(super) u0: usize,
+    pub(super) u1: usize,
+    pub(super) v0: usize,
+    pub(super) v1: usize,
+}
+
+impl Window {
+    /// The part of a level view of `level` (width, height) pixels that an image of `camera` rotated
+    /// by `rotation` needs: the camera's own rectangle when level, otherwise the bounding box of the
+    /// rotated rectangle plus one pixel for interpolation.
+    pub(super) fn needed(rotation: &Rotation, camera: &CameraModel, level: (usize, usize)) -> Self {
+        let (width, height) = (camera.width, camera.height);
+        if rotation.is_identity() {
+            return Window { u0: MARGIN_PX, u1: MARGIN_PX + width, v0: MARGIN_PX, v1: MARGIN_PX + height };
+        }
+        let corners =
+            [(0, 0), (width - 1, 0), (0, height - 1), (width - 1, height - 1)].map(|(u, v)| rotation.level_pixel(u, v));
+        let (min_u, max_u) = corners.iter().fold((f64::MAX, f64::MIN), |(lo, hi), c| (lo.min(c.0), hi.max(c.0)));
+        let (min_v, max_v) = corners.iter().fold((f64::MAX, f64::MIN), |(lo, hi), c| (lo.min(c.1), hi.max(c.1)));
+        Window {
+            u0: (min_u - 1.0).max(0.0) as usize,
+            u1: ((max_u + 2.0).max(0.0) as usize).min(level.0),
+            v0: (min_v - 1.0).max(0.0) as usize,
+            v1: ((max_v + 2.0).max(0.0) as usize).min(level.1),
+        }
+    }
+}
+
+/// The level camera of one frame: position and the horizontal axes.
+pub(super) struct LevelView {
+    pub(super) x: f64,
+    pub(super) y: f64,
+    pub(super) height: f64,
+    pub(super) forward: [f64; 2],
+    pub(super) right: [f64; 2],
+    pub(super) cx: f64,
+    pub(super) cy: f64,
+    pub(super) focal: f64,
+}
+
+impl LevelView {
+    /// Horizontal direction of level column `u`, scaled so that the parameter is forward depth.
+    pub(super) fn column_direction(&self, u: usize) -> [f64; 2] {
+        let r = (u as f64 - self.cx) / self.focal;
+        [self.forward[0] + r * self.right[0], self.forward[1] + r * self.right[1]]
+    }
+
+    /// Vertical component of the ray of level row `v` (per metre of forward depth).
+    pub(super) fn row_rise(&self, v: usize) -> f64 {
+        -(v as f64 - self.cy) / self.focal
+    }
+
+    /// Row where a point at forward depth `depth` and height `z` appears.
+    pub(super) fn row(&self, depth: f64, z: f64) -> f64 {
+        self.cy + self.focal * (self.height - z) / depth
+    }
+
+    /// The level camera of a camera at `position` (x, y, height) with the body's yaw, for a level
+    /// view with the margins around the image.
+    pub(super) fn new(camera: &CameraModel, position: [f64; 3], yaw_deg: f64) -> Self {
+        let (sin_yaw, cos_yaw) = yaw_deg.to_radians().sin_cos();
+        let (cx, cy) = camera.principal_point();
+        LevelView {
+            x: position[0],
+            y: position[1],
+            height: position[2],
+            forward: [cos_yaw, sin_yaw],
+            right: [sin_yaw, -cos_yaw],
+            cx: cx + MARGIN_PX as f64,
+            cy: cy + MARGIN_PX as f64,
+            focal: camera.focal_px,
+        }
+    }
+
+    /// Level pixel (column, row) and forward depth of the world point `p`, if it is ahead.
+    pub(super) fn project(&self, p: [f64; 3]) -> Option<(f64, f64, f64)> {
+        self.project_near(p).filter(|&(_, _, depth)| depth > NEAR_M)
+    }
+
+    /// The same for points on the near plane too.
+    pub(super) fn project_near(&self, p: [f64; 3]) -> Option<(f64, f64, f64)> {
+        let (rx, ry) = (p[0] - self.x, p[1] - self.y);
+        let depth = rx * self.forward[0] + ry * self.forward[1];
+        let lateral = rx * self.right[0] + ry * self.right[1];
+        (depth >= NEAR_M * 0.999).then(|| (self.cx + self.focal * lateral / depth, self.row(depth, p[2]), depth))
+    }
+}
+
+/// Where the pixels of the tilted camera are in the level view: a pure rotation, so a homography.
+pub(super) struct Rotation {
+    base: [f64; 3],
+    per_u: [f64; 3],
+    per_v: [f64; 3],
+    cx: f64,
+    cy: f64,
+    focal: f64,
+}
+
+impl Rotation {
+    pub(super) fn new(pose: &BodyPose, camera: &CameraModel) -> Self {
+        let (cx, cy) = camera.principal_point();
+        let focal = camera.focal_px;
+        Rotation {
+            base: tilt(pose, [1.0, 0.0, 0.0]),
+            per_u: tilt(pose, [0.0, -1.0 / focal, 0.0]),
+            per_v: tilt(pose, [0.0, 0.0, -1.0 / focal]),
+            cx,
+            cy,
+            focal,
+        }
+    }
+
+    /// True when pitch and roll move no pixel by more than a hundredth.
+    pub(super) fn is_identity(&self) -> bool {
+        let corner = self.level_pixel(0, 0);
+        let opposite = self.level_pixel((2.0 * self.cx) as usize, (2.0 * self.cy) as usize);
+        (corner.0 - MARGIN_PX as f64).abs() < 0.01
+            && (corner.1 - MARGIN_PX as f64).abs() < 0.01
+            && (opposite.0 - 2.0 * self.cx - MARGIN_PX as f64).abs() < 0.01
+            && (opposite.1 - 2.0 * self.cy - MARGIN_PX as f64).abs() < 0.01
+    }
+
+    /// Level-view coordinates of output pixel (u, v).
+    pub(super) fn level_pixel(&self, u: usize, v: usize) -> (f64, f64) {
+        let (du, dv) = (u as f64 - self.cx, v as f64 - self.cy);
+        let ray = [0, 1, 2].map(|k| self.base[k] + du * self.per_u[k] + dv * self.per_v[k]);
+        let scale = self.focal / ray[0];
+        (self.cx + MARGIN_PX as f64 - ray[1] * scale, self.cy + MARGIN_PX as f64 - ray[2] * scale)
+    }
+
+    /// The level-frame ray of the first pixel of output row `v`.
+    pub(super) fn row_start(&self, v: usize) -> [f32; 3] {
+        let dv = v as f64 - self.cy;
+        [0, 1, 2].map(|k| (self.base[k] - self.cx * self.per_u[k] + dv * self.per_v[k]) as f32)
+    }
+
+    /// The ray of the next pixel to the right.
+    pub(super) fn step_right(&self, ray: [f32; 3]) -> [f32; 3] {
+        [ray[0] + self.per_u[0] as f32, ray[1] + self.per_u[1] as f32, ray[2] + self.per_u[2] as f32]
+    }
+
+    /// Level-view coordinates of a level-frame ray.
+    pub(super) fn project(&self, ray: [f32; 3]) -> (f32, f32) {
+        let scale = self.focal as f32 / ray[0];
+        ((self.cx + MARGIN_PX as f64) as f32 - ray[1] * scale, (self.cy + MARGIN_PX as f64) as f32 - ray[2] * scale)
+    }
+}
+
+/// The first whole row at or below `row` (rows above the image give 0).
+pub(super) fn ceil_row(row: f64) -> usize {
+    if row <= 0.0 {
+        return 0;
+    }
+    let whole = row as usize;
+    if (whole as f64) < row { whole + 1 } else { whole }
+}

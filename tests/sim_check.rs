@@ -1,0 +1,124 @@
+//! The simulated world against the real one, with `rover sim-check` as users run it: the simulator
+//! renders every logged pose of the 283 recorded Unity frames, the rover's perception classifies
+//! both images, and the bird's-eye masks and the colours by kind of surface must agree.
+
+mod support;
+
+use std::path::{Path, PathBuf};
+
+use support::{rover, shared_dir};
+
+fn sim_check(dataset: &Path, extra: &[&str]) -> serde_json::Value {
+    let shared = |path: &str| shared_dir().join(path).display().to_string();
+    let output = std::process::Command::new(rover())
+        .arg("sim-check")
+        .arg(dataset)
+        .args(["--map", &shared("udacity/calibration_images/map_bw.png")])
+        .args(["--floor", &shared("udacity-world/floor_flat.png"), "--json"])
+        .args(extra)
+        .output()
+        .expect("run rover sim-check");
+    assert!(output.status.success(), "rover sim-check failed: {}", String::from_utf8_lossy(&output.stderr));
+    serde_json::from_slice(&output.stdout).expect("one JSON object")
+}
+
+fn number(value: &serde_json::Value, key: &str) -> f64 {
+    value[key].as_f64().unwrap_or_else(|| panic!("{key} in {value}"))
+}
+
+#[test]
+fn the_simulated_world_agrees_with_the_283_real_frames() {
+    let report = sim_check(&shared_dir().join("udacity/test_dataset"), &[]);
+    let summary = &report["summary"];
+    eprintln!("{summary}");
+    assert_eq!(summary["frames"], 283);
+    assert!(number(summary, "nav_iou_mean") >= 0.80, "navigable IoU mean {summary}");
+    assert!(number(summary, "nav_iou_p10") >= 0.50, "navigable IoU 10th percentile {summary}");
+    assert!(number(summary, "nav_iou_median") >= 0.80, "navigable IoU median {summary}");
+    assert!(number(summary, "obstacle_iou_mean") >= 0.85, "obstacle IoU mean {summary}");
+    assert!(number(summary, "agreement_mean") >= 0.90, "pixel agreement {summary}");
+    assert!(number(summary, "colour_difference_mean") <= 25.0, "colour difference {summary}");
+    assert_eq!(report["frames"].as_array().map(Vec::len), Some(283));
+}
+
+#[test]
+fn each_kind_of_surface_has_the_colour_the_real_camera_sees_there() {
+    let report = sim_check(&shared_dir().join("udacity/test_dataset"), &[]);
+    let bands = report["bands"].as_array().expect("bands");
+    let band = |name: &str| bands.iter().find(|b| b["band"] == name).unwrap_or_else(|| panic!("band {name}"));
+    let median = |b: &serde_json::Value, key: &str| -> Vec<f64> {
+        b[key].as_array().unwrap().iter().map(|c| c.as_f64().unwrap()).collect()
+    };
+    for (name, tolerance) in [
+        ("sky", 6.0),
+        ("floor 0-1.5 m away", 15.0),
+        ("floor 1.5-3 m away", 15.0),
+        ("floor 3-6 m away", 15.0),
+        ("wall foot 0-10 cm high", 15.0),
+        ("wall foot 10-30 cm high", 15.0),
+        ("wall in shade", 12.0),
+        ("wall half lit", 12.0),
+        ("wall in sun", 12.0),
+    ] {
+        let b = band(name);
+        let (real, sim) = (median(b, "real_median_rgb"), median(b, "sim_median_rgb"));
+        eprintln!("{name}: real {real:?}, simulated {sim:?}, {} px", b["pixels"]);
+        for k in 0..3 {
+            assert!((real[k] - sim[k]).abs() <= tolerance, "{name}: real {real:?} against simulated {sim:?}");
+        }
+    }
+    for name in ["floor 0-1.5 m away", "floor 1.5-3 m away"] {
+        let b = band(name);
+        let (real, sim) = (number(b, "real_navigable"), number(b, "sim_navigable"));
+        assert!(real > 0.9 && sim > 0.9, "{name}: the near floor reads as navigable (real {real}, simulated {sim})");
+    }
+    for name in ["wall foot 10-30 cm high", "wall in sun", "boulder in sun"] {
+        let b = band(name);
+        assert!(number(b, "sim_navigable") < 0.01, "{name} never reads as navigable");
+    }
+}
+
+/// A dataset of the first frames of the real one, in a temporary folder (the images linked).
+fn small_dataset(frames: usize) -> PathBuf {
+    let source = shared_dir().join("udacity/test_dataset");
+    let dir = std::env::temp_dir().join(format!("rover-sim-check-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("IMG")).unwrap();
+    let log = std::fs::read_to_string(source.join("robot_log.csv")).unwrap();
+    let kept: Vec<&str> = log.lines().take(frames + 1).collect();
+    std::fs::write(dir.join("robot_log.csv"), kept.join("\n")).unwrap();
+    for line in &kept[1..] {
+        let name = Path::new(line.split(';').next().unwrap()).file_name().unwrap();
+        let link = dir.join("IMG").join(name);
+        if !link.exists() {
+            std::os::unix::fs::symlink(source.join("IMG").join(name), link).unwrap();
+        }
+    }
+    dir
+}
+
+#[test]
+fn images_show_real_simulated_and_masks_side_by_side() {
+    let dataset = small_dataset(3);
+    let images = dataset.join("pictures");
+    let report = sim_check(&dataset, &["--images", &images.display().to_string()]);
+    assert_eq!(report["summary"]["frames"], 3);
+    let mut pictures: Vec<_> = std::fs::read_dir(&images).unwrap().map(|e| e.unwrap().path()).collect();
+    pictures.sort();
+    assert_eq!(pictures.len(), 3);
+    let picture = rover_imaging::decode_png(&std::fs::read(&pictures[0]).unwrap()).unwrap();
+    assert_eq!((picture.width, picture.height), (3 * 320 * 2, 160 * 2), "three panels, twice the size");
+    let [r, g, b] = picture.pixel(2 * 320 * 2 + 160 * 2, 150 * 2);
+    assert!(r == g && g == b && r == 255, "the rover's own ground ahead is navigable in both: {:?}", [r, g, b]);
+    std::fs::remove_dir_all(dataset).unwrap();
+}
+
+#[test]
+fn a_missing_dataset_or_map_is_a_clear_error() {
+    let output = std::process::Command::new(rover())
+        .args(["sim-check", "/nonexistent/dataset", "--map", "/nonexistent/map.png"])
+        .output()
+        .expect("run rover sim-check");
+    assert!(!output.status.success());
+    let error = String::from_utf8_lossy(&output.stderr);
+    assert!(error.contains("/nonexistent/dataset/robot_log.csv"), "{error}");
+}
