@@ -21,6 +21,8 @@ pub struct ConvexPiece {
     pub faces: Vec<HalfSpace>,
     /// Its corners (where three or more faces meet), metres.
     pub vertices: Vec<[f64; 3]>,
+    /// For each face, its corners (indices into `vertices`) in order around it.
+    pub face_corners: Vec<Vec<usize>>,
     /// Lower corner of the axis-aligned box around the piece (x, y, z), metres.
     pub min: [f64; 3],
     /// Upper corner of the box.
@@ -66,10 +68,11 @@ impl ConvexPiece {
             .collect();
         faces.push(HalfSpace { normal: [0.0, 0.0, -1.0], offset: BURIED_M });
         let vertices = corners(&faces);
+        let face_corners = faces.iter().map(|face| corners_around(face, &vertices)).collect();
         let bound = |pick: fn(f64, f64) -> f64| {
             [0, 1, 2].map(|k| vertices.iter().map(|v| v[k]).reduce(pick).unwrap_or(centre[k]))
         };
-        ConvexPiece { min: bound(f64::min), max: bound(f64::max), faces, vertices }
+        ConvexPiece { min: bound(f64::min), max: bound(f64::max), faces, vertices, face_corners }
     }
 
     /// True if the point (x, y, z) lies inside the piece.
@@ -93,6 +96,36 @@ fn corners(faces: &[HalfSpace]) -> Vec<[f64; 3]> {
         }
     }
     corners
+}
+
+/// The corners among `vertices` that lie on `face`, in order around it.
+fn corners_around(face: &HalfSpace, vertices: &[[f64; 3]]) -> Vec<usize> {
+    let mut on_face: Vec<usize> =
+        (0..vertices.len()).filter(|&i| (dot(face.normal, vertices[i]) - face.offset).abs() < 1e-6).collect();
+    if on_face.is_empty() {
+        return on_face;
+    }
+    let n = on_face.len() as f64;
+    let centroid = [0, 1, 2].map(|k| on_face.iter().map(|&i| vertices[i][k]).sum::<f64>() / n);
+    let helper = if face.normal[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+    let first = normalized(cross(face.normal, helper));
+    let second = cross(face.normal, first);
+    let angle = |i: usize| {
+        let d = [0, 1, 2].map(|k| vertices[i][k] - centroid[k]);
+        dot(d, second).atan2(dot(d, first))
+    };
+    on_face.sort_by(|&a, &b| angle(a).total_cmp(&angle(b)));
+    on_face.dedup_by(|a, b| (0..3).all(|k| (vertices[*a][k] - vertices[*b][k]).abs() < 1e-9));
+    on_face
+}
+
+fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
+    [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+}
+
+fn normalized(v: [f64; 3]) -> [f64; 3] {
+    let length = dot(v, v).sqrt();
+    v.map(|c| c / length)
 }
 
 /// The point where the planes of three faces meet, if they do in one point.
@@ -291,6 +324,16 @@ mod tests {
             assert!(on_faces >= 3, "a corner lies on three faces: {v:?}");
         }
         assert!(piece.min[0] >= 8.0 && piece.max[0] <= 12.0 && piece.min[2] >= -0.3 - 1e-9);
+        let visible_faces = piece.face_corners.iter().filter(|corners| corners.len() >= 3).count();
+        assert!(visible_faces >= 20, "most faces are polygons: {visible_faces}");
+        for (face, corners) in piece.faces.iter().zip(&piece.face_corners) {
+            for pair in corners.windows(2) {
+                let (a, b) = (piece.vertices[pair[0]], piece.vertices[pair[1]]);
+                let middle = [0, 1, 2].map(|k| (a[k] + b[k]) / 2.0);
+                assert!((dot(face.normal, middle) - face.offset).abs() < 1e-6, "edges lie on their face");
+                assert!(piece.faces.iter().all(|f| dot(f.normal, middle) <= f.offset + 1e-6), "and on the piece");
+            }
+        }
     }
 
     #[test]

@@ -85,6 +85,11 @@ const SUN_ELEVATION_JITTER_DEG: f64 = 12.0;
 const BRIGHTNESS_JITTER: f64 = 0.06;
 /// Largest relative change of one colour channel against the others.
 const TINT_JITTER: f64 = 0.025;
+/// Largest share of the floor under dark dimples, and their largest depth: the real floor fails
+/// the navigable colour rule on 3-7 % of its pixels within 6 m (by its bump-mapped dimples);
+/// the calibrated look leaves them out, as they cannot coincide with the real ones pixel by pixel.
+const DIMPLES_MAX: f64 = 0.05;
+const DIMPLE_DEPTH_MAX: f64 = 0.3;
 
 impl Look {
     /// The look of appearance seed `seed`: 0 is the calibrated look, others vary the sun, the
@@ -111,6 +116,8 @@ impl Look {
             sky_horizon_rgb: vary(base.sky_horizon_rgb),
             rock_from_height_m: base.rock_from_height_m * rng.range(0.8, 1.25) as f32,
             rock_blend_m: base.rock_blend_m * rng.range(0.8, 1.25) as f32,
+            floor_dimples: rng.range(0.0, DIMPLES_MAX) as f32,
+            floor_dimple_depth: rng.range(0.5, 1.0) as f32 * DIMPLE_DEPTH_MAX as f32,
             texture_salt: seed,
             ..base
         }

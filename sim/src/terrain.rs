@@ -57,6 +57,9 @@ pub fn wall_height_m(distance_m: f64, q: f64) -> f64 {
 pub struct Terrain {
     side: usize,
     heights_m: Vec<f32>,
+    /// The heights with a border of one node copied from the edge, so that bilinear lookups
+    /// anywhere inside the world need no bounds: node (nx, ny) at `(ny + 1) * (side + 2) + nx + 1`.
+    padded_m: Vec<f32>,
     edge_distance_m: Vec<f32>,
     cell_max_m: Vec<f32>,
 }
@@ -95,7 +98,15 @@ impl Terrain {
                 (wall_height_m(d, quantile[i] as f64) * roughness).min(ridge) as f32
             })
             .collect();
-        let mut terrain = Terrain { side, heights_m, edge_distance_m, cell_max_m: Vec::new() };
+        let padded_side = side as i64 + 2;
+        let padded_m = (0..padded_side * padded_side)
+            .map(|i| {
+                let (nx, ny) =
+                    ((i % padded_side - 1).clamp(0, side as i64 - 1), (i / padded_side - 1).clamp(0, side as i64 - 1));
+                heights_m[ny as usize * side + nx as usize]
+            })
+            .collect();
+        let mut terrain = Terrain { side, heights_m, padded_m, edge_distance_m, cell_max_m: Vec::new() };
         terrain.cell_max_m = terrain.cell_maxima();
         terrain
     }
@@ -128,10 +139,14 @@ impl Terrain {
             return MAX_TERRAIN_HEIGHT_M;
         }
         let (gx, gy) = (x_m * NODES_PER_M as f64 - 0.5, y_m * NODES_PER_M as f64 - 0.5);
-        let (ix, iy) = (gx.floor() as i64, gy.floor() as i64);
+        let (ix, iy) = (floor_from_minus_one(gx), floor_from_minus_one(gy));
         let (fx, fy) = ((gx - ix as f64) as f32, (gy - iy as f64) as f32);
-        let top = self.node(ix, iy) + (self.node(ix + 1, iy) - self.node(ix, iy)) * fx;
-        let bottom = self.node(ix, iy + 1) + (self.node(ix + 1, iy + 1) - self.node(ix, iy + 1)) * fx;
+        let stride = self.side + 2;
+        let at = (iy + 1) as usize * stride + (ix + 1) as usize;
+        let (a, b, c, d) =
+            (self.padded_m[at], self.padded_m[at + 1], self.padded_m[at + stride], self.padded_m[at + stride + 1]);
+        let top = a + (b - a) * fx;
+        let bottom = c + (d - c) * fx;
         top + (bottom - top) * fy
     }
 
@@ -170,6 +185,12 @@ impl Terrain {
             (x, y, self.heights_m[i])
         })
     }
+}
+
+/// The floor of `v` for `v` above -1, as an integer (no call into the maths library, which the
+/// baseline x86-64 target needs for `f64::floor`).
+pub(crate) fn floor_from_minus_one(v: f64) -> i64 {
+    (v + 1.0) as i64 - 1
 }
 
 fn inside_world(x_m: f64, y_m: f64) -> bool {

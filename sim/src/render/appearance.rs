@@ -25,12 +25,76 @@ const ROCK_TEXEL_M: f64 = 0.12;
 const FIXED_BITS: u32 = 8;
 
 /// How a terrain node is lit and coloured, baked once per world: the weight of rock against
-/// floor, the floor's brightness (darker at the foot of walls) and the rock's sunlight.
+/// floor, the floor's brightness (darker at the foot of walls), the rock's sunlight and which
+/// way the ground faces (for its texture).
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct NodeShade {
     pub(super) rock: f32,
     pub(super) floor: f32,
     pub(super) sun: f32,
+    pub(super) facing: Facing,
+}
+
+/// Which way a surface faces, to lay its rock texture on it: flat ground takes the texture from
+/// above, steep faces from the side they face.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(super) enum Facing {
+    /// Flatter than 45 degrees.
+    #[default]
+    Up,
+    /// Steep, facing east or west.
+    AlongX,
+    /// Steep, facing north or south.
+    AlongY,
+}
+
+impl Facing {
+    /// The way a surface with this normal faces.
+    pub(super) fn of_normal(normal: [f64; 3]) -> Self {
+        let [x, y, z] = normal.map(f64::abs);
+        if z >= x.max(y) {
+            Facing::Up
+        } else if x >= y {
+            Facing::AlongX
+        } else {
+            Facing::AlongY
+        }
+    }
+
+    /// Texture coordinates of the point (x, y, z) on a surface facing this way, metres.
+    pub(super) fn texture_coordinates(self, x: f32, y: f32, z: f32) -> (f32, f32) {
+        match self {
+            Facing::Up => (x, y),
+            Facing::AlongX => (y, z),
+            Facing::AlongY => (x, z),
+        }
+    }
+}
+
+/// A [`NodeShade`] in four bytes (rock and sun in 1/255, floor in 1/200), so that the shading of
+/// the whole terrain stays small enough for the caches.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct PackedShade([u8; 4]);
+
+/// Scale of the packed floor brightness (it can exceed 1 a little).
+const FLOOR_PACKING: f32 = 200.0;
+
+impl PackedShade {
+    fn pack(shade: &NodeShade) -> Self {
+        let byte = |v: f32, scale: f32| (v * scale).round().clamp(0.0, 255.0) as u8;
+        let facing = shade.facing as u8;
+        PackedShade([byte(shade.rock, 255.0), byte(shade.floor, FLOOR_PACKING), byte(shade.sun, 255.0), facing])
+    }
+
+    fn unpack(self) -> NodeShade {
+        let [rock, floor, sun, facing] = self.0;
+        let facing = [Facing::Up, Facing::AlongX, Facing::AlongY][facing as usize % 3];
+        NodeShade { rock: rock as f32 / 255.0, floor: floor as f32 / FLOOR_PACKING, sun: sun as f32 / 255.0, facing }
+    }
+
+    fn rock(self) -> f32 {
+        self.0[0] as f32 / 255.0
+    }
 }
 
 /// Textures and baked shading of one world.
@@ -38,7 +102,7 @@ pub(super) struct Appearance {
     pub(super) look: Look,
     floor_detail: Vec<u16>,
     rock_detail: Vec<u16>,
-    shades: Vec<NodeShade>,
+    shades: Vec<PackedShade>,
     side: usize,
     plain_floor: Vec<bool>,
     floor_by_depth: Vec<[f32; 3]>,
@@ -50,17 +114,18 @@ impl Appearance {
         let terrain = world.terrain();
         let side = WORLD_SIZE * NODES_PER_M;
         let paint = paint_distances(world.painted());
-        let shades: Vec<NodeShade> = terrain
+        let shades: Vec<PackedShade> = terrain
             .nodes()
             .zip(paint)
             .map(|((x, y, h), paint_m)| node_shade(terrain, &look, [x, y, h as f64], paint_m))
+            .map(|shade| PackedShade::pack(&shade))
             .collect();
         let plain_floor = (0..WORLD_SIZE * WORLD_SIZE)
             .map(|cell| {
                 let (cx, cy) = (cell % WORLD_SIZE, cell / WORLD_SIZE);
                 let nodes = |c: usize| (c * NODES_PER_M).saturating_sub(1)..((c + 1) * NODES_PER_M + 1).min(side);
                 terrain.cell_max_height(cx as i64, cy as i64) <= 0.0
-                    && nodes(cy).all(|ny| nodes(cx).all(|nx| shades[ny * side + nx].rock == 0.0))
+                    && nodes(cy).all(|ny| nodes(cx).all(|nx| shades[ny * side + nx].rock() == 0.0))
             })
             .collect();
         Appearance {
@@ -91,26 +156,21 @@ impl Appearance {
         (0..size).contains(&ix) && (0..size).contains(&iy) && self.plain_floor[iy as usize * WORLD_SIZE + ix as usize]
     }
 
-    /// The baked shade at (x, y), bilinear between nodes.
-    pub(super) fn shade_at(&self, x: f64, y: f64) -> NodeShade {
-        let (gx, gy) = (x * NODES_PER_M as f64 - 0.5, y * NODES_PER_M as f64 - 0.5);
-        let last = self.side as i64 - 1;
-        let (ix, iy) = ((gx.floor() as i64).clamp(0, last - 1), (gy.floor() as i64).clamp(0, last - 1));
-        let (fx, fy) = (((gx - ix as f64) as f32).clamp(0.0, 1.0), ((gy - iy as f64) as f32).clamp(0.0, 1.0));
-        let at = |dx: i64, dy: i64| self.shades[(iy + dy) as usize * self.side + (ix + dx) as usize];
-        let mix = |f: fn(&NodeShade) -> f32| {
-            let top = f(&at(0, 0)) + (f(&at(1, 0)) - f(&at(0, 0))) * fx;
-            let bottom = f(&at(0, 1)) + (f(&at(1, 1)) - f(&at(0, 1))) * fx;
-            top + (bottom - top) * fy
-        };
-        NodeShade { rock: mix(|s| s.rock), floor: mix(|s| s.floor), sun: mix(|s| s.sun) }
+    /// The baked shade of the node nearest (x, y).
+    pub(super) fn shade_near(&self, x: f64, y: f64) -> NodeShade {
+        self.shades[self.node_index(x, y)].unpack()
+    }
+
+    /// Index of the node nearest (x, y) (clamped to the world).
+    fn node_index(&self, x: f64, y: f64) -> usize {
+        let per_m = NODES_PER_M as f64;
+        ((y * per_m) as usize).min(self.side - 1) * self.side + ((x * per_m) as usize).min(self.side - 1)
     }
 
     /// The floor's brightness at (x, y), fixed point, with its detail texture.
     pub(super) fn floor_factor(&self, x: f64, y: f64) -> u32 {
-        let node = ((y * NODES_PER_M as f64) as usize).min(self.side - 1) * self.side
-            + ((x * NODES_PER_M as f64) as usize).min(self.side - 1);
-        ((self.shades[node].floor * (1 << FIXED_BITS) as f32) as u32 * self.floor_texel(x as f32, y as f32))
+        let node = self.node_index(x, y);
+        ((self.shades[node].unpack().floor * (1 << FIXED_BITS) as f32) as u32 * self.floor_texel(x as f32, y as f32))
             >> FIXED_BITS
     }
 
@@ -124,29 +184,48 @@ impl Appearance {
         visible: f32,
         haze: [f32; 3],
     ) -> ([u8; 3], f32) {
-        let node = ((y * NODES_PER_M as f64) as usize).min(self.side - 1) * self.side
-            + ((x * NODES_PER_M as f64) as usize).min(self.side - 1);
-        let NodeShade { rock, floor, sun } = self.shades[node];
+        let NodeShade { rock, floor, sun, .. } = self.shades[self.node_index(x, y)].unpack();
         let floor_rgb = scale3(floor_rgb, floor);
         let rock_rgb = scale3(self.rock_rgb(sun), visible);
         let (x, y) = (x as f32, y as f32);
         let floor_texture = self.floor_texel(x, y) as f32;
-        let texture = floor_texture + (self.rock_factor(x, y, 0.0) as f32 - floor_texture) * rock;
+        let texture = floor_texture + (self.rock_texel(x, y) as f32 - floor_texture) * rock;
         (shade(lerp3(floor_rgb, rock_rgb, rock), texture as u32, haze), rock)
     }
 
     /// The floor's detail texture at (x, y), fixed point.
     pub(super) fn floor_texel(&self, x: f32, y: f32) -> u32 {
-        let scale = (1.0 / FLOOR_TEXEL_M) as f32;
-        texel(&self.floor_detail, x * scale, y * scale)
+        let (u, v) = self.floor_texture_coordinates(x, y);
+        texel(&self.floor_detail, u, v)
     }
 
-    /// The rock texture at a point of a wall or boulder, fixed point.
-    pub(super) fn rock_factor(&self, x: f32, y: f32, z: f32) -> u32 {
+    /// The rock texture at texture coordinates (a, b) metres (see [`Facing::texture_coordinates`]),
+    /// fixed point.
+    pub(super) fn rock_texel(&self, a: f32, b: f32) -> u32 {
+        let (u, v) = self.rock_texture_coordinates(a, b);
+        texel(&self.rock_detail, u, v)
+    }
+
+    /// The floor texture's texel coordinates of (x, y).
+    pub(super) fn floor_texture_coordinates(&self, x: f32, y: f32) -> (f32, f32) {
+        let scale = (1.0 / FLOOR_TEXEL_M) as f32;
+        (x * scale, y * scale)
+    }
+
+    /// The rock texture's texel coordinates of texture coordinates (a, b) metres.
+    pub(super) fn rock_texture_coordinates(&self, a: f32, b: f32) -> (f32, f32) {
         let scale = (1.0 / ROCK_TEXEL_M) as f32;
-        let diagonal = scale * std::f32::consts::FRAC_1_SQRT_2;
-        let (a, b) = ((x + y) * diagonal, (x - y) * diagonal);
-        (texel(&self.rock_detail, a, z * scale) + texel(&self.rock_detail, b + 97.0, z * scale + 31.0)) / 2
+        (a * scale, b * scale)
+    }
+
+    /// The floor's detail texture at texel coordinates (u, v) in 1/256 texel, fixed point.
+    pub(super) fn floor_texel_fixed(&self, u: i32, v: i32) -> u32 {
+        texel_fixed(&self.floor_detail, u, v)
+    }
+
+    /// The rock texture at texel coordinates (u, v) in 1/256 texel, fixed point.
+    pub(super) fn rock_texel_fixed(&self, u: i32, v: i32) -> u32 {
+        texel_fixed(&self.rock_detail, u, v)
     }
 
     /// Colour of the floor `depth` metres ahead, before its brightness factor.
@@ -201,14 +280,15 @@ fn node_shade(terrain: &Terrain, look: &Look, node: [f64; 3], paint_m: f32) -> N
     let h = h as f32;
     let [gx, gy] = terrain.gradient_at(x, y);
     let length = (gx * gx + gy * gy + 1.0).sqrt();
-    let sun = ((-gx * look.sun[0] - gy * look.sun[1] + look.sun[2]) / length).max(0.0);
+    let normal = [-gx / length, -gy / length, 1.0 / length];
+    let sun = (normal[0] * look.sun[0] + normal[1] * look.sun[1] + normal[2] * look.sun[2]).max(0.0);
     let by_height = smoothstep((h - look.rock_from_height_m) / look.rock_blend_m + 0.5);
     let by_paint = smoothstep((paint_m - look.paint_edge_m) / look.paint_blend_m + 0.5);
     let rock = by_height.max(by_paint);
     let wall = (-terrain.edge_distance_at(x, y) as f64).max(0.0);
     let near_wall = 1.0 - look.wall_shadow as f64 * (-wall / look.wall_shadow_m as f64).exp();
     let patches = 1.0 + 0.07 * (value_noise(x, y, 3.0, 11 ^ look.texture_salt) as f64 - 0.5) * 2.0;
-    NodeShade { rock, floor: (near_wall * patches) as f32, sun: sun as f32 }
+    NodeShade { rock, floor: (near_wall * patches) as f32, sun: sun as f32, facing: Facing::of_normal(normal) }
 }
 
 fn smoothstep(t: f32) -> f32 {
@@ -225,6 +305,15 @@ fn to_fixed(factor: f64) -> u16 {
 pub(super) fn shade(rgb: [f32; 3], factor: u32, offset: [f32; 3]) -> [u8; 3] {
     let f = factor as f32 * (1.0 / (1 << FIXED_BITS) as f32);
     let channel = |k: usize| (rgb[k] * f + offset[k] + 0.5).clamp(0.0, 255.0) as u8;
+    [channel(0), channel(1), channel(2)]
+}
+
+/// The same in fixed point: `rgb` and `offset` in 1/256, the factor with [`FIXED_BITS`].
+#[inline]
+pub(super) fn shade_fixed(rgb: [i32; 3], factor: u32, offset: [i32; 3]) -> [u8; 3] {
+    let channel = |k: usize| {
+        (((rgb[k].max(0) as u32 * factor) >> (8 + FIXED_BITS)) + (offset[k].max(0) as u32 >> 8)).min(255) as u8
+    };
     [channel(0), channel(1), channel(2)]
 }
 
@@ -271,6 +360,13 @@ fn tileable_noise(salt: u64, features: f64, first: f32) -> Vec<f32> {
         .collect()
 }
 
+/// The texel at coordinates (u, v) in 1/256 texel, wrapping around.
+fn texel_fixed(texture: &[u16], u: i32, v: i32) -> u32 {
+    let mask = TEXTURE_SIDE as i32 - 1;
+    texture[(((v >> 8) & mask) * TEXTURE_SIDE as i32 + ((u >> 8) & mask)) as usize] as u32
+}
+
+/// The texel at coordinates (u, v), wrapping around.
 fn texel(texture: &[u16], u: f32, v: f32) -> u32 {
     let mask = TEXTURE_SIDE as i32 - 1;
     let (x, y) = ((u as i32) & mask, (v as i32) & mask);

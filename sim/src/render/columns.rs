@@ -5,7 +5,7 @@
 
 use std::ops::Range;
 
-use super::appearance::{Appearance, NodeShade, fog_weights, lerp3, scale3, shade, to_rgb8};
+use super::appearance::{Appearance, Facing, NodeShade, fog_weights, lerp3, scale3, shade, shade_fixed, to_rgb8};
 use super::view::{LevelView, Window, ceil_row};
 use super::{Hit, RenderOptions, Surface};
 use crate::terrain::{MAX_TERRAIN_HEIGHT_M, Terrain};
@@ -14,7 +14,7 @@ use crate::world::{Sample, WORLD_SIZE, World};
 /// Rays stop after this horizontal depth, metres (the world's diagonal).
 const MAX_DEPTH_M: f64 = 290.0;
 /// Along a ray, the terrain is sampled every this fraction of the depth...
-const MARCH_STEP_FRACTION: f64 = 0.025;
+const MARCH_STEP_FRACTION: f64 = 0.04;
 /// ...and at least this often, metres.
 const MARCH_STEP_MIN_M: f64 = 0.03;
 /// Colour of the calibration grid lines.
@@ -70,25 +70,34 @@ pub(super) struct Painter<'f, 'b> {
     pub(super) scratch: Vec<f32>,
 }
 
-/// A point of the terrain along a column's ray, as drawn: its row, and the values the pixels
-/// between two points interpolate (see the `LANE_` indices).
+/// A point of the terrain along a column's ray, as drawn: its row, the values the pixels between
+/// two points interpolate in fixed point (see the `FIXED_` indices, 1/256 units), and those they
+/// interpolate exactly (see the `EXACT_` indices).
 #[derive(Debug, Clone, Copy)]
 struct RayPoint {
     row: f64,
-    lanes: [f32; LANES],
+    fixed: [i32; FIXED_LANES],
+    exact: [f32; EXACT_LANES],
 }
 
-/// The interpolated values of a [`RayPoint`]: position, rock weight, depth, sunlight, colour
-/// (fog included, before texture) and the fog's colour.
-const LANES: usize = 12;
-const LANE_X: usize = 0;
-const LANE_Y: usize = 1;
-const LANE_Z: usize = 2;
-const LANE_ROCK: usize = 3;
-const LANE_DEPTH: usize = 4;
-const LANE_SUN: usize = 5;
-const LANE_RGB: usize = 6;
-const LANE_HAZE: usize = 9;
+/// Fixed-point values of a [`RayPoint`], in 1/256: the floor's and the rock's texture
+/// coordinates (in texels), the rock weight, the colour (fog included, before texture) and the
+/// fog's colour.
+const FIXED_LANES: usize = 11;
+const FIXED_FLOOR_U: usize = 0;
+const FIXED_FLOOR_V: usize = 1;
+const FIXED_ROCK_U: usize = 2;
+const FIXED_ROCK_V: usize = 3;
+const FIXED_ROCK: usize = 4;
+const FIXED_RGB: usize = 5;
+const FIXED_HAZE: usize = 8;
+/// Exact values of a [`RayPoint`]: forward depth, height and sunlight.
+const EXACT_LANES: usize = 3;
+const EXACT_DEPTH: usize = 0;
+const EXACT_HEIGHT: usize = 1;
+const EXACT_SUN: usize = 2;
+/// One in the fixed-point values.
+const FIXED_ONE: f32 = 256.0;
 
 impl Painter<'_, '_> {
     /// Draws the band: terrain and sky, then the boulders and the samples over them.
@@ -192,14 +201,22 @@ impl Painter<'_, '_> {
     fn ray_point(&self, dir: [f64; 2], depth: f64, z: f64) -> RayPoint {
         let (view, appearance) = (&self.frame.view, self.frame.appearance);
         let (x, y) = (view.x + depth * dir[0], view.y + depth * dir[1]);
-        let shade =
-            if inside_world(x, y) { appearance.shade_at(x, y) } else { NodeShade { rock: 1.0, floor: 1.0, sun: 0.5 } };
+        let shade = if inside_world(x, y) {
+            appearance.shade_near(x, y)
+        } else {
+            NodeShade { rock: 1.0, floor: 1.0, sun: 0.5, facing: Facing::AlongX }
+        };
         let (visible, haze) = fog_weights(depth);
         let rgb = scale3(appearance.terrain_rgb(&shade, depth), visible);
-        let (rock, sun) = (shade.rock, shade.sun);
-        let lanes =
-            [x as f32, y as f32, z as f32, rock, depth as f32, sun, rgb[0], rgb[1], rgb[2], haze[0], haze[1], haze[2]];
-        RayPoint { row: view.row(depth, z), lanes }
+        let (floor_u, floor_v) = appearance.floor_texture_coordinates(x as f32, y as f32);
+        let (a, b) = shade.facing.texture_coordinates(x as f32, y as f32, z as f32);
+        let (rock_u, rock_v) = appearance.rock_texture_coordinates(a, b);
+        let values = [floor_u, floor_v, rock_u, rock_v, shade.rock, rgb[0], rgb[1], rgb[2], haze[0], haze[1], haze[2]];
+        RayPoint {
+            row: view.row(depth, z),
+            fixed: values.map(|value| (value * FIXED_ONE) as i32),
+            exact: [depth as f32, z as f32, shade.sun],
+        }
     }
 
     /// Fills the rows from `point` down to `bottom` with the terrain between `last` and `point`;
@@ -209,39 +226,51 @@ impl Painter<'_, '_> {
         let first = ceil_row(point.row).max(self.frame.window.v0);
         let from = last.unwrap_or(point);
         let rows = from.row - point.row;
-        let (start, per_row) =
-            if rows > 1e-9 { (((from.row - first as f64) / rows) as f32, (-1.0 / rows) as f32) } else { (1.0, 0.0) };
-        let mut delta = [0.0f32; LANES];
-        for ((d, to), from) in delta.iter_mut().zip(point.lanes).zip(from.lanes) {
-            *d = to - from;
+        // The pixel at `first` lies `start` of the way from `last` to `point`, each row below one
+        // step back towards `last` (all within the two, as `first` is at or below `point.row` and
+        // the rows end above `last.row`).
+        let (start, per_row) = if rows > 1e-9 { ((from.row - first as f64) / rows, -1.0 / rows) } else { (1.0, 0.0) };
+        let (mut fixed, mut fixed_step) = (from.fixed, [0i32; FIXED_LANES]);
+        for k in 0..FIXED_LANES {
+            let delta = (point.fixed[k] - from.fixed[k]) as f64;
+            fixed[k] += (delta * start) as i32;
+            fixed_step[k] = (delta * per_row) as i32;
+        }
+        let (mut exact, mut exact_step) = (from.exact, [0f32; EXACT_LANES]);
+        for k in 0..EXACT_LANES {
+            let delta = point.exact[k] - from.exact[k];
+            exact[k] += delta * start as f32;
+            exact_step[k] = delta * per_row as f32;
         }
         for v in first..bottom {
-            let s = (start + (v - first) as f32 * per_row).clamp(0.0, 1.0);
-            let mut at = from.lanes;
-            for (value, d) in at.iter_mut().zip(delta) {
-                *value += d * s;
-            }
-            let rock = at[LANE_ROCK];
-            let (x, y, z) = (at[LANE_X], at[LANE_Y], at[LANE_Z]);
-            let texture = if rock <= 0.0 {
-                appearance.floor_texel(x, y)
-            } else if rock >= 1.0 {
-                appearance.rock_factor(x, y, z)
-            } else {
-                let floor = appearance.floor_texel(x, y) as f32;
-                (floor + (appearance.rock_factor(x, y, z) as f32 - floor) * rock) as u32
+            let rock = fixed[FIXED_ROCK].clamp(0, FIXED_ONE as i32);
+            let floor_texel = || appearance.floor_texel_fixed(fixed[FIXED_FLOOR_U], fixed[FIXED_FLOOR_V]);
+            let rock_texel = || appearance.rock_texel_fixed(fixed[FIXED_ROCK_U], fixed[FIXED_ROCK_V]);
+            let texture = match rock {
+                0 => floor_texel(),
+                256 => rock_texel(),
+                _ => {
+                    let floor = floor_texel() as i32;
+                    (floor + (((rock_texel() as i32 - floor) * rock) >> 8)) as u32
+                }
             };
-            let rgb = [at[LANE_RGB], at[LANE_RGB + 1], at[LANE_RGB + 2]];
-            let haze = [at[LANE_HAZE], at[LANE_HAZE + 1], at[LANE_HAZE + 2]];
+            let rgb = [fixed[FIXED_RGB], fixed[FIXED_RGB + 1], fixed[FIXED_RGB + 2]];
+            let haze = [fixed[FIXED_HAZE], fixed[FIXED_HAZE + 1], fixed[FIXED_HAZE + 2]];
             let hit = Hit {
-                surface: if rock < 0.5 { Surface::Floor } else { Surface::Rock },
-                depth_m: at[LANE_DEPTH],
-                height_m: at[LANE_Z],
-                sun: at[LANE_SUN],
-                rock,
+                surface: if rock < 128 { Surface::Floor } else { Surface::Rock },
+                depth_m: exact[EXACT_DEPTH],
+                height_m: exact[EXACT_HEIGHT],
+                sun: exact[EXACT_SUN],
+                rock: rock as f32 / FIXED_ONE,
             };
             let index = self.index(u, v);
-            self.put(index, shade(rgb, texture, haze), hit);
+            self.put(index, shade_fixed(rgb, texture, haze), hit);
+            for (value, step) in fixed.iter_mut().zip(fixed_step) {
+                *value += step;
+            }
+            for (value, step) in exact.iter_mut().zip(exact_step) {
+                *value += step;
+            }
         }
         first.min(bottom)
     }

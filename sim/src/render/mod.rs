@@ -178,32 +178,43 @@ impl Renderer {
     }
 }
 
-/// Draws the level view of `frame` into the level buffers, in one band of columns per thread.
+/// Bands of columns each thread of a frame draws, interleaved with the other threads' so that the
+/// work is shared evenly whatever the view holds.
+const BANDS_PER_THREAD: usize = 4;
+
+/// Draws the level view of `frame` into the level buffers, in interleaved bands of columns, one
+/// set per thread.
 fn draw_level(frame: &Frame, threads: usize, rgb: &mut [[u8; 3]], depth: &mut [f32], hits: &mut [Hit]) {
     let Window { u0, u1, .. } = frame.window;
     let height = frame.level_height;
-    let per_band = (u1 - u0).div_ceil(threads).max(1);
+    let band_count = if threads > 1 { threads * BANDS_PER_THREAD } else { 1 };
+    let per_band = (u1 - u0).div_ceil(band_count).max(1);
     let (mut rgb, mut depth) = (&mut rgb[u0 * height..u1 * height], &mut depth[u0 * height..u1 * height]);
     let mut hits = if hits.is_empty() { hits } else { &mut hits[u0 * height..u1 * height] };
-    let mut bands = Vec::with_capacity(threads);
-    for first in (u0..u1).step_by(per_band) {
+    let mut work: Vec<Vec<Band>> = (0..threads).map(|_| Vec::new()).collect();
+    for (number, first) in (u0..u1).step_by(per_band).enumerate() {
         let columns = first..(first + per_band).min(u1);
         let pixels = columns.len() * height;
+        let hit_pixels = pixels.min(hits.len());
         let (band_rgb, rest_rgb) = std::mem::take(&mut rgb).split_at_mut(pixels);
         let (band_depth, rest_depth) = std::mem::take(&mut depth).split_at_mut(pixels);
-        let hit_pixels = pixels.min(hits.len());
         let (band_hits, rest_hits) = std::mem::take(&mut hits).split_at_mut(hit_pixels);
         (rgb, depth, hits) = (rest_rgb, rest_depth, rest_hits);
-        bands.push(Band { columns, rgb: band_rgb, depth: band_depth, hits: band_hits });
+        work[number % threads].push(Band { columns, rgb: band_rgb, depth: band_depth, hits: band_hits });
     }
-    std::thread::scope(|scope| {
-        let mut bands = bands.into_iter();
-        let own = bands.next();
+    let draw = |bands: Vec<Band>| {
         for band in bands {
-            scope.spawn(move || Painter { frame, band, scratch: Vec::new() }.draw());
-        }
-        if let Some(band) = own {
             Painter { frame, band, scratch: Vec::new() }.draw();
+        }
+    };
+    std::thread::scope(|scope| {
+        let mut work = work.into_iter();
+        let own = work.next();
+        for bands in work {
+            scope.spawn(move || draw(bands));
+        }
+        if let Some(bands) = own {
+            draw(bands);
         }
     });
 }
@@ -221,32 +232,60 @@ struct Resampler<'a> {
 }
 
 impl Resampler<'_> {
-    /// Fills the image rows from `first_row` on (`rgb`, and `hits` when recording).
-    fn rows(&self, first_row: usize, rgb: &mut [u8], mut hits: Option<&mut [Hit]>) {
-        let untilted = self.rotation.is_identity();
-        let (max_u, max_v) = ((self.level_width - 1) as f32, (self.level_height - 1) as f32);
-        let level_index = |u: usize, v: usize| u * self.level_height + v;
-        for (r, row) in rgb.chunks_exact_mut(self.width * 3).enumerate() {
-            let v = first_row + r;
-            let mut ray = self.rotation.row_start(v);
-            for (u, pixel) in row.chunks_exact_mut(3).enumerate() {
-                let source = if untilted {
-                    level_index(u + MARGIN_PX, v + MARGIN_PX)
-                } else {
-                    let (lu, lv) = self.rotation.project(ray);
-                    ray = self.rotation.step_right(ray);
-                    level_index((lu + 0.5).clamp(0.0, max_u) as usize, (lv + 0.5).clamp(0.0, max_v) as usize)
-                };
-                if let Some(hits) = hits.as_deref_mut().filter(|h| !h.is_empty()) {
-                    hits[r * self.width + u] = self.level_hits[source];
-                }
-                let noise = self.noise[(self.noise_offset + v * self.width + u) & NOISE_MASK] as i16;
-                let level = self.level_rgb[source];
-                for k in 0..3 {
-                    pixel[k] = (level[k] as i16 + noise).clamp(0, 255) as u8;
+    /// Fills the image rows from `first_row` on (`rgb`, and `hits` when recording): first where
+    /// each pixel comes from in the level view, then the pixels a block of rows at a time, so that
+    /// each column of the level view is read a cache line at a time.
+    fn rows(&self, first_row: usize, rgb: &mut [u8], hits: Option<&mut [Hit]>) {
+        const BLOCK_ROWS: usize = 16;
+        let rows = rgb.len() / (self.width * 3);
+        let sources = self.sources(first_row, rows);
+        for block in (0..rows).step_by(BLOCK_ROWS) {
+            for u in 0..self.width {
+                for r in block..(block + BLOCK_ROWS).min(rows) {
+                    let (pixel, v) = (r * self.width + u, first_row + r);
+                    let noise = self.noise[(self.noise_offset + v * self.width + u) & NOISE_MASK] as i16;
+                    let level = self.level_rgb[sources[pixel] as usize];
+                    let out = &mut rgb[pixel * 3..][..3];
+                    for k in 0..3 {
+                        out[k] = (level[k] as i16 + noise).clamp(0, 255) as u8;
+                    }
                 }
             }
         }
+        if let Some(hits) = hits.filter(|h| !h.is_empty()) {
+            for (hit, &source) in hits.iter_mut().zip(&sources) {
+                *hit = self.level_hits[source as usize];
+            }
+        }
+    }
+
+    /// The level-view index each pixel of `rows` image rows from `first_row` on is taken from.
+    /// Tilted, the exact projection is computed every [`SEGMENT_PX`] pixels of a row and followed
+    /// linearly in between (a rotation of a few degrees bends it by far less than a pixel there).
+    fn sources(&self, first_row: usize, rows: usize) -> Vec<u32> {
+        const SEGMENT_PX: usize = 16;
+        let height = self.level_height;
+        let mut sources = Vec::with_capacity(rows * self.width);
+        if self.rotation.is_identity() {
+            for v in first_row..first_row + rows {
+                sources.extend((0..self.width).map(|u| ((u + MARGIN_PX) * height + v + MARGIN_PX) as u32));
+            }
+            return sources;
+        }
+        let map = self.rotation.pixel_map();
+        let (max_u, max_v) = ((self.level_width - 1) as f32, (height - 1) as f32);
+        for v in first_row..first_row + rows {
+            for start in (0..self.width).step_by(SEGMENT_PX) {
+                let end = (start + SEGMENT_PX).min(self.width);
+                let (a, b) = (map.level_pixel(start, v), map.level_pixel(end, v));
+                let per_px = ((b.0 - a.0) / (end - start) as f32, (b.1 - a.1) / (end - start) as f32);
+                sources.extend((0..end - start).map(|i| {
+                    let (lu, lv) = (a.0 + per_px.0 * i as f32 + 0.5, a.1 + per_px.1 * i as f32 + 0.5);
+                    (lu.clamp(0.0, max_u) as usize * height + lv.clamp(0.0, max_v) as usize) as u32
+                }));
+            }
+        }
+        sources
     }
 }
 
@@ -269,6 +308,62 @@ mod tests {
         assert_eq!(surface(160, 60), Surface::Rock, "the world's edge is a wall 100 m away, 38.7 m high");
         let [r, g, b] = image.pixel(160, 150);
         assert!(r > 200 && g > 190 && b > 180, "bright floor: {:?}", [r, g, b]);
+    }
+
+    #[test]
+    fn boulders_drawn_face_by_face_are_where_their_rays_meet_them() {
+        use crate::boulder::{Boulder, BoulderKind, BoulderSpec, Cap};
+        use crate::random::SplitMix64;
+        let floor = vec![true; WORLD_SIZE * WORLD_SIZE];
+        let cap = Cap { offset_m: [-1.0, 0.5], radius_m: 2.5, underside_m: 1.6, thickness_m: 2.0 };
+        let specs = [
+            BoulderSpec { x_m: 106.0, y_m: 100.5, footprint_radius_m: 1.2, kind: BoulderKind::Overhang(cap) },
+            BoulderSpec { x_m: 103.0, y_m: 97.5, footprint_radius_m: 0.8, kind: BoulderKind::Cluster },
+        ];
+        let boulders = specs.iter().map(|spec| Boulder::new(spec, &mut SplitMix64::new(5))).collect();
+        let start = crate::world::StartPose { x_m: 100.0, y_m: 100.0, yaw_deg: 0.0 };
+        let plan = crate::world::WorldPlan {
+            ground_truth: floor.clone(),
+            floor,
+            boulders,
+            samples: vec![],
+            start,
+            terrain_salt: 0,
+        };
+        let world = World::build(plan);
+        let options = RenderOptions { record_hits: true, ..RenderOptions::default() };
+        let mut renderer = Renderer::new(&world, CameraModel::rover(), options);
+        let pose = BodyPose { x_m: 100.0, y_m: 100.0, ..Default::default() };
+        renderer.render(&world, &[], &pose, &mut RgbImage::default());
+        let view = LevelView::new(renderer.camera(), renderer.camera().position(&pose), 0.0);
+        let origin = [view.x, view.y, view.height];
+        let faces: Vec<_> =
+            world.boulders().iter().flat_map(|b| &b.pieces).map(|p| objects::FacesFromCamera::new(p, origin)).collect();
+        let (mut boulder_pixels, mut disagreements) = (0, 0);
+        let mut across = Vec::new();
+        for (index, hit) in renderer.hits().iter().enumerate() {
+            let (u, v) = (index % 320 + MARGIN_PX, index / 320 + MARGIN_PX);
+            let [dx, dy] = view.column_direction(u);
+            let nearest = faces
+                .iter()
+                .filter_map(|f| {
+                    f.across_column(dx, dy, &mut across);
+                    f.entry(&across, view.row_rise(v) as f32).map(|(t, _)| t)
+                })
+                .fold(f32::INFINITY, f32::min);
+            let agrees = if hit.surface == Surface::Boulder {
+                boulder_pixels += 1;
+                (hit.depth_m - nearest).abs() < 1e-3 * nearest
+            } else {
+                nearest >= hit.depth_m * (1.0 - 1e-3)
+            };
+            disagreements += !agrees as usize;
+        }
+        assert!(boulder_pixels > 2000, "{boulder_pixels} boulder pixels");
+        assert!(
+            disagreements * 100 < boulder_pixels,
+            "{disagreements} of {boulder_pixels} pixels disagree at the outlines"
+        );
     }
 
     #[test]

@@ -3,7 +3,7 @@
 
 use std::ops::Range;
 
-use super::appearance::{fog_weights, scale3, shade, to_rgb8};
+use super::appearance::{Facing, fog_weights, scale3, shade, to_rgb8};
 use super::columns::Painter;
 use super::view::{NEAR_M, Window};
 use super::{Hit, Surface};
@@ -22,40 +22,73 @@ const BOX_EDGES: [(usize, usize); 12] =
     [(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7), (0, 4), (1, 5), (2, 6), (3, 7)];
 
 impl Painter<'_, '_> {
-    /// Draws a boulder piece where it is the nearest surface: the pixels inside its outline when it
-    /// lies wholly ahead of the camera, else every pixel of its box cut at the near plane.
+    /// Draws a boulder piece where it is the nearest surface: face by face when it lies wholly
+    /// ahead of the camera, else by casting every pixel of its box cut at the near plane.
     pub(super) fn draw_piece(&mut self, piece: &ConvexPiece) {
         let view = &self.frame.view;
         let origin = [view.x, view.y, view.height];
         let projected: Option<Vec<(f64, f64, f64)>> = piece.vertices.iter().map(|&v| view.project(v)).collect();
         let Some(projected) = projected else {
             if let Some((columns, rows, nearest)) = self.screen_box(piece) {
-                let faces = FacesFromCamera::all(piece, origin);
+                let faces = FacesFromCamera::new(piece, origin);
                 self.cast_piece(piece, &faces, columns.map(|u| (u, rows.clone())), nearest);
             }
             return;
         };
-        let nearest = projected.iter().map(|p| p.2).fold(f64::MAX, f64::min);
-        if nearest > MAX_PIECE_DEPTH_M {
+        if projected.iter().map(|p| p.2).fold(f64::MAX, f64::min) > MAX_PIECE_DEPTH_M {
             return;
         }
-        let outline = convex_hull(projected.iter().map(|p| (p.0, p.1)).collect());
+        for (face, corners) in piece.faces.iter().zip(&piece.face_corners) {
+            let room =
+                face.offset - (face.normal[0] * origin[0] + face.normal[1] * origin[1] + face.normal[2] * origin[2]);
+            if room < 0.0 && corners.len() >= 3 {
+                let outline: Vec<(f64, f64)> = corners.iter().map(|&i| (projected[i].0, projected[i].1)).collect();
+                let nearest = corners.iter().map(|&i| projected[i].2).fold(f64::MAX, f64::min);
+                self.draw_face(face, room, &outline, nearest);
+            }
+        }
+    }
+
+    /// Draws one face of a piece that faces the camera, whose outline on screen is `outline`:
+    /// `room` is how far the camera lies outside its plane, `nearest` its nearest forward depth.
+    fn draw_face(&mut self, face: &HalfSpace, room: f64, outline: &[(f64, f64)], nearest: f64) {
+        let (view, appearance) = (&self.frame.view, self.frame.appearance);
         let Window { v0, v1, .. } = self.frame.window;
-        let band = &self.band.columns;
+        let (band_start, band_end) = (self.band.columns.start as f64, self.band.columns.end as f64);
         let (lo_u, hi_u) = outline.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| (lo.min(p.0), hi.max(p.0)));
-        let (first, end) = (band.start as f64, band.end as f64);
-        let columns = (lo_u.ceil().max(first) as usize)..((hi_u.floor() + 1.0).clamp(first, end) as usize);
-        let spans: Vec<(usize, Range<usize>)> = columns
-            .filter_map(|u| {
-                let (top, bottom) = column_span(&outline, u as f64)?;
-                Some((
-                    u,
-                    (top.ceil().max(v0 as f64) as usize)..((bottom.floor() + 1.0).clamp(v0 as f64, v1 as f64) as usize),
-                ))
-            })
-            .collect();
-        let faces = FacesFromCamera::facing(piece, origin);
-        self.cast_piece(piece, &faces, spans, nearest);
+        let columns =
+            (lo_u.ceil().max(band_start) as usize)..((hi_u.floor() + 1.0).clamp(band_start, band_end) as usize);
+        let normal = face.normal;
+        let sun = appearance.sunlight(normal);
+        let lit_rgb = appearance.rock_rgb(sun);
+        let facing = Facing::of_normal(normal);
+        for u in columns {
+            let Some((top, bottom)) = column_span(outline, u as f64) else { continue };
+            let rows =
+                (top.ceil().max(v0 as f64) as usize)..((bottom.floor() + 1.0).clamp(v0 as f64, v1 as f64) as usize);
+            let [dx, dy] = view.column_direction(u);
+            let across = normal[0] * dx + normal[1] * dy;
+            for v in rows {
+                let index = self.index(u, v);
+                if self.depth_at(index) <= nearest as f32 {
+                    continue;
+                }
+                let rise = view.row_rise(v);
+                let t = room / (across + normal[2] * rise);
+                if t <= NEAR_M || t as f32 >= self.depth_at(index) {
+                    continue;
+                }
+                let point = [view.x + t * dx, view.y + t * dy, view.height + t * rise].map(|c| c as f32);
+                let (visible, haze) = fog_weights(t);
+                let (a, b) = facing.texture_coordinates(point[0], point[1], point[2]);
+                let pixel = shade(scale3(lit_rgb, visible), appearance.rock_texel(a, b), haze);
+                self.put(
+                    index,
+                    pixel,
+                    Hit { surface: Surface::Boulder, depth_m: t as f32, height_m: point[2], sun, rock: 1.0 },
+                );
+            }
+        }
     }
 
     /// Casts the rays of the pixels in `spans` (column, rows) at a piece and draws it where it is
@@ -88,9 +121,12 @@ impl Painter<'_, '_> {
                 let t = t as f64;
                 let point = [origin[0] + t * dx, origin[1] + t * dy, origin[2] + t * rise];
                 let (visible, haze) = fog_weights(t);
-                let sun = appearance.sunlight(piece.faces[face].normal);
+                let normal = piece.faces[face].normal;
+                let sun = appearance.sunlight(normal);
                 let rgb = scale3(appearance.rock_rgb(sun), visible);
-                let texture = appearance.rock_factor(point[0] as f32, point[1] as f32, point[2] as f32);
+                let (a, b) =
+                    Facing::of_normal(normal).texture_coordinates(point[0] as f32, point[1] as f32, point[2] as f32);
+                let texture = appearance.rock_texel(a, b);
                 let hit =
                     Hit { surface: Surface::Boulder, depth_m: t as f32, height_m: point[2] as f32, sun, rock: 1.0 };
                 self.put(index, shade(rgb, texture, haze), hit);
@@ -178,97 +214,67 @@ impl Painter<'_, '_> {
 }
 
 /// A piece's faces as seen from the camera of one frame, for casting many rays at it.
-struct FacesFromCamera {
-    /// Index of each face among the piece's.
-    index: Vec<usize>,
+pub(super) struct FacesFromCamera {
     normals: Vec<[f32; 3]>,
     /// How far the camera is inside each face's half-space (negative outside), metres.
     rooms: Vec<f32>,
-    /// Only the faces that face the camera, for rays known to hit the piece.
-    facing_only: bool,
 }
 
 impl FacesFromCamera {
-    /// Every face, for rays that may miss the piece.
-    fn all(piece: &ConvexPiece, camera: [f64; 3]) -> Self {
-        Self::select(piece, camera, false)
-    }
-
-    /// The faces that face the camera (a ray that hits enters through one of them).
-    fn facing(piece: &ConvexPiece, camera: [f64; 3]) -> Self {
-        Self::select(piece, camera, true)
-    }
-
-    fn select(piece: &ConvexPiece, camera: [f64; 3], facing_only: bool) -> Self {
+    pub(super) fn new(piece: &ConvexPiece, camera: [f64; 3]) -> Self {
         let room = |f: &HalfSpace| {
             (f.offset - (f.normal[0] * camera[0] + f.normal[1] * camera[1] + f.normal[2] * camera[2])) as f32
         };
-        let index: Vec<usize> =
-            (0..piece.faces.len()).filter(|&k| !facing_only || room(&piece.faces[k]) < 0.0).collect();
-        let normals = index.iter().map(|&k| piece.faces[k].normal.map(|c| c as f32)).collect();
-        let rooms = index.iter().map(|&k| room(&piece.faces[k])).collect();
-        FacesFromCamera { index, normals, rooms, facing_only }
+        let normals = piece.faces.iter().map(|f| f.normal.map(|c| c as f32)).collect();
+        let rooms = piece.faces.iter().map(room).collect();
+        FacesFromCamera { normals, rooms }
     }
 
     /// The horizontal part of each face normal along a column's ray direction (dx, dy).
-    fn across_column(&self, dx: f64, dy: f64, out: &mut Vec<f32>) {
+    pub(super) fn across_column(&self, dx: f64, dy: f64, out: &mut Vec<f32>) {
         out.clear();
         out.extend(self.normals.iter().map(|n| n[0] * dx as f32 + n[1] * dy as f32));
     }
 
     /// Where the ray of a row rising `rise` per metre (in the column of `across`) enters the
     /// piece: forward depth and the piece's face, if it does beyond the near plane.
-    fn entry(&self, across: &[f32], rise: f32) -> Option<(f32, usize)> {
-        let (mut enter, mut exit, mut face) = (f32::NEG_INFINITY, f32::INFINITY, 0);
+    ///
+    /// A face the ray moves out of (along < 0) bounds the entry from below at room / along, one it
+    /// moves into bounds the exit from above; the ratios are compared by cross-multiplying (both
+    /// denominators of a comparison have the same sign), so only the result needs a division.
+    pub(super) fn entry(&self, across: &[f32], rise: f32) -> Option<(f32, usize)> {
+        let (mut enter, mut exit) = ((-1.0f32, f32::MIN_POSITIVE), (1.0f32, 0.0f32));
+        let mut face = usize::MAX;
         for (k, (across, (normal, room))) in across.iter().zip(self.normals.iter().zip(&self.rooms)).enumerate() {
             let (along, room) = (across + normal[2] * rise, *room);
             if along < 0.0 {
-                let t = room / along;
-                if t > enter {
-                    (enter, face) = (t, k);
+                if face == usize::MAX || room * enter.1 > enter.0 * along {
+                    (enter, face) = ((room, along), k);
                 }
-            } else if self.facing_only {
-                continue;
             } else if along > 0.0 {
-                exit = exit.min(room / along);
+                if room * exit.1 < exit.0 * along {
+                    exit = (room, along);
+                }
             } else if room < 0.0 {
                 return None;
             }
-            if enter > exit {
-                return None;
-            }
         }
-        (enter > NEAR_M as f32).then(|| (enter, self.index[face]))
+        if face == usize::MAX {
+            return None;
+        }
+        let t = enter.0 / enter.1;
+        let before_exit = exit.1 == 0.0 || t <= exit.0 / exit.1;
+        (t > NEAR_M as f32 && before_exit).then_some((t, face))
     }
 }
 
-/// The convex hull of points (Andrew's monotone chain), counter-clockwise without repeats.
-fn convex_hull(mut points: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
-    points.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
-    points.dedup();
-    if points.len() < 3 {
-        return points;
-    }
-    let turn = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0);
-    let mut hull: Vec<(f64, f64)> = Vec::with_capacity(points.len() * 2);
-    for pass in [points.clone(), points.into_iter().rev().collect()] {
-        let start = hull.len();
-        for p in pass {
-            while hull.len() >= start + 2 && turn(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
-                hull.pop();
-            }
-            hull.push(p);
-        }
-        hull.pop();
-    }
-    hull
-}
-
-/// The rows (top, bottom) where the vertical line at column `u` crosses a convex outline.
+/// The rows (top, bottom) where the vertical line at column `u` crosses a convex outline. An
+/// edge is followed from its leftmost end, so that faces sharing it meet without a gap.
 fn column_span(outline: &[(f64, f64)], u: f64) -> Option<(f64, f64)> {
     let mut span: Option<(f64, f64)> = None;
     for (i, &a) in outline.iter().enumerate() {
         let b = outline[(i + 1) % outline.len()];
+        let (a, b) = if a <= b { (a, b) } else { (b, a) };
         if (a.0 - u) * (b.0 - u) > 0.0 || a.0 == b.0 && a.0 != u {
             continue;
         }
@@ -291,15 +297,13 @@ mod tests {
         let ellipsoid = Ellipsoid { centre: [10.0, 20.0, 0.5], radii: [2.0, 1.0, 1.0], yaw_rad: 0.0 };
         let piece = ConvexPiece::cut(&ellipsoid, &mut SplitMix64::new(3));
         let camera = [0.0, 20.0, 0.5];
-        for faces in [FacesFromCamera::all(&piece, camera), FacesFromCamera::facing(&piece, camera)] {
-            let mut across = Vec::new();
-            faces.across_column(1.0, 0.0, &mut across);
-            let (t, face) = faces.entry(&across, 0.0).expect("hits");
-            assert!((8.0..=8.4).contains(&t), "enters between 80 % and 100 % of the half-axis: t = {t}");
-            assert!(piece.faces[face].normal[0] < -0.3, "the facet faces the ray");
-            assert!(piece.contains([t as f64 + 0.01, 20.0, 0.5]) && !piece.contains([t as f64 - 0.01, 20.0, 0.5]));
-        }
-        let all = FacesFromCamera::all(&piece, camera);
+        let all = FacesFromCamera::new(&piece, camera);
+        let mut across = Vec::new();
+        all.across_column(1.0, 0.0, &mut across);
+        let (t, face) = all.entry(&across, 0.0).expect("hits");
+        assert!((8.0..=8.4).contains(&t), "enters between 80 % and 100 % of the half-axis: t = {t}");
+        assert!(piece.faces[face].normal[0] < -0.3, "the facet faces the ray");
+        assert!(piece.contains([t as f64 + 0.01, 20.0, 0.5]) && !piece.contains([t as f64 - 0.01, 20.0, 0.5]));
         let mut across = Vec::new();
         all.across_column(1.0, 0.5, &mut across);
         assert_eq!(all.entry(&across, 0.0), None, "passes beside");
@@ -308,14 +312,14 @@ mod tests {
     }
 
     #[test]
-    fn the_hull_of_a_square_and_its_centre_is_the_square() {
-        let hull = convex_hull(vec![(0.0, 0.0), (2.0, 0.0), (1.0, 1.0), (2.0, 2.0), (0.0, 2.0), (2.0, 2.0)]);
-        assert_eq!(hull.len(), 4, "{hull:?}");
-        assert!(!hull.contains(&(1.0, 1.0)));
-        assert_eq!(column_span(&hull, 1.0), Some((0.0, 2.0)));
-        assert_eq!(column_span(&hull, 3.0), None);
-        let triangle = convex_hull(vec![(0.0, 0.0), (4.0, 0.0), (0.0, 4.0)]);
+    fn a_column_crosses_an_outline_between_its_edges() {
+        let square = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)];
+        assert_eq!(column_span(&square, 1.0), Some((0.0, 2.0)));
+        assert_eq!(column_span(&square, 3.0), None);
+        let triangle = [(0.0, 0.0), (4.0, 0.0), (0.0, 4.0)];
         let (top, bottom) = column_span(&triangle, 1.0).unwrap();
         assert!((top - 0.0).abs() < 1e-12 && (bottom - 3.0).abs() < 1e-12);
+        let reversed = [(0.0, 4.0), (4.0, 0.0), (0.0, 0.0)];
+        assert_eq!(column_span(&reversed, 1.3), column_span(&triangle, 1.3), "the same edges give the same rows");
     }
 }

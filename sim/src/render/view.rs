@@ -141,21 +141,36 @@ impl Rotation {
         (self.cx + MARGIN_PX as f64 - ray[1] * scale, self.cy + MARGIN_PX as f64 - ray[2] * scale)
     }
 
-    /// The level-frame ray of the first pixel of output row `v`.
-    pub(super) fn row_start(&self, v: usize) -> [f32; 3] {
-        let dv = v as f64 - self.cy;
-        [0, 1, 2].map(|k| (self.base[k] - self.cx * self.per_u[k] + dv * self.per_v[k]) as f32)
+    /// The map from output pixels to level-view coordinates, in single precision for the
+    /// resampling of a frame.
+    pub(super) fn pixel_map(&self) -> PixelMap {
+        let f32s = |v: [f64; 3]| v.map(|c| c as f32);
+        PixelMap {
+            base: f32s([0, 1, 2].map(|k| self.base[k] - self.cx * self.per_u[k] - self.cy * self.per_v[k])),
+            per_u: f32s(self.per_u),
+            per_v: f32s(self.per_v),
+            centre: ((self.cx + MARGIN_PX as f64) as f32, (self.cy + MARGIN_PX as f64) as f32),
+            focal: self.focal as f32,
+        }
     }
+}
 
-    /// The ray of the next pixel to the right.
-    pub(super) fn step_right(&self, ray: [f32; 3]) -> [f32; 3] {
-        [ray[0] + self.per_u[0] as f32, ray[1] + self.per_u[1] as f32, ray[2] + self.per_u[2] as f32]
-    }
+/// Where output pixels are in the level view (see [`Rotation::pixel_map`]).
+pub(super) struct PixelMap {
+    base: [f32; 3],
+    per_u: [f32; 3],
+    per_v: [f32; 3],
+    centre: (f32, f32),
+    focal: f32,
+}
 
-    /// Level-view coordinates of a level-frame ray.
-    pub(super) fn project(&self, ray: [f32; 3]) -> (f32, f32) {
-        let scale = self.focal as f32 / ray[0];
-        ((self.cx + MARGIN_PX as f64) as f32 - ray[1] * scale, (self.cy + MARGIN_PX as f64) as f32 - ray[2] * scale)
+impl PixelMap {
+    /// Level-view coordinates of output pixel (u, v).
+    pub(super) fn level_pixel(&self, u: usize, v: usize) -> (f32, f32) {
+        let (u, v) = (u as f32, v as f32);
+        let ray = [0, 1, 2].map(|k| self.base[k] + u * self.per_u[k] + v * self.per_v[k]);
+        let scale = self.focal / ray[0];
+        (self.centre.0 - ray[1] * scale, self.centre.1 - ray[2] * scale)
     }
 }
 

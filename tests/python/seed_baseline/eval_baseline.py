@@ -107,6 +107,10 @@ def parse_args(argv):
     world.add_argument('--procedural', action='store_true',
                        help="the simulator's procedural world of each seed (its ground truth "
                             'written by `rover sim --export-map`)')
+    parser.add_argument('--floor', metavar='PNG',
+                        help='where the terrain is flat floor (with --map), passed to `rover sim`')
+    parser.add_argument('--appearance-seed', type=int, default=0, metavar='N',
+                        help="the simulator's appearance seed (default 0, the calibrated look)")
     parser.add_argument('--seeds', default='0..9', type=parse_seeds,
                         help='seeds, e.g. 0..9 (inclusive) or 4 (default 0..9)')
     parser.add_argument('--json', action='store_true', help='print one JSON list instead of a table')
@@ -125,6 +129,12 @@ def parse_args(argv):
         if not os.path.isfile(args.map):
             parser.error(f'--map {args.map}: no such file')
         args.map = os.path.abspath(args.map)
+    if args.floor is not None:
+        if args.map is None:
+            parser.error('--floor needs --map')
+        if not os.path.isfile(args.floor):
+            parser.error(f'--floor {args.floor}: no such file')
+        args.floor = os.path.abspath(args.floor)
     if args.rover != DEFAULT_ROVER and not os.path.isfile(args.rover):
         parser.error(f'--rover {args.rover}: no such file')
     return args
@@ -322,6 +332,8 @@ def run_simulator(rover, args, seed, port, files):
     """Runs `rover sim` for one seed (on --map, or else its procedural world) until it exits;
     raises EvalError on a failure."""
     world = ['--map', args.map] if args.map is not None else []
+    world += ['--floor', args.floor] if args.floor is not None else []
+    world += ['--appearance-seed', str(args.appearance_seed)]
     command = [rover, 'sim', *world, '--seed', str(seed), '--port', str(port),
                '--max-sim-seconds', f'{args.max_sim_seconds:g}', '--report', files.sim_report]
     with open(files.sim_log, 'a') as log:
