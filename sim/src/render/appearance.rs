@@ -97,6 +97,13 @@ impl PackedShade {
     }
 }
 
+impl NodeShade {
+    /// This shade's facing with rock, floor and sun given in their packed units.
+    fn with_bytes(self, rock: f32, floor: f32, sun: f32) -> NodeShade {
+        NodeShade { rock: rock / 255.0, floor: floor / FLOOR_PACKING, sun: sun / 255.0, ..self }
+    }
+}
+
 /// Textures and baked shading of one world.
 pub(super) struct Appearance {
     pub(super) look: Look,
@@ -156,21 +163,34 @@ impl Appearance {
         (0..size).contains(&ix) && (0..size).contains(&iy) && self.plain_floor[iy as usize * WORLD_SIZE + ix as usize]
     }
 
-    /// The baked shade of the node nearest (x, y).
-    pub(super) fn shade_near(&self, x: f64, y: f64) -> NodeShade {
-        self.shades[self.node_index(x, y)].unpack()
+    /// The baked shade at (x, y), bilinear between the nodes around it (which way it faces: the
+    /// nearest node's).
+    pub(super) fn shade_at(&self, x: f64, y: f64) -> NodeShade {
+        let (corners, [fx, fy]) = self.corners_around(x, y);
+        let blend = |k: usize| {
+            let [a, b, c, d] = corners.map(|p| p.0[k] as f32);
+            let top = a + (b - a) * fx;
+            top + (c + (d - c) * fx - top) * fy
+        };
+        let nearest = corners[(fx >= 0.5) as usize + 2 * (fy >= 0.5) as usize];
+        PackedShade([0, 0, 0, nearest.0[3]]).unpack().with_bytes(blend(0), blend(1), blend(2))
     }
 
-    /// Index of the node nearest (x, y) (clamped to the world).
-    fn node_index(&self, x: f64, y: f64) -> usize {
+    /// The four nodes around (x, y) (lower-left, lower-right, upper-left, upper-right) and where
+    /// (x, y) lies between them.
+    fn corners_around(&self, x: f64, y: f64) -> ([PackedShade; 4], [f32; 2]) {
         let per_m = NODES_PER_M as f64;
-        ((y * per_m) as usize).min(self.side - 1) * self.side + ((x * per_m) as usize).min(self.side - 1)
+        let (gx, gy) = ((x * per_m - 0.5).max(0.0), (y * per_m - 0.5).max(0.0));
+        let last = self.side - 1;
+        let (ix, iy) = ((gx as usize).min(last - 1), (gy as usize).min(last - 1));
+        let at = |dx: usize, dy: usize| self.shades[(iy + dy) * self.side + ix + dx];
+        let fractions = [((gx - ix as f64) as f32).min(1.0), ((gy - iy as f64) as f32).min(1.0)];
+        ([at(0, 0), at(1, 0), at(0, 1), at(1, 1)], fractions)
     }
 
     /// The floor's brightness at (x, y), fixed point, with its detail texture.
     pub(super) fn floor_factor(&self, x: f64, y: f64) -> u32 {
-        let node = self.node_index(x, y);
-        ((self.shades[node].unpack().floor * (1 << FIXED_BITS) as f32) as u32 * self.floor_texel(x as f32, y as f32))
+        ((self.shade_at(x, y).floor * (1 << FIXED_BITS) as f32) as u32 * self.floor_texel(x as f32, y as f32))
             >> FIXED_BITS
     }
 
@@ -184,7 +204,7 @@ impl Appearance {
         visible: f32,
         haze: [f32; 3],
     ) -> ([u8; 3], f32) {
-        let NodeShade { rock, floor, sun, .. } = self.shades[self.node_index(x, y)].unpack();
+        let NodeShade { rock, floor, sun, .. } = self.shade_at(x, y);
         let floor_rgb = scale3(floor_rgb, floor);
         let rock_rgb = scale3(self.rock_rgb(sun), visible);
         let (x, y) = (x as f32, y as f32);

@@ -202,7 +202,7 @@ impl Painter<'_, '_> {
         let (view, appearance) = (&self.frame.view, self.frame.appearance);
         let (x, y) = (view.x + depth * dir[0], view.y + depth * dir[1]);
         let shade = if inside_world(x, y) {
-            appearance.shade_near(x, y)
+            appearance.shade_at(x, y)
         } else {
             NodeShade { rock: 1.0, floor: 1.0, sun: 0.5, facing: Facing::AlongX }
         };
