@@ -249,6 +249,47 @@ mod tests {
     }
 
     #[test]
+    fn the_walls_rise_as_the_unity_terrain_does_and_the_floor_is_where_floor_flat_says() {
+        use crate::distance::distance_to;
+        use crate::terrain::TERRAIN_STEP_M;
+        let (map, floor_png) =
+            (shared("udacity/calibration_images/map_bw.png"), shared("udacity-world/floor_flat.png"));
+        let world = unity_world(&map, Some(&floor_png), 0).unwrap();
+        let nodes: Vec<(f64, f64, f32)> = world.terrain().nodes().collect();
+        let side = (nodes.len() as f64).sqrt() as usize;
+        let flat: Vec<bool> = nodes.iter().map(|n| n.2 < 0.05).collect();
+        let distance_m: Vec<f64> = distance_to(&flat, side).iter().map(|&d| d as f64 * TERRAIN_STEP_M).collect();
+        // The measured bands of `udacity-world/README.md` section 2: distance, then p10, median, p90.
+        let table = [
+            ((0.5, 1.0), [0.38, 0.76, 1.70]),
+            ((1.0, 1.5), [0.95, 1.74, 3.27]),
+            ((2.0, 3.0), [2.71, 4.93, 8.18]),
+            ((4.0, 6.0), [5.78, 10.14, 15.46]),
+            ((8.0, 12.0), [11.64, 18.38, 22.19]),
+        ];
+        for ((near, far), measured) in table {
+            let mut heights: Vec<f64> =
+                (0..nodes.len()).filter(|&i| (near..far).contains(&distance_m[i])).map(|i| nodes[i].2 as f64).collect();
+            heights.sort_by(f64::total_cmp);
+            let percentile = |q: f64| heights[((heights.len() - 1) as f64 * q) as usize];
+            let simulated = [percentile(0.1), percentile(0.5), percentile(0.9)];
+            eprintln!("{near}-{far} m from the floor: simulated {simulated:.2?}, Unity {measured:?}");
+            for (s, m) in simulated.iter().zip(measured) {
+                assert!((s / m - 1.0).abs() < 0.2, "{near}-{far} m: simulated {simulated:.2?}, Unity {measured:?}");
+            }
+        }
+        let floor = read_mask(&floor_png, "floor").unwrap();
+        let agreeing = (0..WORLD_SIZE * WORLD_SIZE)
+            .filter(|&c| {
+                let (x, y) = ((c % WORLD_SIZE) as f64 + 0.5, (c / WORLD_SIZE) as f64 + 0.5);
+                (world.ground_height(x, y) < 0.5) == floor[c]
+            })
+            .count();
+        let share = agreeing as f64 / (WORLD_SIZE * WORLD_SIZE) as f64;
+        assert!(share > 0.99, "terrain below 0.5 m at a cell's centre where floor_flat.png is white: {share:.4}");
+    }
+
+    #[test]
     fn a_floor_image_must_contain_the_map() {
         let map = shared("udacity/calibration_images/map_bw.png");
         let empty = rover_imaging::encode_png(&rover_imaging::RgbImage::new(WORLD_SIZE, WORLD_SIZE)).unwrap();

@@ -12,11 +12,11 @@ const PAINT_UNDER_ROCK_M: f64 = 8.0;
 pub const WORLD_SIZE: usize = 200;
 /// Number of samples spawned per run.
 pub const SAMPLE_COUNT: usize = 6;
-/// The rover cannot drive where the terrain rises more than this per metre (50 degrees)...
-const MAX_DRIVABLE_SLOPE: f64 = 1.2;
-/// ...nor where it is higher than this above the floor, metres: its wheels climb the gentle foot
-/// of a wall, not the wall.
-const MAX_DRIVABLE_HEIGHT_M: f32 = 0.25;
+/// The rover cannot drive where the terrain rises more than this per metre (56 degrees)...
+const MAX_DRIVABLE_SLOPE: f64 = 1.5;
+/// ...nor where it is higher than this above the floor, about a wheel's radius, metres: its
+/// wheels ride up the foot of a wall, not the wall.
+const MAX_DRIVABLE_HEIGHT_M: f32 = 0.15;
 /// A boulder blocks the rover where it fills the space up to this height above the ground, the
 /// top of the rover's body, metres.
 pub const BODY_TOP_M: f64 = 0.55;
