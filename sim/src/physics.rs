@@ -427,10 +427,7 @@ mod tests {
 
     /// Floor on cells 20..180 in x and y, walls around.
     fn open_world() -> World {
-        let floor = (0..WORLD_SIZE * WORLD_SIZE)
-            .map(|i| (20..180).contains(&(i % WORLD_SIZE)) && (20..180).contains(&(i / WORLD_SIZE)))
-            .collect();
-        World::open(floor, StartPose { x_m: 100.0, y_m: 100.0, yaw_deg: 0.0 })
+        World::open(crate::world::rectangle(20..180, 20..180), StartPose { x_m: 100.0, y_m: 100.0, yaw_deg: 0.0 })
     }
 
     fn drive(throttle: f64, brake: f64, steering_deg: f64) -> Command {

@@ -231,9 +231,7 @@ mod tests {
     use super::*;
 
     fn corridor_floor() -> Vec<bool> {
-        (0..WORLD_SIZE * WORLD_SIZE)
-            .map(|i| (90..110).contains(&(i / WORLD_SIZE)) && (20..180).contains(&(i % WORLD_SIZE)))
-            .collect()
+        crate::world::rectangle(20..180, 90..110)
     }
 
     #[test]

@@ -279,6 +279,12 @@ pub fn neighbours4(index: usize) -> impl Iterator<Item = usize> {
         .map(|(nx, ny)| ny as usize * WORLD_SIZE + nx as usize)
 }
 
+/// A mask that is true on the cells of columns `columns` in rows `rows`, for tests.
+#[cfg(test)]
+pub(crate) fn rectangle(columns: std::ops::Range<usize>, rows: std::ops::Range<usize>) -> Vec<bool> {
+    (0..WORLD_SIZE * WORLD_SIZE).map(|i| columns.contains(&(i % WORLD_SIZE)) && rows.contains(&(i / WORLD_SIZE))).collect()
+}
+
 /// A `map_bw.png`-style mask: a 200x200 image, true where the pixel is brighter than black.
 pub fn read_mask(png: &[u8], name: &'static str) -> Result<Vec<bool>, WorldError> {
     let image = rover_imaging::decode_png(png).map_err(|e| WorldError::Unreadable { name, reason: e.to_string() })?;
@@ -295,9 +301,7 @@ mod tests {
     use crate::random::SplitMix64;
 
     fn corridor() -> Vec<bool> {
-        (0..WORLD_SIZE * WORLD_SIZE)
-            .map(|i| (95..105).contains(&(i / WORLD_SIZE)) && (50..150).contains(&(i % WORLD_SIZE)))
-            .collect()
+        rectangle(50..150, 95..105)
     }
 
     #[test]
