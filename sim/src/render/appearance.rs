@@ -167,11 +167,7 @@ impl Appearance {
     /// nearest node's).
     pub(super) fn shade_at(&self, x: f64, y: f64) -> NodeShade {
         let (corners, [fx, fy]) = self.corners_around(x, y);
-        let blend = |k: usize| {
-            let [a, b, c, d] = corners.map(|p| p.0[k] as f32);
-            let top = a + (b - a) * fx;
-            top + (c + (d - c) * fx - top) * fy
-        };
+        let blend = |k: usize| bilinear(corners.map(|p| p.0[k] as f32), fx, fy);
         let nearest = corners[(fx >= 0.5) as usize + 2 * (fy >= 0.5) as usize];
         PackedShade([0, 0, 0, nearest.0[3]]).unpack().with_bytes(blend(0), blend(1), blend(2))
     }
@@ -190,8 +186,9 @@ impl Appearance {
 
     /// The floor's brightness at (x, y), fixed point, with its detail texture.
     pub(super) fn floor_factor(&self, x: f64, y: f64) -> u32 {
-        ((self.shade_at(x, y).floor * (1 << FIXED_BITS) as f32) as u32 * self.floor_texel(x as f32, y as f32))
-            >> FIXED_BITS
+        let (corners, [fx, fy]) = self.corners_around(x, y);
+        let floor = bilinear(corners.map(|p| p.0[1] as f32), fx, fy) / FLOOR_PACKING;
+        ((floor * (1 << FIXED_BITS) as f32) as u32 * self.floor_texel(x as f32, y as f32)) >> FIXED_BITS
     }
 
     /// A pixel of flat ground at (x, y) whose colour may have turned to rock, given the floor's
@@ -270,6 +267,13 @@ impl Appearance {
     pub(super) fn rock_rgb(&self, sun: f32) -> [f32; 3] {
         lerp3(self.look.rock_shade_rgb, self.look.rock_lit_rgb, (sun / self.look.rock_full_sun).min(1.0))
     }
+}
+
+/// The value at fractions (fx, fy) between four corner values (lower-left, lower-right,
+/// upper-left, upper-right).
+fn bilinear([a, b, c, d]: [f32; 4], fx: f32, fy: f32) -> f32 {
+    let top = a + (b - a) * fx;
+    top + (c + (d - c) * fx - top) * fy
 }
 
 /// Signed distance of every terrain node from the edge of the cells where the floor's texture is
