@@ -228,8 +228,9 @@ impl Painter<'_, '_> {
         let rows = from.row - point.row;
         // The pixel at `first` lies `start` of the way from `last` to `point`, each row below one
         // step back towards `last` (all within the two, as `first` is at or below `point.row` and
-        // the rows end above `last.row`).
-        let (start, per_row) = if rows > 1e-9 { ((from.row - first as f64) / rows, -1.0 / rows) } else { (1.0, 0.0) };
+        // the rows end above `last.row`). Two points less than a row apart fill with `point`'s
+        // values (a row's step would take them far beyond both).
+        let (start, per_row) = if rows >= 1.0 { ((from.row - first as f64) / rows, -1.0 / rows) } else { (1.0, 0.0) };
         let (mut fixed, mut fixed_step) = (from.fixed, [0i32; FIXED_LANES]);
         for k in 0..FIXED_LANES {
             let delta = (point.fixed[k] - from.fixed[k]) as f64;
