@@ -282,7 +282,9 @@ pub fn neighbours4(index: usize) -> impl Iterator<Item = usize> {
 /// A mask that is true on the cells of columns `columns` in rows `rows`, for tests.
 #[cfg(test)]
 pub(crate) fn rectangle(columns: std::ops::Range<usize>, rows: std::ops::Range<usize>) -> Vec<bool> {
-    (0..WORLD_SIZE * WORLD_SIZE).map(|i| columns.contains(&(i % WORLD_SIZE)) && rows.contains(&(i / WORLD_SIZE))).collect()
+    (0..WORLD_SIZE * WORLD_SIZE)
+        .map(|i| columns.contains(&(i % WORLD_SIZE)) && rows.contains(&(i / WORLD_SIZE)))
+        .collect()
 }
 
 /// A `map_bw.png`-style mask: a 200x200 image, true where the pixel is brighter than black.

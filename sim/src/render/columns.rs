@@ -6,6 +6,7 @@
 use std::ops::Range;
 
 use super::appearance::{Appearance, Facing, NodeShade, fog_weights, lerp3, scale3, shade, shade_fixed, to_rgb8};
+use super::objects::PieceInView;
 use super::view::{LevelView, Window, ceil_row};
 use super::{Hit, RenderOptions, Surface};
 use crate::terrain::{MAX_TERRAIN_HEIGHT_M, Terrain};
@@ -46,6 +47,7 @@ pub(super) fn floor_rows(view: &LevelView, appearance: &Appearance, rows: &mut [
 pub(super) struct Frame<'a> {
     pub(super) world: &'a World,
     pub(super) samples: &'a [Sample],
+    pub(super) pieces: Vec<PieceInView<'a>>,
     pub(super) view: LevelView,
     pub(super) window: Window,
     pub(super) appearance: &'a Appearance,
@@ -106,7 +108,7 @@ impl Painter<'_, '_> {
         for u in self.band.columns.clone() {
             self.draw_column(frame.world.terrain(), u);
         }
-        for piece in frame.world.boulders().iter().flat_map(|b| &b.pieces) {
+        for piece in &frame.pieces {
             self.draw_piece(piece);
         }
         for sample in frame.samples {

@@ -131,6 +131,7 @@ impl Renderer {
         let frame = Frame {
             world,
             samples,
+            pieces: objects::pieces_in_view(world, &view, window),
             view,
             window,
             appearance: &self.appearance,

@@ -5,10 +5,11 @@ use std::ops::Range;
 
 use super::appearance::{Facing, fog_weights, scale3, shade, to_rgb8};
 use super::columns::Painter;
-use super::view::{NEAR_M, Window};
+use super::view::{LevelView, NEAR_M, Window};
 use super::{Hit, Surface};
 use crate::boulder::{ConvexPiece, HalfSpace};
 use crate::random::hash2;
+use crate::world::World;
 
 /// Albedo of the samples (Unity material colour 1.0, 0.848, 0.0 on a rock texture).
 const SAMPLE_RGB: [f32; 3] = [232.0, 195.0, 20.0];
@@ -21,30 +22,99 @@ const SAMPLE_DEPTHS_M: (f64, f64) = (0.15, 40.0);
 const BOX_EDGES: [(usize, usize); 12] =
     [(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7), (0, 4), (1, 5), (2, 6), (3, 7)];
 
-impl Painter<'_, '_> {
-    /// Draws a boulder piece where it is the nearest surface: face by face when it lies wholly
-    /// ahead of the camera, else by casting every pixel of its box cut at the near plane.
-    pub(super) fn draw_piece(&mut self, piece: &ConvexPiece) {
-        let view = &self.frame.view;
-        let origin = [view.x, view.y, view.height];
+/// A boulder piece as the camera of one frame sees it.
+pub(super) enum PieceInView<'a> {
+    /// Wholly ahead of the camera: the faces that face it.
+    Faces {
+        /// The piece.
+        piece: &'a ConvexPiece,
+        /// Its faces that face the camera.
+        faces: Vec<FaceInView>,
+    },
+    /// Reaching behind the near plane: every pixel of its box is cast.
+    Box {
+        /// The piece.
+        piece: &'a ConvexPiece,
+    },
+}
+
+/// A face of a piece that faces the camera of one frame.
+pub(super) struct FaceInView {
+    /// Its index among the piece's faces.
+    face: usize,
+    /// Its outline in the level view (column, row).
+    outline: Vec<(f64, f64)>,
+    /// How far the camera lies outside its plane, metres.
+    room: f64,
+    /// Its nearest forward depth, metres.
+    nearest: f64,
+}
+
+/// The boulder pieces of `world` that can show in `window` of `view`, projected once for every
+/// band of the frame: pieces wholly behind the camera, beside the window or too far off are left
+/// out by their boxes first.
+pub(super) fn pieces_in_view<'a>(world: &'a World, view: &LevelView, window: Window) -> Vec<PieceInView<'a>> {
+    let origin = [view.x, view.y, view.height];
+    let mut pieces = Vec::new();
+    for piece in world.boulders().iter().flat_map(|b| &b.pieces) {
+        let corners: Vec<Option<(f64, f64, f64)>> = (0..8).map(|k| view.project(box_corner(piece, k))).collect();
+        if corners.iter().all(Option::is_none) {
+            continue;
+        }
+        if corners.iter().all(Option::is_some) {
+            let (lo_u, hi_u) =
+                corners.iter().flatten().fold((f64::MAX, f64::MIN), |(lo, hi), c| (lo.min(c.0), hi.max(c.0)));
+            let nearest = corners.iter().flatten().map(|c| c.2).fold(f64::MAX, f64::min);
+            if hi_u < window.u0 as f64 || lo_u > window.u1 as f64 || nearest > MAX_PIECE_DEPTH_M {
+                continue;
+            }
+        }
         let projected: Option<Vec<(f64, f64, f64)>> = piece.vertices.iter().map(|&v| view.project(v)).collect();
         let Some(projected) = projected else {
-            if let Some((columns, rows, nearest)) = self.screen_box(piece) {
-                let faces = FacesFromCamera::new(piece, origin);
-                self.cast_piece(piece, &faces, columns.map(|u| (u, rows.clone())), nearest);
-            }
-            return;
+            pieces.push(PieceInView::Box { piece });
+            continue;
         };
-        if projected.iter().map(|p| p.2).fold(f64::MAX, f64::min) > MAX_PIECE_DEPTH_M {
-            return;
-        }
-        for (face, corners) in piece.faces.iter().zip(&piece.face_corners) {
-            let room =
-                face.offset - (face.normal[0] * origin[0] + face.normal[1] * origin[1] + face.normal[2] * origin[2]);
-            if room < 0.0 && corners.len() >= 3 {
-                let outline: Vec<(f64, f64)> = corners.iter().map(|&i| (projected[i].0, projected[i].1)).collect();
-                let nearest = corners.iter().map(|&i| projected[i].2).fold(f64::MAX, f64::min);
-                self.draw_face(face, room, &outline, nearest);
+        let faces = piece
+            .faces
+            .iter()
+            .zip(&piece.face_corners)
+            .enumerate()
+            .filter_map(|(face, (plane, corners))| {
+                let room = plane.offset - (0..3).map(|k| plane.normal[k] * origin[k]).sum::<f64>();
+                (room < 0.0 && corners.len() >= 3).then(|| FaceInView {
+                    face,
+                    outline: corners.iter().map(|&i| (projected[i].0, projected[i].1)).collect(),
+                    room,
+                    nearest: corners.iter().map(|&i| projected[i].2).fold(f64::MAX, f64::min),
+                })
+            })
+            .collect();
+        pieces.push(PieceInView::Faces { piece, faces });
+    }
+    pieces
+}
+
+/// Corner `k` of a piece's box (bit a of `k` picks the upper bound of axis a).
+fn box_corner(piece: &ConvexPiece, k: usize) -> [f64; 3] {
+    let pick = |axis: usize| if k >> axis & 1 == 0 { piece.min[axis] } else { piece.max[axis] };
+    [pick(0), pick(1), pick(2)]
+}
+
+impl Painter<'_, '_> {
+    /// Draws a boulder piece where it is the nearest surface in the band's columns.
+    pub(super) fn draw_piece(&mut self, piece: &PieceInView) {
+        match piece {
+            PieceInView::Faces { piece, faces } => {
+                for face in faces {
+                    self.draw_face(&piece.faces[face.face], face.room, &face.outline, face.nearest);
+                }
+            }
+            PieceInView::Box { piece } => {
+                let view = &self.frame.view;
+                if let Some((columns, rows, nearest)) = self.screen_box(piece) {
+                    let faces = FacesFromCamera::new(piece, [view.x, view.y, view.height]);
+                    self.cast_piece(piece, &faces, columns.map(|u| (u, rows.clone())), nearest);
+                }
             }
         }
     }
@@ -139,10 +209,7 @@ impl Painter<'_, '_> {
     /// when it is out of sight: the box around the piece, cut at the near plane, projected.
     fn screen_box(&self, piece: &ConvexPiece) -> Option<(Range<usize>, Range<usize>, f64)> {
         let view = &self.frame.view;
-        let corner = |k: usize| {
-            let pick = |axis: usize| if k >> axis & 1 == 0 { piece.min[axis] } else { piece.max[axis] };
-            [pick(0), pick(1), pick(2)]
-        };
+        let corner = |k: usize| box_corner(piece, k);
         let depth = |p: [f64; 3]| (p[0] - view.x) * view.forward[0] + (p[1] - view.y) * view.forward[1];
         let mut points: Vec<[f64; 3]> = (0..8).map(corner).filter(|&c| depth(c) >= NEAR_M).collect();
         for (a, b) in BOX_EDGES {
