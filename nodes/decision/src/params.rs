@@ -58,7 +58,7 @@ rover_node::node_params! {
         /// Pitch or roll beyond this means tilted: recover, degrees.
         tilt_limit_deg: f64 [1.0, 90.0] = 12.0,
         /// Chase a seen sample up to this distance, metres (as projected on the ground: a sample
-        /// on the bank by a wall projects farther than it is).
+        /// on the foot of a wall projects farther than it is).
         sample_sight_m: f64 [0.5, 20.0] = 12.0,
         /// Go for a remembered sample up to this path cost.
         sample_detour_cost: f64 [0.0, 1000.0] = 60.0,

@@ -73,7 +73,7 @@ pub fn lookahead(path: &[usize], at: &Position, lookahead_m: f64) -> Option<(f64
 }
 
 /// A free cell beside `goal` (within `radius_cells`) with a clear line of sight to it on the
-/// map (past the wall or bank cells right around it), at least `away_m` from every point of
+/// map (past the wall cells right around it), at least `away_m` from every point of
 /// `avoid`, the cheapest to reach from `at`: where to start a straight final approach to a
 /// sample by a wall after one from `avoid` failed.
 pub fn staging_cell(

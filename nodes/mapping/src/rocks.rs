@@ -19,7 +19,7 @@ impl RockCell {
 
 /// Rock positions (x, y), metres. Cells are taken from the one seen from closest on: a cell within
 /// `merge_m` of a rock already placed belongs to it, any other places a new rock. A sample seen
-/// from afar lands beyond where it lies (it stands above the floor, often on the bank by a wall),
+/// from afar lands beyond where it lies (it stands above the floor, often on the foot of a wall),
 /// so the closest sighting is the best estimate and the farther ones are its echoes.
 pub fn rock_positions(cells: &[RockCell], merge_m: f64) -> Vec<(f64, f64)> {
     let mut by_range = cells.to_vec();
