@@ -14,6 +14,7 @@ use serde::Serialize;
 use crate::graph::{GraphConfig, free_port, log_dir};
 use crate::graph_mission::{rgb_image, run_graph_mission};
 use crate::mission::{NodeSettings, Progress, run_in_process};
+use crate::time_by_mode::{self, TimeByMode};
 
 /// Options of `rover eval`.
 #[derive(Debug, Clone, clap::Args)]
@@ -81,6 +82,11 @@ pub struct RunResult {
     pub frames_per_second: f64,
     /// The decision's final mode.
     pub final_mode: String,
+    /// Distance driven, metres.
+    pub distance_m: f64,
+    /// Simulated seconds by activity: the decision's modes, and picking up, turning in place and
+    /// standing still apart from them.
+    pub time_by_mode_s: TimeByMode,
 }
 
 impl RunResult {
@@ -109,6 +115,8 @@ impl RunResult {
             wall_seconds,
             frames_per_second: report.frames as f64 / wall_seconds.max(1e-9),
             final_mode: progress.mode.clone(),
+            distance_m: report.distance_m,
+            time_by_mode_s: progress.time_by_mode.clone(),
         }
     }
 }
@@ -210,7 +218,36 @@ pub fn table(results: &[RunResult]) -> String {
         );
     }
     let complete = results.iter().filter(|r| r.complete()).count();
-    out += &format!("{complete} of {} complete\n", results.len());
+    out += &format!("{complete} of {} complete\n\n", results.len());
+    out += &time_table(results);
+    out
+}
+
+/// The activities of the time table, with their column titles.
+const ACTIVITIES: [(&str, &str); 7] = [
+    ("explore", "explore"),
+    ("approach_sample", "approach"),
+    (time_by_mode::PICKUP, "pickup"),
+    ("recover", "recover"),
+    ("return_home", "home"),
+    (time_by_mode::TURNING_IN_PLACE, "turning"),
+    (time_by_mode::STOPPED, "stopped"),
+];
+
+/// Where each mission's time went, simulated seconds by activity, and the distance driven.
+pub fn time_table(results: &[RunResult]) -> String {
+    let mut out = String::from("seed");
+    for (_, title) in ACTIVITIES {
+        out += &format!("  {title:>8}");
+    }
+    out += "  distance m\n";
+    for r in results {
+        out += &format!("{:>4}", r.seed);
+        for (activity, _) in ACTIVITIES {
+            out += &format!("  {:>8.0}", r.time_by_mode_s.seconds(activity));
+        }
+        out += &format!("  {:>10.0}\n", r.distance_m);
+    }
     out
 }
 

@@ -19,7 +19,8 @@ use rover_sim::world::World;
 use tokio::sync::Notify;
 
 use crate::graph::{Graph, GraphConfig};
-use crate::mission::Progress;
+use crate::mission::{Progress, activity_of};
+use crate::time_by_mode::{ModeClock, TimeByMode};
 
 /// How often the progress callback runs, wall clock.
 const PROGRESS_PERIOD: Duration = Duration::from_millis(500);
@@ -55,6 +56,7 @@ struct Evaluator {
     progress: Progress,
     last_frame_at: Instant,
     map_image: Option<Image>,
+    clock: ModeClock,
 }
 
 impl Evaluator {
@@ -67,6 +69,7 @@ impl Evaluator {
             located: 0,
             collected: 0,
             mode: "starting".to_string(),
+            time_by_mode: TimeByMode::default(),
         };
         Evaluator {
             ground_truth: world.ground_truth().to_vec(),
@@ -75,7 +78,13 @@ impl Evaluator {
             progress,
             last_frame_at: Instant::now(),
             map_image: None,
+            clock: ModeClock::default(),
         }
+    }
+
+    /// The progress so far, with the time by activity.
+    fn snapshot(&self) -> Progress {
+        Progress { time_by_mode: self.clock.times().clone(), ..self.progress.clone() }
     }
 
     fn on_map(&mut self, map: &OccupancyGrid) {
@@ -97,6 +106,7 @@ impl Evaluator {
 
     fn on_telemetry(&mut self, telemetry: &Telemetry, step_s: f64) {
         self.progress.sim_seconds = telemetry.frame as f64 * step_s;
+        self.clock.on_frame(telemetry.frame, &activity_of(&self.progress.mode, telemetry), step_s);
         self.progress.collected = self.samples.saturating_sub(telemetry.samples_remaining as usize);
         self.last_frame_at = Instant::now();
     }
@@ -134,7 +144,7 @@ pub async fn run_graph_mission(
         tokio::select! {
             _ = &mut client => break None,
             _ = ticks.tick() => {
-                let progress = evaluator.lock().expect("evaluator lock").progress.clone();
+                let progress = evaluator.lock().expect("evaluator lock").snapshot();
                 on_progress(&progress, &mut graph);
                 if let Some(problem) = graph_problem(&mut graph, &evaluator) {
                     break Some(problem);
@@ -154,12 +164,7 @@ pub async fn run_graph_mission(
     let mut evaluator = evaluator.lock().expect("evaluator lock");
     evaluator.progress.sim_seconds = report.sim_seconds;
     evaluator.progress.collected = report.samples_collected;
-    Ok(GraphOutcome {
-        report,
-        progress: evaluator.progress.clone(),
-        map_image: evaluator.map_image.take(),
-        unclean_nodes,
-    })
+    Ok(GraphOutcome { report, progress: evaluator.snapshot(), map_image: evaluator.map_image.take(), unclean_nodes })
 }
 
 /// The pixels of an `rgb8` image message, or `None` for another encoding or a wrong size.

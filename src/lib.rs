@@ -10,3 +10,4 @@ pub mod mission;
 pub mod replay;
 pub mod replay_dds;
 pub mod sim_check;
+pub mod time_by_mode;

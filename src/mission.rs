@@ -15,6 +15,7 @@ use rover_mapping::map::{ScanGrid, WorldMap};
 use rover_mapping::params::MappingParams;
 use rover_mapping::projection::Pose;
 use rover_mapping::score::LocatedSamples;
+use rover_msgs::msg::Telemetry;
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tally::SampleTally;
 use rover_perception::node::PerceptionParams;
@@ -22,6 +23,8 @@ use rover_pickup::{ArmInput, Pickup, PickupParams};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
 use rover_sim::wire::command::Command;
 use rover_sim::world::World;
+
+use crate::time_by_mode::{ModeClock, TimeByMode, activity};
 
 /// The largest telemetry payload accepted, bytes (as the bridge's default).
 const MAX_TELEMETRY_BYTES: usize = 4 << 20;
@@ -54,6 +57,8 @@ pub struct Progress {
     pub collected: usize,
     /// Decision mode.
     pub mode: String,
+    /// Simulated seconds by activity so far.
+    pub time_by_mode: TimeByMode,
 }
 
 /// How a mission ended.
@@ -88,7 +93,8 @@ pub fn run_in_process(
     let mut pickup = Pickup::default();
     let mut tally = SampleTally::default();
     let mut located = LocatedSamples::new(samples);
-    let snapshot = |sim: &Simulator, map: &WorldMap, located: &LocatedSamples, mode: Mode| {
+    let mut clock = ModeClock::default();
+    let snapshot = |sim: &Simulator, map: &WorldMap, located: &LocatedSamples, mode: Mode, clock: &ModeClock| {
         let scores = map.scores(&truth);
         Progress {
             sim_seconds: sim.report().sim_seconds,
@@ -97,12 +103,14 @@ pub fn run_in_process(
             located: located.count(),
             collected: sim.report().samples_collected,
             mode: mode.name().to_string(),
+            time_by_mode: clock.times().clone(),
         }
     };
     let started = Instant::now();
     for frame in 1.. {
         let telemetry = read_telemetry(&mut sim)?;
         let message = telemetry_message(&telemetry, frame, Header::default());
+        clock.on_frame(frame, &activity_of(machine.status().mode.name(), &message), config.step_s);
         let classes = perception.process_jpeg(&telemetry.image_jpeg)?;
         let scan = geometry.terrain_scan(classes, &message, Header::default());
         map.update(&ScanGrid::of(&scan), Pose::of_scan(&scan));
@@ -130,15 +138,21 @@ pub fn run_in_process(
         sim.step(command);
         let mode = machine.status().mode;
         if frame % progress_every_frames.max(1) == 0 {
-            on_progress(&snapshot(&sim, &map, &located, mode));
+            on_progress(&snapshot(&sim, &map, &located, mode, &clock));
         }
         if mode == Mode::Done || sim.report().sim_seconds >= max_sim_seconds {
             break;
         }
     }
     tracing::debug!("mission took {:.1} s", started.elapsed().as_secs_f64());
-    let progress = snapshot(&sim, &map, &located, machine.status().mode);
+    let progress = snapshot(&sim, &map, &located, machine.status().mode, &clock);
     Ok(MissionOutcome { report: sim.report(), progress, map })
+}
+
+/// What the rover in decision mode `mode` did in the frame of `telemetry` (see [`activity`]).
+pub fn activity_of(mode: &str, telemetry: &Telemetry) -> String {
+    let (speed, steering) = (telemetry.speed_mps as f64, telemetry.steering_angle_deg as f64);
+    activity(mode, speed, steering, telemetry.throttle as f64, telemetry.brake as f64).to_string()
 }
 
 fn read_telemetry(sim: &mut Simulator) -> anyhow::Result<SimTelemetry> {
