@@ -10,8 +10,11 @@ pub const MAX_STEER_DEG: f64 = 15.0;
 const STOPPED_MPS: f64 = 0.2;
 /// Throttle that holds 1 m/s against rolling resistance.
 const THROTTLE_PER_MPS: f64 = 0.15;
-/// Speed kept when free ground ahead runs short, as a fraction of the cruising speed.
-const MIN_SPEED_FRACTION: f64 = 0.3;
+/// Speed kept when free ground ahead runs short, m/s.
+const MIN_CRUISE_MPS: f64 = 0.6;
+/// The rover's wheelbase, metres (unity-sim-spec): steering by a wheel angle turns it on a
+/// circle of this over the angle's tangent.
+const WHEELBASE_M: f64 = 0.722;
 /// A turn in place changes side when the goal moves to the other side within this bearing,
 /// degrees; beyond it the bearing may just have wrapped past 180 degrees while turning.
 const SIDE_SWITCH_DEG: f64 = 135.0;
@@ -80,6 +83,7 @@ impl Steering {
             self.turning = None;
         }
         let steering_deg = (params.steer_gain * bearing_deg).clamp(-MAX_STEER_DEG, MAX_STEER_DEG);
+        let target_mps = target_mps.min(speed_in_turn(steering_deg, params));
         Drive { steering_deg, ..hold_speed(target_mps, speed_mps, params) }
     }
 
@@ -100,9 +104,8 @@ impl Steering {
         }
         match free.best_toward(bearing_rad as f32, params.clearance_m as f32) {
             Some(direction) => {
-                let fraction =
-                    (free.toward(direction) as f64 / params.slowdown_distance_m).clamp(MIN_SPEED_FRACTION, 1.0);
-                self.toward(direction as f64, cruise_mps * fraction, speed_mps, params)
+                let stoppable_mps = speed_to_stop_within(free.toward(direction) as f64, params);
+                self.toward(direction as f64, stoppable_mps.clamp(MIN_CRUISE_MPS.min(cruise_mps), cruise_mps), speed_mps, params)
             }
             None if bearing_rad.to_degrees().abs() <= CREEP_BEARING_FACTOR * params.turn_done_deg => {
                 self.toward(bearing_rad, params.approach_speed_mps, speed_mps, params)
@@ -111,6 +114,19 @@ impl Steering {
             None => Drive::turn_in_place(bearing_rad > 0.0),
         }
     }
+}
+
+/// The speed from which braking at `stop_decel_mps2` stops the rover `clearance_m` short of the
+/// end of `free_m` of free ground, m/s.
+fn speed_to_stop_within(free_m: f64, params: &DecisionParams) -> f64 {
+    (2.0 * params.stop_decel_mps2 * (free_m - params.clearance_m).max(0.0)).sqrt()
+}
+
+/// The speed at which steering by `steering_deg` keeps the sideways acceleration at
+/// `turn_accel_mps2`, m/s (unbounded when steering straight).
+fn speed_in_turn(steering_deg: f64, params: &DecisionParams) -> f64 {
+    let radius_m = WHEELBASE_M / steering_deg.to_radians().tan().abs();
+    (params.turn_accel_mps2 * radius_m).sqrt()
 }
 
 /// Throttle or brake that brings `speed_mps` to `target_mps`.
@@ -174,6 +190,36 @@ mod tests {
         let mut steering = Steering::default();
         let drive = steering.around_obstacles(-0.1, 2.0, 0.0, &open, &p);
         assert!(drive.steering_deg > 0.0, "swerves to the free side: {drive:?}");
+    }
+
+    #[test]
+    fn turns_are_driven_slower_than_straights() {
+        let p = params();
+        let cruise = p.max_speed_mps;
+        let straight = Steering::default().toward(0.0, cruise, cruise, &p);
+        assert!(straight.throttle > 0.0 && straight.brake == 0.0, "{straight:?}");
+        let sharp = Steering::default().toward(10f64.to_radians(), cruise, cruise, &p);
+        assert!(sharp.brake > 0.0, "a 10 degree turn at cruising speed brakes: {sharp:?}");
+        assert!(speed_in_turn(5.0, &p) > speed_in_turn(15.0, &p));
+        let lateral_mps2 = |steer_deg: f64| {
+            let v = speed_in_turn(steer_deg, &p);
+            v * v * steer_deg.to_radians().tan() / WHEELBASE_M
+        };
+        assert!((lateral_mps2(15.0) - p.turn_accel_mps2).abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_speed_ahead_of_obstacles_leaves_room_to_stop() {
+        let p = params();
+        let free_m = 4.0;
+        let v = speed_to_stop_within(free_m, &p);
+        let stopping_m = v * v / (2.0 * p.stop_decel_mps2);
+        assert!((stopping_m + p.clearance_m - free_m).abs() < 1e-9, "stops in {stopping_m} m");
+        assert_eq!(speed_to_stop_within(p.clearance_m * 0.5, &p), 0.0);
+        let lane = |free_m: f32| FreeSpace { directions_rad: vec![-0.2, 0.0, 0.2], free_m: vec![free_m; 3] };
+        let open = Steering::default().around_obstacles(0.0, p.max_speed_mps, 3.0, &lane(6.0), &p);
+        let short = Steering::default().around_obstacles(0.0, p.max_speed_mps, 3.0, &lane(1.5), &p);
+        assert!(open.throttle > 0.0 && short.brake > 0.0, "open {open:?}, short {short:?}");
     }
 
     #[test]

@@ -3,8 +3,8 @@
 rover_node::node_params! {
     /// Parameters of the decision node.
     pub struct DecisionParams {
-        /// Cruising speed, m/s.
-        max_speed_mps: f64 [0.1, 5.0] = 2.0,
+        /// Cruising speed on open ground, m/s (Unity caps it at 5).
+        max_speed_mps: f64 [0.1, 5.0] = 3.5,
         /// Speed when approaching a sample, m/s.
         approach_speed_mps: f64 [0.1, 3.0] = 0.5,
         /// Throttle per m/s of speed error.
@@ -15,8 +15,12 @@ rover_node::node_params! {
         steer_gain: f64 [0.0, 10.0] = 1.0,
         /// A direction is taken only with this much free ground ahead, metres.
         clearance_m: f64 [0.3, 10.0] = 1.2,
-        /// Speed falls to a fraction below this much free ground ahead, metres.
-        slowdown_distance_m: f64 [0.5, 20.0] = 4.0,
+        /// Short of free ground ahead, the speed is one from which braking at this rate stops the
+        /// rover with `clearance_m` to spare, m/s^2.
+        stop_decel_mps2: f64 [0.1, 5.0] = 1.5,
+        /// In a turn, the speed keeps the sideways acceleration below this, m/s^2 (the body rolls
+        /// with it, and the mapping skips frames tilted beyond its `max_tilt_deg`).
+        turn_accel_mps2: f64 [0.1, 10.0] = 1.5,
         /// Beyond this bearing the rover stops and turns in place, degrees.
         turn_in_place_deg: f64 [10.0, 180.0] = 50.0,
         /// A turn in place ends below this bearing, degrees.
