@@ -89,7 +89,7 @@ pub fn run_in_process(
     let (mut perception, geometry) = settings.perception.pipeline()?;
     let mut map = WorldMap::new(settings.mapping.map_config());
     let mut machine = Machine::new(settings.decision.clone());
-    let mut rays = FreeSpaceRays::new(45.0, 5.0, settings.decision.lane_half_width_m, 6.0);
+    let mut rays = FreeSpaceRays::for_decision(settings.decision.lane_half_width_m);
     let mut pickup = Pickup::default();
     let mut tally = SampleTally::default();
     let mut located = LocatedSamples::new(samples);

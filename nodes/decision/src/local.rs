@@ -94,7 +94,27 @@ impl FreeSpace {
     }
 }
 
+/// A lane is blocked where this many cells that are not navigable (obstacle or rock) lie within
+/// [`BLOCKING_SPAN_CELLS`] consecutive cells of it; fewer are specks, not obstacles (the real
+/// floor's dark dimples fail the navigable colour rule on a few per cent of its pixels).
+const BLOCKING_CELLS: usize = 3;
+/// See [`BLOCKING_CELLS`].
+const BLOCKING_SPAN_CELLS: usize = 4;
+
+/// The decision measures free space in directions within this angle either side of the heading,
+/// degrees...
+const DECISION_SPAN_DEG: f32 = 45.0;
+/// ...every this many degrees...
+const DECISION_STEP_DEG: f32 = 5.0;
+/// ...up to this distance, metres.
+const DECISION_RANGE_M: f64 = 6.0;
+
 impl FreeSpaceRays {
+    /// The rays the decision steers by, lanes `half_width_m` either side.
+    pub fn for_decision(half_width_m: f64) -> Self {
+        Self::new(DECISION_SPAN_DEG, DECISION_STEP_DEG, half_width_m, DECISION_RANGE_M)
+    }
+
     /// Rays every `step_deg` within +-`span_deg`, lanes `half_width_m` either side, up to `max_range_m`.
     pub fn new(span_deg: f32, step_deg: f32, half_width_m: f64, max_range_m: f64) -> Self {
         let count = (2.0 * span_deg / step_deg).round() as i32;
@@ -133,9 +153,9 @@ impl FreeSpaceRays {
         self.geometry = Some(geometry);
     }
 
-    /// The free space of `scan`: along each lane, the distance to the first cell that is not
-    /// navigable (obstacle, rock, or out of view once the lane has entered the view; the blind
-    /// strip in front of the camera counts as free); a direction is as free as its narrowest lane.
+    /// The free space of `scan`: along each lane, the distance to where it is blocked (see
+    /// [`BLOCKING_CELLS`]) or leaves the view once it has entered it (the blind strip in front of
+    /// the camera counts as free); a direction is as free as its narrowest lane.
     pub fn measure(&mut self, scan: &TerrainScan) -> FreeSpace {
         let geometry = Geometry::of(scan);
         if self.geometry != Some(geometry) {
@@ -151,11 +171,21 @@ impl FreeSpaceRays {
 
     fn free_along(&self, lane: &Lane, cells: &[u8]) -> f32 {
         let mut in_view = false;
-        for &(cell, distance_m) in lane {
+        let mut earlier = [(usize::MAX, 0f32); BLOCKING_CELLS - 1];
+        for (index, &(cell, distance_m)) in lane.iter().enumerate() {
             match cells.get(cell as usize).copied() {
                 Some(TerrainScan::NAVIGABLE) => in_view = true,
                 Some(TerrainScan::UNKNOWN) if !in_view => {}
-                _ => return if in_view { distance_m } else { 0.0 },
+                Some(TerrainScan::UNKNOWN) | None => return if in_view { distance_m } else { 0.0 },
+                Some(_) => {
+                    let (first, first_m) = earlier[0];
+                    if first != usize::MAX && index - first < BLOCKING_SPAN_CELLS {
+                        return first_m;
+                    }
+                    earlier.rotate_left(1);
+                    earlier[BLOCKING_CELLS - 2] = (index, distance_m);
+                    in_view = true;
+                }
             }
         }
         if in_view { self.max_range_m as f32 } else { 0.0 }
@@ -189,6 +219,26 @@ mod tests {
             cells,
             ..TerrainScan::default()
         }
+    }
+
+    #[test]
+    fn specks_do_not_block_a_lane_but_a_wall_does() {
+        let mut speckled = scan();
+        for cell in speckled.cells.iter_mut().filter(|c| **c == TerrainScan::OBSTACLE) {
+            *cell = TerrainScan::NAVIGABLE;
+        }
+        let cols = speckled.cols as usize;
+        for (row, col) in [(20, 42), (25, 38), (31, 40), (36, 41), (41, 39), (47, 40), (52, 43)] {
+            speckled.cells[row * cols + col] = TerrainScan::OBSTACLE;
+        }
+        let mut rays = FreeSpaceRays::new(40.0, 5.0, 0.4, 5.5);
+        let ahead = rays.measure(&speckled).toward(0.0);
+        assert!(ahead > 5.4, "single obstacle cells ahead are specks: {ahead}");
+        for row in 30..34 {
+            speckled.cells[row * cols + 36..][..9].fill(TerrainScan::OBSTACLE);
+        }
+        let ahead = rays.measure(&speckled).toward(0.0);
+        assert!((3.2..3.5).contains(&ahead), "a boulder 0.4 m deep from x = 3.3 m blocks: {ahead}");
     }
 
     #[test]

@@ -21,12 +21,6 @@ use crate::{observation, telemetry_is_finite};
 const PAIRING_BACKLOG: usize = 16;
 /// The mode is published at least every this many frames, even when it does not change.
 const STATUS_EVERY_FRAMES: u64 = 25;
-/// Free space is measured in directions within this angle either side of the heading, degrees.
-const RAY_SPAN_DEG: f32 = 45.0;
-/// Angle between measured directions, degrees.
-const RAY_STEP_DEG: f32 = 5.0;
-/// Free space is measured up to this distance, metres.
-const RAY_RANGE_M: f64 = 6.0;
 
 /// Counts of inputs the node could not use.
 #[derive(Debug, Default)]
@@ -132,7 +126,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let span = node.span();
     let settings = params.get();
     let mut decision = Decision {
-        rays: FreeSpaceRays::new(RAY_SPAN_DEG, RAY_STEP_DEG, settings.lane_half_width_m, RAY_RANGE_M),
+        rays: FreeSpaceRays::for_decision(settings.lane_half_width_m),
         machine: Machine::new(settings),
         drive: node.publisher(&topics::DRIVE_CMD)?,
         mode: node.publisher(&topics::MODE)?,
