@@ -105,7 +105,8 @@ impl Steering {
         match free.best_toward(bearing_rad as f32, params.clearance_m as f32) {
             Some(direction) => {
                 let stoppable_mps = speed_to_stop_within(free.toward(direction) as f64, params);
-                self.toward(direction as f64, stoppable_mps.clamp(MIN_CRUISE_MPS.min(cruise_mps), cruise_mps), speed_mps, params)
+                let target_mps = stoppable_mps.clamp(MIN_CRUISE_MPS.min(cruise_mps), cruise_mps);
+                self.toward(direction as f64, target_mps, speed_mps, params)
             }
             None if bearing_rad.to_degrees().abs() <= CREEP_BEARING_FACTOR * params.turn_done_deg => {
                 self.toward(bearing_rad, params.approach_speed_mps, speed_mps, params)
