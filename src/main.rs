@@ -134,11 +134,7 @@ fn raw_ros_args() -> Vec<String> {
 }
 
 /// The DDS runtime of the process, kept in `slot` so that it outlives the async tasks.
-fn dds<'a>(
-    slot: &'a mut Option<Runtime>,
-    ros_args: rover_node::RosArgs,
-    shutdown: Shutdown,
-) -> anyhow::Result<&'a Runtime> {
+fn dds(slot: &mut Option<Runtime>, ros_args: rover_node::RosArgs, shutdown: Shutdown) -> anyhow::Result<&Runtime> {
     Ok(slot.insert(Runtime::new(ros_args, shutdown)?))
 }
 

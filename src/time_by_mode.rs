@@ -18,7 +18,7 @@ pub const STOPPED: &str = "stopped";
 
 /// What the rover in decision mode `mode` did in a frame where its telemetry read `speed_mps`,
 /// `steering_deg`, `throttle` and `brake`.
-pub fn activity<'a>(mode: &'a str, speed_mps: f64, steering_deg: f64, throttle: f64, brake: f64) -> &'a str {
+pub fn activity(mode: &str, speed_mps: f64, steering_deg: f64, throttle: f64, brake: f64) -> &str {
     let standing = speed_mps.abs() < STANDING_MPS;
     if mode == PICKUP {
         PICKUP
