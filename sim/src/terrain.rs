@@ -57,8 +57,7 @@ pub fn wall_height_m(distance_m: f64, q: f64) -> f64 {
 #[derive(Debug, Clone)]
 pub struct Terrain {
     side: usize,
-    heights_m: Vec<f32>,
-    /// The heights with a border of one node copied from the edge, so that bilinear lookups
+    /// The node heights with a border of one node copied from the edge, so that bilinear lookups
     /// anywhere inside the world need no bounds: node (nx, ny) at `(ny + 1) * (side + 2) + nx + 1`.
     padded_m: Vec<f32>,
     edge_distance_m: Vec<f32>,
@@ -107,7 +106,7 @@ impl Terrain {
                 heights_m[ny as usize * side + nx as usize]
             })
             .collect();
-        let mut terrain = Terrain { side, heights_m, padded_m, edge_distance_m, cell_max_m: Vec::new() };
+        let mut terrain = Terrain { side, padded_m, edge_distance_m, cell_max_m: Vec::new() };
         terrain.cell_max_m = terrain.cell_maxima();
         terrain
     }
@@ -130,7 +129,8 @@ impl Terrain {
     /// Height of node (column `nx`, row `ny`); beyond the edge, the nearest node's.
     fn node(&self, nx: i64, ny: i64) -> f32 {
         let last = self.side as i64 - 1;
-        self.heights_m[ny.clamp(0, last) as usize * self.side + nx.clamp(0, last) as usize]
+        let (px, py) = (nx.clamp(0, last) as usize + 1, ny.clamp(0, last) as usize + 1);
+        self.padded_m[py * (self.side + 2) + px]
     }
 
     /// Terrain height at (x, y), metres above the floor (bilinear between nodes); outside the
@@ -183,7 +183,7 @@ impl Terrain {
     pub fn nodes(&self) -> impl Iterator<Item = (f64, f64, f32)> + '_ {
         (0..self.side * self.side).map(|i| {
             let (x, y) = node_position(i, self.side);
-            (x, y, self.heights_m[i])
+            (x, y, self.node((i % self.side) as i64, (i / self.side) as i64))
         })
     }
 }
