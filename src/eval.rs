@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context as _;
+use rover_decision::machine::Mode;
 use rover_imaging::RgbImage;
 use rover_node::Runtime;
 use rover_sim::sim::{SimConfig, SimReport};
@@ -225,11 +226,11 @@ pub fn table(results: &[RunResult]) -> String {
 
 /// The activities of the time table, with their column titles.
 const ACTIVITIES: [(&str, &str); 7] = [
-    ("explore", "explore"),
-    ("approach_sample", "approach"),
+    (Mode::Explore.name(), "explore"),
+    (Mode::ApproachSample.name(), "approach"),
     (time_by_mode::PICKUP, "pickup"),
-    ("recover", "recover"),
-    ("return_home", "home"),
+    (Mode::Recover.name(), "recover"),
+    (Mode::ReturnHome.name(), "home"),
     (time_by_mode::TURNING_IN_PLACE, "turning"),
     (time_by_mode::STOPPED, "stopped"),
 ];

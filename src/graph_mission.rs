@@ -19,8 +19,8 @@ use rover_sim::world::World;
 use tokio::sync::Notify;
 
 use crate::graph::{Graph, GraphConfig};
-use crate::mission::{Progress, activity_of};
-use crate::time_by_mode::{ModeClock, TimeByMode};
+use crate::mission::Progress;
+use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
 
 /// How often the progress callback runs, wall clock.
 const PROGRESS_PERIOD: Duration = Duration::from_millis(500);
@@ -106,7 +106,7 @@ impl Evaluator {
 
     fn on_telemetry(&mut self, telemetry: &Telemetry, step_s: f64) {
         self.progress.sim_seconds = telemetry.frame as f64 * step_s;
-        self.clock.on_frame(telemetry.frame, &activity_of(&self.progress.mode, telemetry), step_s);
+        self.clock.on_frame(telemetry.frame, activity_of(&self.progress.mode, telemetry), step_s);
         self.progress.collected = self.samples.saturating_sub(telemetry.samples_remaining as usize);
         self.last_frame_at = Instant::now();
     }

@@ -15,7 +15,6 @@ use rover_mapping::map::{ScanGrid, WorldMap};
 use rover_mapping::params::MappingParams;
 use rover_mapping::projection::Pose;
 use rover_mapping::score::LocatedSamples;
-use rover_msgs::msg::Telemetry;
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tally::SampleTally;
 use rover_perception::node::PerceptionParams;
@@ -24,7 +23,7 @@ use rover_sim::sim::{SimConfig, SimReport, Simulator};
 use rover_sim::wire::command::Command;
 use rover_sim::world::World;
 
-use crate::time_by_mode::{ModeClock, TimeByMode, activity};
+use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
 
 /// The largest telemetry payload accepted, bytes (as the bridge's default).
 const MAX_TELEMETRY_BYTES: usize = 4 << 20;
@@ -110,7 +109,7 @@ pub fn run_in_process(
     for frame in 1.. {
         let telemetry = read_telemetry(&mut sim)?;
         let message = telemetry_message(&telemetry, frame, Header::default());
-        clock.on_frame(frame, &activity_of(machine.status().mode.name(), &message), config.step_s);
+        clock.on_frame(frame, activity_of(machine.status().mode.name(), &message), config.step_s);
         let classes = perception.process_jpeg(&telemetry.image_jpeg)?;
         let scan = geometry.terrain_scan(classes, &message, Header::default());
         map.update(&ScanGrid::of(&scan), Pose::of_scan(&scan));
@@ -147,12 +146,6 @@ pub fn run_in_process(
     tracing::debug!("mission took {:.1} s", started.elapsed().as_secs_f64());
     let progress = snapshot(&sim, &map, &located, machine.status().mode, &clock);
     Ok(MissionOutcome { report: sim.report(), progress, map })
-}
-
-/// What the rover in decision mode `mode` did in the frame of `telemetry` (see [`activity`]).
-pub fn activity_of(mode: &str, telemetry: &Telemetry) -> String {
-    let (speed, steering) = (telemetry.speed_mps as f64, telemetry.steering_angle_deg as f64);
-    activity(mode, speed, steering, telemetry.throttle as f64, telemetry.brake as f64).to_string()
 }
 
 fn read_telemetry(sim: &mut Simulator) -> anyhow::Result<SimTelemetry> {

@@ -4,13 +4,16 @@
 
 use std::collections::BTreeMap;
 
+use rover_decision::machine::Mode;
+use rover_msgs::msg::Telemetry;
 use serde::Serialize;
 
 /// Below this speed the rover counts as standing, m/s.
 const STANDING_MPS: f64 = 0.05;
 
-/// The activities a frame is counted to, besides the decision's modes.
-pub const PICKUP: &str = "pickup";
+/// The activities a frame is counted to, besides the decision's modes: picking up, the decision's
+/// own pickup mode.
+pub const PICKUP: &str = Mode::Pickup.name();
 /// Turning on the spot: standing, steering, neither throttle nor brake.
 pub const TURNING_IN_PLACE: &str = "turning_in_place";
 /// Standing still for any other reason.
@@ -29,6 +32,12 @@ pub fn activity(mode: &str, speed_mps: f64, steering_deg: f64, throttle: f64, br
     } else {
         mode
     }
+}
+
+/// What the rover in decision mode `mode` did in the frame of `telemetry` (see [`activity`]).
+pub fn activity_of<'a>(mode: &'a str, telemetry: &Telemetry) -> &'a str {
+    let (speed, steering) = (telemetry.speed_mps as f64, telemetry.steering_angle_deg as f64);
+    activity(mode, speed, steering, telemetry.throttle as f64, telemetry.brake as f64)
 }
 
 /// Simulated seconds by activity.

@@ -99,7 +99,7 @@ pub enum Mode {
 
 impl Mode {
     /// The name published on `rover/mode`.
-    pub fn name(self) -> &'static str {
+    pub const fn name(self) -> &'static str {
         match self {
             Mode::Explore => "explore",
             Mode::ApproachSample => "approach_sample",
