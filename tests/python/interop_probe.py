@@ -640,7 +640,7 @@ def check_teleop(node, probe, report, teleop_timeout_s):
     publisher = node.create_publisher(Twist, "/cmd_vel", 10)
     spin(node, 3.0, lambda: publisher.get_subscription_count() > 0)
     phases = [
-        ("left", twist(0.8, 0.6), 1.5, steering_follows(+1), 0.5),
+        ("left", twist(0.8, 0.6), 2.5, steering_follows(+1), 0.5),
         ("stop", twist(0.0, 0.0), 1.5, stops, 0.0),
         ("right", twist(0.8, -0.6), 1.5, steering_follows(-1), 0.5),
         ("reverse", twist(-0.6, 0.0), 2.0, reverses, 0.5),
