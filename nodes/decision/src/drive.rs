@@ -99,6 +99,12 @@ impl Steering {
         free: &FreeSpace,
         params: &DecisionParams,
     ) -> Drive {
+        if self.turning.is_none()
+            && bearing_rad.to_degrees().abs() > params.turn_in_place_deg
+            && let Some(drive) = arc_turn(bearing_rad, speed_mps, free, params)
+        {
+            return drive;
+        }
         if self.turning.is_some() || bearing_rad.to_degrees().abs() > params.turn_in_place_deg {
             return self.toward(bearing_rad, cruise_mps, speed_mps, params);
         }
@@ -128,6 +134,29 @@ fn speed_to_stop_within(free_m: f64, params: &DecisionParams) -> f64 {
 fn speed_in_turn(steering_deg: f64, params: &DecisionParams) -> f64 {
     let radius_m = WHEELBASE_M / steering_deg.to_radians().tan().abs();
     (params.turn_accel_mps2 * radius_m).sqrt()
+}
+
+/// A rover under way turns toward a bearing up to this large on the move, degrees...
+const ARC_TURN_MAX_DEG: f64 = 120.0;
+/// ...when it moves at least this fast, m/s...
+const ARC_TURN_MIN_MPS: f64 = 0.8;
+/// ...and this much ground is free on that side, metres...
+const ARC_TURN_FREE_M: f32 = 2.5;
+/// ...in these directions, degrees (the rays at 45 degrees leave the camera's view and read short).
+const ARC_TURN_CHECK_DEG: [f64; 2] = [15.0, 30.0];
+
+/// Turning on the move at full steering and the speed of such a turn, toward a bearing beyond the
+/// turn-in-place threshold: cheaper than braking, turning in place and speeding up again, where
+/// the ground on that side is free.
+fn arc_turn(bearing_rad: f64, speed_mps: f64, free: &FreeSpace, params: &DecisionParams) -> Option<Drive> {
+    let side = bearing_rad.signum();
+    let side_free =
+        ARC_TURN_CHECK_DEG.iter().all(|deg| free.toward((side * deg.to_radians()) as f32) >= ARC_TURN_FREE_M);
+    let possible = bearing_rad.to_degrees().abs() <= ARC_TURN_MAX_DEG && speed_mps >= ARC_TURN_MIN_MPS && side_free;
+    possible.then(|| {
+        let steering_deg = side * MAX_STEER_DEG;
+        Drive { steering_deg, ..hold_speed(speed_in_turn(steering_deg, params), speed_mps, params) }
+    })
 }
 
 /// Throttle or brake that brings `speed_mps` to `target_mps`.
@@ -221,6 +250,28 @@ mod tests {
         let open = Steering::default().around_obstacles(0.0, p.max_speed_mps, 3.0, &lane(6.0), &p);
         let short = Steering::default().around_obstacles(0.0, p.max_speed_mps, 3.0, &lane(1.5), &p);
         assert!(open.throttle > 0.0 && short.brake > 0.0, "open {open:?}, short {short:?}");
+    }
+
+    #[test]
+    fn under_way_a_large_bearing_is_turned_on_the_move_where_that_side_is_free() {
+        let p = params();
+        let fan = |left_m: f32, right_m: f32| FreeSpace {
+            directions_rad: [-30f32, -15.0, 0.0, 15.0, 30.0].map(f32::to_radians).to_vec(),
+            free_m: vec![right_m, right_m, 6.0, left_m, left_m],
+        };
+        let left = 80f64.to_radians();
+        let arc = Steering::default().around_obstacles(left, p.max_speed_mps, 2.0, &fan(6.0, 0.5), &p);
+        assert_eq!(arc.steering_deg, MAX_STEER_DEG, "full left on the move: {arc:?}");
+        assert!(arc.brake == 0.0 || arc.brake < p.brake, "slows for the turn, does not stop: {arc:?}");
+        let walled = Steering::default().around_obstacles(left, p.max_speed_mps, 2.0, &fan(0.5, 6.0), &p);
+        assert_eq!(walled, Drive::stop(p.brake), "the left is blocked: stop and turn in place");
+        let slow = Steering::default().around_obstacles(left, p.max_speed_mps, 0.3, &fan(6.0, 6.0), &p);
+        assert_eq!(slow, Drive::stop(p.brake), "too slow to arc");
+        let behind =
+            Steering::default().around_obstacles(-150f64.to_radians(), p.max_speed_mps, 2.0, &fan(6.0, 6.0), &p);
+        assert_eq!(behind, Drive::stop(p.brake), "a goal behind is turned to in place");
+        let right = Steering::default().around_obstacles(-80f64.to_radians(), p.max_speed_mps, 2.0, &fan(0.5, 6.0), &p);
+        assert_eq!(right.steering_deg, -MAX_STEER_DEG, "full right on the move: {right:?}");
     }
 
     #[test]
