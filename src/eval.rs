@@ -88,6 +88,9 @@ pub struct RunResult {
     /// Simulated seconds by activity: the decision's modes, and picking up, turning in place and
     /// standing still apart from them.
     pub time_by_mode_s: TimeByMode,
+    /// Frames whose drive command missed the bridge's reply deadline, so that the bridge held
+    /// the last one (0 in process): a loaded machine changes the course of a graph mission.
+    pub deadline_misses: u64,
 }
 
 impl RunResult {
@@ -118,6 +121,7 @@ impl RunResult {
             final_mode: progress.mode.clone(),
             distance_m: report.distance_m,
             time_by_mode_s: progress.time_by_mode.clone(),
+            deadline_misses: progress.deadline_misses,
         }
     }
 }
@@ -235,19 +239,20 @@ const ACTIVITIES: [(&str, &str); 7] = [
     (time_by_mode::STOPPED, "stopped"),
 ];
 
-/// Where each mission's time went, simulated seconds by activity, and the distance driven.
+/// Where each mission's time went, simulated seconds by activity, the distance driven, and the
+/// frames whose drive command came too late for the bridge.
 pub fn time_table(results: &[RunResult]) -> String {
     let mut out = String::from("seed");
     for (_, title) in ACTIVITIES {
         out += &format!("  {title:>8}");
     }
-    out += "  distance m\n";
+    out += "  distance m  late frames\n";
     for r in results {
         out += &format!("{:>4}", r.seed);
         for (activity, _) in ACTIVITIES {
             out += &format!("  {:>8.0}", r.time_by_mode_s.seconds(activity));
         }
-        out += &format!("  {:>10.0}\n", r.distance_m);
+        out += &format!("  {:>10.0}  {:>11}\n", r.distance_m, r.deadline_misses);
     }
     out
 }

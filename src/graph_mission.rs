@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 
 use rover_imaging::RgbImage;
 use rover_mapping::score::{LocatedSamples, occupancy_scores};
+use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{DecisionState, Telemetry};
 use rover_msgs::nav_msgs::OccupancyGrid;
@@ -26,6 +27,8 @@ use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
 const PROGRESS_PERIOD: Duration = Duration::from_millis(500);
 /// Without a new telemetry frame for this long the graph counts as stalled and the run ends.
 const STALL_LIMIT: Duration = Duration::from_secs(60);
+/// The key of the bridge's `/diagnostics` value that counts late drive commands.
+const BRIDGE_DEADLINE_MISSES: &str = "deadline_misses";
 /// How long each node gets to exit after SIGINT.
 const STOP_TIMEOUT: Duration = Duration::from_secs(5);
 
@@ -70,6 +73,7 @@ impl Evaluator {
             collected: 0,
             mode: "starting".to_string(),
             time_by_mode: TimeByMode::default(),
+            deadline_misses: 0,
         };
         Evaluator {
             ground_truth: world.ground_truth().to_vec(),
@@ -102,6 +106,18 @@ impl Evaluator {
             .collect::<Vec<_>>();
         self.located.update(&cells);
         self.progress.located = self.located.count();
+    }
+
+    fn on_diagnostics(&mut self, diagnostics: &DiagnosticArray) {
+        let bridge_misses = diagnostics
+            .status
+            .iter()
+            .flat_map(|status| &status.values)
+            .find(|value| value.key == BRIDGE_DEADLINE_MISSES)
+            .and_then(|value| value.value.parse().ok());
+        if let Some(misses) = bridge_misses {
+            self.progress.deadline_misses = misses;
+        }
     }
 
     fn on_telemetry(&mut self, telemetry: &Telemetry, step_s: f64) {
@@ -229,6 +245,11 @@ fn subscribe_evaluator(
             handler(evaluator, move |e, t: Telemetry| e.on_telemetry(&t, step_s)),
         ),
         spawn_subscriber(node.subscription(&topics::MODE)?, span.clone(), handler(evaluator, on_mode)),
+        spawn_subscriber(
+            node.subscription(&topics::DIAGNOSTICS)?,
+            span.clone(),
+            handler(evaluator, |e, d: DiagnosticArray| e.on_diagnostics(&d)),
+        ),
         spawn_subscriber(
             node.subscription(&topics::MAP_IMAGE)?,
             span,

@@ -58,6 +58,8 @@ pub struct Progress {
     pub mode: String,
     /// Simulated seconds by activity so far.
     pub time_by_mode: TimeByMode,
+    /// Frames whose drive command missed the bridge's reply deadline (none without a bridge).
+    pub deadline_misses: u64,
 }
 
 /// How a mission ended.
@@ -103,6 +105,7 @@ pub fn run_in_process(
             collected: sim.report().samples_collected,
             mode: mode.name().to_string(),
             time_by_mode: clock.times().clone(),
+            deadline_misses: 0,
         }
     };
     let started = Instant::now();

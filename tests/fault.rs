@@ -91,5 +91,6 @@ async fn a_killed_decision_node_brakes_the_rover_and_a_restarted_one_finishes_th
     println!("{}", rover::eval::table(std::slice::from_ref(&result)));
     let collected_at_kill = collected_at_kill.expect("killed");
     assert!(result.collected > collected_at_kill, "samples collected after the restart: {result:?}");
+    assert!(result.deadline_misses > 0, "the frames without a decision node count as late: {result:?}");
     assert!(result.complete(), "the mission completed (map, every sample, home, in time): {result:?}");
 }
