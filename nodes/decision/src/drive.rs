@@ -87,6 +87,22 @@ impl Steering {
         Drive { steering_deg, ..hold_speed(target_mps, speed_mps, params) }
     }
 
+    /// Drives to a point `distance_m` away at `bearing_rad` as [`Steering::toward`] does, but first
+    /// turns in place when the point lies inside the rover's tightest turn (it would circle it).
+    pub fn toward_point(
+        &mut self,
+        bearing_rad: f64,
+        distance_m: f64,
+        target_mps: f64,
+        speed_mps: f64,
+        params: &DecisionParams,
+    ) -> Drive {
+        if self.turning.is_none() && !on_reachable_arc(bearing_rad, distance_m) {
+            self.turning = Some(bearing_rad > 0.0);
+        }
+        self.toward(bearing_rad, target_mps, speed_mps, params)
+    }
+
     /// Drives toward `bearing_rad` along the nearest direction with free ground ahead, slowing when
     /// little is free. When nothing ahead is free it creeps at the approach speed if it roughly
     /// faces the bearing (the map says the way is open; getting stuck ends that), and otherwise
@@ -123,10 +139,15 @@ impl Steering {
     }
 }
 
+/// The speed from which braking at `stop_decel_mps2` stops the rover within `distance_m`, m/s.
+pub fn speed_to_stop_in(distance_m: f64, params: &DecisionParams) -> f64 {
+    (2.0 * params.stop_decel_mps2 * distance_m.max(0.0)).sqrt()
+}
+
 /// The speed from which braking at `stop_decel_mps2` stops the rover `clearance_m` short of the
 /// end of `free_m` of free ground, m/s.
 fn speed_to_stop_within(free_m: f64, params: &DecisionParams) -> f64 {
-    (2.0 * params.stop_decel_mps2 * (free_m - params.clearance_m).max(0.0)).sqrt()
+    speed_to_stop_in(free_m - params.clearance_m, params)
 }
 
 /// The speed at which steering by `steering_deg` keeps the sideways acceleration at
@@ -134,6 +155,14 @@ fn speed_to_stop_within(free_m: f64, params: &DecisionParams) -> f64 {
 fn speed_in_turn(steering_deg: f64, params: &DecisionParams) -> f64 {
     let radius_m = WHEELBASE_M / steering_deg.to_radians().tan().abs();
     (params.turn_accel_mps2 * radius_m).sqrt()
+}
+
+/// Whether the rover can reach a point `distance_m` away at `bearing_rad` on an arc no tighter
+/// than its full-lock turn: the arc through it, tangent to the heading, has a radius of
+/// `distance_m / (2 sin |bearing|)`.
+fn on_reachable_arc(bearing_rad: f64, distance_m: f64) -> bool {
+    let tightest_radius_m = WHEELBASE_M / MAX_STEER_DEG.to_radians().tan();
+    distance_m >= 2.0 * tightest_radius_m * bearing_rad.sin().abs()
 }
 
 /// A rover under way turns toward a bearing up to this large on the move, degrees...
@@ -250,6 +279,19 @@ mod tests {
         let open = Steering::default().around_obstacles(0.0, p.max_speed_mps, 3.0, &lane(6.0), &p);
         let short = Steering::default().around_obstacles(0.0, p.max_speed_mps, 3.0, &lane(1.5), &p);
         assert!(open.throttle > 0.0 && short.brake > 0.0, "open {open:?}, short {short:?}");
+    }
+
+    #[test]
+    fn a_point_inside_the_tightest_turn_is_turned_to_in_place_first() {
+        let p = params();
+        let bearing = 40f64.to_radians();
+        let near = Steering::default().toward_point(bearing, 2.0, 1.5, 1.5, &p);
+        assert_eq!(near, Drive::stop(p.brake), "2 m off at 40 degrees needs a 1.6 m radius: stop, then turn");
+        let mut steering = Steering::default();
+        assert_eq!(steering.toward_point(bearing, 2.0, 1.5, 0.0, &p), Drive::turn_in_place(true));
+        let far = Steering::default().toward_point(bearing, 6.0, 1.5, 1.5, &p);
+        assert!(far.steering_deg == MAX_STEER_DEG && far.brake == 0.0, "6 m off it is driven to on an arc: {far:?}");
+        assert!(on_reachable_arc(0.0, 0.1) && !on_reachable_arc(1.0, 1.0));
     }
 
     #[test]

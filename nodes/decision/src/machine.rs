@@ -3,7 +3,7 @@
 
 use rover_msgs::tally::SampleTally;
 
-use crate::drive::{Drive, Steering};
+use crate::drive::{Drive, Steering, speed_to_stop_in};
 use crate::grid::Grid;
 use crate::local::FreeSpace;
 use crate::params::DecisionParams;
@@ -578,14 +578,17 @@ impl Machine {
         if chase.staging.is_some_and(|point| obs.position.distance_to(point) < STAGING_REACHED_M) {
             (chase.staging, chase.route) = (None, None);
         }
-        let speed = p.approach_speed_mps * (distance_m / ROUTE_APPROACH_M).clamp(0.5, 1.0);
+        let speed = speed_to_stop_in(distance_m - ARM_REACH_M, &p).clamp(p.approach_speed_mps, p.max_speed_mps);
         let drive = match self.approach_waypoint(obs, &mut chase, distance_m) {
             Some(waypoint) if distance_m > ROUTE_APPROACH_M => {
                 let bearing = obs.position.bearing_to(waypoint);
                 self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, &p)
             }
-            Some(waypoint) => self.steering.toward(obs.position.bearing_to(waypoint), speed, obs.speed_mps, &p),
-            None => self.steering.toward(bearing, speed, obs.speed_mps, &p),
+            Some(waypoint) => {
+                let (bearing, distance_m) = (obs.position.bearing_to(waypoint), obs.position.distance_to(waypoint));
+                self.steering.toward_point(bearing, distance_m, speed, obs.speed_mps, &p)
+            }
+            None => self.steering.toward_point(bearing, distance_m, speed, obs.speed_mps, &p),
         };
         self.state = State::Approach(chase);
         drive
@@ -752,6 +755,27 @@ mod tests {
         machine.step(&obs);
         assert_eq!(machine.status().mode, Mode::Explore);
         assert_eq!((machine.status().reason.as_str(), machine.status().samples_collected), ("sample collected", 1));
+    }
+
+    #[test]
+    fn a_sample_ahead_is_approached_as_fast_as_braking_leaves_it_in_reach() {
+        let params = DecisionParams::default();
+        let speed_toward = |distance_m: f64, speed_mps: f64| {
+            let mut machine = Machine::new(params.clone());
+            machine.set_map(corridor());
+            let mut obs = observation(1, 100.5, 100.5);
+            (obs.rock, obs.speed_mps) = (Some(Sighting { bearing_rad: 0.0, distance_m }), speed_mps);
+            machine.step(&obs)
+        };
+        let far = speed_toward(3.5, 2.0);
+        assert!(far.throttle > 0.0 && far.brake == 0.0, "2 m/s is safe 3.5 m off: {far:?}");
+        let near = speed_toward(1.2, 2.0);
+        assert!(near.brake > 0.0, "2 m/s 1.2 m off would overrun the sample: {near:?}");
+        let creep = speed_toward(0.9, params.approach_speed_mps * 0.5);
+        assert!(creep.throttle > 0.0, "the last metres at the approach speed: {creep:?}");
+        let stopping_m = |v: f64| v * v / (2.0 * params.stop_decel_mps2);
+        let v = speed_to_stop_in(3.5 - ARM_REACH_M, &params);
+        assert!((stopping_m(v) - (3.5 - ARM_REACH_M)).abs() < 1e-9);
     }
 
     #[test]

@@ -5,7 +5,9 @@ rover_node::node_params! {
     pub struct DecisionParams {
         /// Cruising speed on open ground, m/s (Unity caps it at 5).
         max_speed_mps: f64 [0.1, 5.0] = 3.5,
-        /// Speed when approaching a sample, m/s.
+        /// Least speed of the last metres to a sample (faster before, as braking at
+        /// `stop_decel_mps2` allows to stop with the sample in the arm's reach), and the speed of
+        /// creeping on where the camera sees no free lane, m/s.
         approach_speed_mps: f64 [0.1, 3.0] = 0.5,
         /// Throttle per m/s of speed error.
         throttle_gain: f64 [0.0, 10.0] = 0.8,
