@@ -1,10 +1,12 @@
 //! The process runtime (one DDS context per process) and ROS nodes built on it.
 
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use anyhow::Context as _;
 use futures::StreamExt;
-use ros2_client::{Context, ContextOptions, MessageTypeName, Name, NodeName, NodeOptions, Publisher, Subscription};
+use ros2_client::dds::rustdds::DomainParticipant;
+use ros2_client::{Context, MessageTypeName, Name, NodeName, NodeOptions, Publisher, Subscription};
 use rover_msgs::RosMessage;
 use tokio::sync::watch;
 
@@ -16,6 +18,16 @@ use crate::topics::Topic;
 
 /// Highest domain id for which the DDS port numbers stay valid.
 const MAX_DOMAIN_ID: u16 = 232;
+
+/// How long a new participant waits before it creates any endpoint. RustDDS 0.15.1 sends its first
+/// SPDP announcement 100 ms after the participant is created, but already answers the SPDP of peers
+/// that reach it earlier with SEDP data. A Fast DDS peer (rclpy, a `ros2` daemon) drops SEDP data of
+/// a participant it does not know yet; if endpoints created later reach it after it has learnt the
+/// participant but before the repair of the dropped ones, it never takes those in, although it
+/// acknowledges them: the node's `ros_discovery_info` writer, `/rosout`, `/parameter_events` and
+/// parameter services stay unknown to it (issue 17). With no endpoint before the first
+/// announcement (plus a margin for a loaded machine), every peer receives them in order.
+const FIRST_ANNOUNCEMENT_WAIT: Duration = Duration::from_millis(250);
 
 /// Reads `ROS_DOMAIN_ID` (default 0), with a clear error for a bad value.
 pub fn domain_id_from_env() -> anyhow::Result<u16> {
@@ -42,10 +54,15 @@ impl Runtime {
         Self::on_domain(domain_id_from_env()?, ros_args, shutdown)
     }
 
-    /// Creates the DDS context on `domain_id`, ignoring `ROS_DOMAIN_ID`.
+    /// Creates the DDS context on `domain_id`, ignoring `ROS_DOMAIN_ID`. Blocks for
+    /// [`FIRST_ANNOUNCEMENT_WAIT`] so that the participant has announced itself before its first
+    /// endpoint exists.
     pub fn on_domain(domain_id: u16, ros_args: RosArgs, shutdown: Shutdown) -> anyhow::Result<Self> {
-        let context = Context::with_options(ContextOptions::new().domain_id(domain_id))
+        let participant = DomainParticipant::new(domain_id)
             .with_context(|| format!("cannot create the DDS participant on domain {domain_id}"))?;
+        std::thread::sleep(FIRST_ANNOUNCEMENT_WAIT);
+        let context = Context::from_domain_participant(participant)
+            .with_context(|| format!("cannot create the ROS context on domain {domain_id}"))?;
         tracing::debug!(domain_id, "DDS participant created");
         Ok(Runtime { context, ros_args: Arc::new(ros_args), shutdown })
     }
