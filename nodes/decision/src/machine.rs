@@ -173,8 +173,17 @@ pub struct Memory {
 enum State {
     Explore,
     Approach(Chase),
-    Pickup { since_frame: u64, arm_seen: bool },
-    Recover { since_frame: u64, turn_left: bool },
+    Pickup {
+        since_frame: u64,
+        arm_seen: bool,
+    },
+    /// Backing off and turning; then back to exploring, or on the way home when that was
+    /// interrupted (exploring would forget the stuck marks that lead the next route around).
+    Recover {
+        since_frame: u64,
+        turn_left: bool,
+        then_home: bool,
+    },
     ReturnHome(Option<Route>),
     Done,
 }
@@ -386,7 +395,9 @@ impl Machine {
             State::Explore => self.explore(obs),
             State::Approach(chase) => self.approach(obs, chase),
             State::Pickup { since_frame, arm_seen } => self.pickup(obs, since_frame, arm_seen),
-            State::Recover { since_frame, turn_left } => self.recover(obs, since_frame, turn_left),
+            State::Recover { since_frame, turn_left, then_home } => {
+                self.recover(obs, since_frame, turn_left, then_home)
+            }
             State::ReturnHome(route) => self.return_home(obs, route),
             State::Done => Drive::stop(self.params.brake),
         }
@@ -436,7 +447,8 @@ impl Machine {
             _ => {}
         }
         let turn_left = obs.free.most_open() >= 0.0;
-        self.enter(State::Recover { since_frame: obs.frame, turn_left }, reason);
+        let then_home = matches!(self.state, State::ReturnHome(_));
+        self.enter(State::Recover { since_frame: obs.frame, turn_left, then_home }, reason);
     }
 
     fn explore(&mut self, obs: &Observation) -> Drive {
@@ -625,7 +637,7 @@ impl Machine {
         Drive::stop(p.brake)
     }
 
-    fn recover(&mut self, obs: &Observation, since_frame: u64, turn_left: bool) -> Drive {
+    fn recover(&mut self, obs: &Observation, since_frame: u64, turn_left: bool, then_home: bool) -> Drive {
         let p = self.params.clone();
         let elapsed = obs.frame.saturating_sub(since_frame);
         let back = p.frames(p.recover_back_s);
@@ -639,7 +651,7 @@ impl Machine {
                 Drive::turn_in_place(turn_left)
             };
         }
-        self.enter(State::Explore, "recovered");
+        self.enter(if then_home { State::ReturnHome(None) } else { State::Explore }, "recovered");
         Drive::stop(p.brake)
     }
 
@@ -832,6 +844,31 @@ mod tests {
         machine.frame += 1;
         machine.set_map(corridor());
         assert_eq!(machine.grid.cell(ahead), Cell::Free, "until the mark expires");
+    }
+
+    #[test]
+    fn a_rover_stuck_on_the_way_home_recovers_and_goes_on_home() {
+        let params = DecisionParams::default();
+        let mut machine = Machine::new(params.clone());
+        machine.set_map(corridor());
+        machine.step(&observation(1, 100.5, 100.5));
+        let late = params.frames(params.mission_deadline_s);
+        machine.step(&observation(late, 120.5, 100.5));
+        assert_eq!(machine.status().mode, Mode::ReturnHome);
+        let mut frame = late;
+        while machine.status().mode == Mode::ReturnHome {
+            frame += 1;
+            let mut blocked = observation(frame, 120.5, 100.5);
+            blocked.position.yaw_rad = std::f64::consts::PI;
+            machine.step(&blocked);
+            assert!(frame < late + 100, "never stuck");
+        }
+        assert_eq!((machine.status().mode, machine.status().reason.as_str()), (Mode::Recover, "stuck"));
+        while machine.status().mode == Mode::Recover {
+            frame += 1;
+            machine.step(&observation(frame, 120.0, 100.5));
+        }
+        assert_eq!(machine.status().mode, Mode::ReturnHome, "after the recovery: {:?}", machine.status());
     }
 
     #[test]
