@@ -1,6 +1,7 @@
-//! The launchers of `launch_scripts/`: `rover-graph` (no ROS needed) and `rover.launch.py` (ROS 2
-//! `launch`), each starting the real graph with the headless simulator, checked from a DDS
-//! subscriber in the test, and stopped with SIGINT.
+//! The launchers of `launch_scripts/`: `rover-graph` (no ROS needed) and `rover.launch.py` (run by
+//! the real `ros2 launch`, from the wheels of `../shared/ros2-python`), each starting the real graph
+//! with the headless simulator, checked from a DDS subscriber in the test, and stopped with SIGINT,
+//! after which none of their processes is left.
 
 mod support;
 
@@ -200,35 +201,18 @@ fn rover_graph_help_names_its_options() {
     }
 }
 
-/// Loads a launch file with `launch.LaunchService`, as `ros2 launch FILE NAME:=VALUE...` does.
-const LAUNCH_DRIVER: &str = "
-import sys
-from launch import LaunchDescription, LaunchService
-from launch.actions import IncludeLaunchDescription
-from launch.launch_description_sources import PythonLaunchDescriptionSource
-launch_file, *arguments = sys.argv[1:]
-service = LaunchService()
-service.include_launch_description(LaunchDescription([IncludeLaunchDescription(
-    PythonLaunchDescriptionSource(launch_file),
-    launch_arguments=[tuple(argument.split(':=', 1)) for argument in arguments])]))
-sys.exit(service.run())
-";
-
-/// A Python that imports the ROS 2 `launch` package. No registry ships it (it is not among the
-/// ROS 2 wheels on PyPI), so its absence skips the test unless `ROVER_REQUIRE_LAUNCH` is set.
-fn python_with_launch() -> Option<PathBuf> {
-    let python = std::env::var_os("ROVER_PYTHON").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("python3"));
-    let found = Command::new(&python)
-        .args(["-c", "import launch.launch_description_sources"])
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if found {
-        return Some(python);
-    }
-    assert!(std::env::var_os("ROVER_REQUIRE_LAUNCH").is_none(), "{} cannot import launch", python.display());
-    eprintln!("skipped: {} cannot import the ROS 2 launch package (not on PyPI)", python.display());
-    None
+/// The `(name, pid)` of every process `ros2 launch` started: its lines
+/// `[INFO] [NAME-N]: process started with pid [PID]`.
+fn launched_processes(output: &str) -> Vec<(String, u32)> {
+    output
+        .lines()
+        .filter_map(|line| line.strip_prefix("[INFO] ["))
+        .filter_map(|rest| rest.split_once("]: process started with pid ["))
+        .map(|(name, pid)| {
+            let name = name.rsplit_once('-').map_or(name, |(name, _)| name);
+            (name.to_string(), pid.trim_end_matches(']').parse().expect("a pid"))
+        })
+        .collect()
 }
 
 #[test]
@@ -243,28 +227,40 @@ fn the_launch_file_is_valid_python() {
 }
 
 #[test]
-fn the_launch_file_starts_the_graph_with_the_simulator_and_stops_it_on_sigint() {
+fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint_leaves_no_process_behind() {
     support::assert_isolated();
-    let Some(python) = python_with_launch() else { return };
+    if !support::ros2_cli_or_skip() {
+        return;
+    }
     let tokio = tokio::runtime::Runtime::new().expect("a tokio runtime");
     let _entered = tokio.enter();
     let domain = Domain::reserve();
     let watcher = Watcher::start(&domain, "/launched");
-    let mut command = Command::new(python);
-    command.args(["-c", LAUNCH_DRIVER]).arg(launch_scripts().join("rover.launch.py"));
+    let mut command = Command::new(support::ros2_cli());
+    command.arg("launch").arg(launch_scripts().join("rover.launch.py"));
     command.arg(format!("rover:={}", rover().display()));
     command.args(["namespace:=/launched", "sim:=true", "seed:=6", &format!("port:={}", domain.port())]);
-    command.env("ROS_DOMAIN_ID", domain.id.to_string());
-    let mut launcher = Launcher::start(&mut command, "launch-file");
-    assert!(watcher.graph_runs(), "no frames on /launched/rover/telemetry; launch output:\n{}", launcher.output());
+    command.env("ROS_DOMAIN_ID", domain.id.to_string()).env("PYTHONUNBUFFERED", "1");
+    let mut launcher = Launcher::start(&mut command, "ros2-launch");
+    assert!(watcher.graph_runs(), "no frames on /launched/rover/telemetry; ros2 launch output:\n{}", launcher.output());
+    let launched = launched_processes(&launcher.output());
+    let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
+    assert_eq!(names, PROCESSES, "{}", launcher.output());
 
+    let interrupted = std::time::Instant::now();
     let code = launcher.interrupt();
     let output = launcher.output();
-    assert!(code.is_some(), "the launch service did not stop on SIGINT:\n{output}");
-    for name in PROCESSES {
+    assert!(code.is_some(), "ros2 launch did not stop on SIGINT:\n{output}");
+    eprintln!(
+        "ros2 launch: {} processes, stopped {:.1} s after SIGINT",
+        launched.len(),
+        interrupted.elapsed().as_secs_f64()
+    );
+    for (name, pid) in &launched {
         let finished = format!("[{name}-");
         let clean =
             output.lines().any(|line| line.contains(&finished) && line.contains("process has finished cleanly"));
         assert!(clean, "{name} did not finish cleanly:\n{output}");
+        assert!(!is_running(*pid), "{name} (pid {pid}) still runs after ros2 launch exited");
     }
 }

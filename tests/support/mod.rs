@@ -211,3 +211,39 @@ pub fn python_with(modules: &[&str]) -> Option<PathBuf> {
 pub fn free_port() -> u16 {
     rover::graph::free_port().expect("a free port")
 }
+
+/// The official `ros2` command line (`ROVER_ROS2`, else `ros2` on the PATH: `.venv/bin/ros2` after
+/// `tools/setup-ros` and `source tools/ros-env.sh`).
+pub fn ros2_cli() -> PathBuf {
+    std::env::var_os("ROVER_ROS2").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("ros2"))
+}
+
+/// Whether the `ros2` command line runs (`ros2 --help`). Without it the test skips only when its
+/// wheels (`../shared/ros2-python`) are absent and `ROVER_REQUIRE_ROS` is unset; otherwise it fails.
+pub fn ros2_cli_or_skip() -> bool {
+    let ros2 = ros2_cli();
+    let runs = Command::new(&ros2)
+        .arg("--help")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if runs {
+        return true;
+    }
+    let wheels = shared_dir().join("ros2-python");
+    assert!(
+        std::env::var_os("ROVER_REQUIRE_ROS").is_none(),
+        "ROVER_REQUIRE_ROS is set but `{} --help` does not run: tools/setup-ros installs it from {}",
+        ros2.display(),
+        wheels.display()
+    );
+    assert!(
+        !wheels.exists(),
+        "`{} --help` does not run although {} is present: run tools/setup-ros and `source tools/ros-env.sh`",
+        ros2.display(),
+        wheels.display()
+    );
+    eprintln!("skipped: no `ros2` command line and no {} to install it from", wheels.display());
+    false
+}

@@ -1,0 +1,223 @@
+//! The official `ros2` command line against the graph (issue 17): in one loopback-only namespace,
+//! `ros2 daemon start` first, then the graph in separate processes with the headless simulator
+//! (`launch_scripts/rover-graph --sim 0`), then `ros2 node list`, `topic list -t`, `topic echo
+//! --once` (telemetry, the latched map, odom), `topic hz`, `topic info -v`, `param list/get/set`
+//! and `interface show`, each checked on its output. The CLI comes from the wheels of
+//! `../shared/ros2-python` that `tools/setup-ros` installs into `.venv`.
+
+mod support;
+
+use std::path::Path;
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use support::{Domain, Process, eventually, ros2_cli, rover};
+
+const NODES: [&str; 5] = ["/bridge", "/perception", "/mapping", "/decision", "/pickup"];
+
+/// Every topic of the graph with its type, as `ros2 topic list -t` prints it.
+const TOPICS: [&str; 18] = [
+    "/camera/image_raw/compressed [sensor_msgs/msg/CompressedImage]",
+    "/camera/image_raw [sensor_msgs/msg/Image]",
+    "/camera/camera_info [sensor_msgs/msg/CameraInfo]",
+    "/odom [nav_msgs/msg/Odometry]",
+    "/tf [tf2_msgs/msg/TFMessage]",
+    "/rover/telemetry [rover_msgs/msg/Telemetry]",
+    "/sim/sample_truth [geometry_msgs/msg/PoseArray]",
+    "/rover/terrain [rover_msgs/msg/TerrainScan]",
+    "/rover/vision [sensor_msgs/msg/Image]",
+    "/map [nav_msgs/msg/OccupancyGrid]",
+    "/map/image [sensor_msgs/msg/Image]",
+    "/rover/map_stats [rover_msgs/msg/MapStats]",
+    "/rover/rocks [geometry_msgs/msg/PoseArray]",
+    "/rover/drive_cmd [rover_msgs/msg/DriveCommand]",
+    "/rover/pickup [rover_msgs/msg/PickupRequest]",
+    "/rover/mode [rover_msgs/msg/DecisionState]",
+    "/cmd_vel [geometry_msgs/msg/Twist]",
+    "/diagnostics [diagnostic_msgs/msg/DiagnosticArray]",
+];
+
+/// The output (stdout and stderr) of a `ros2` command on `domain`, stopped with SIGINT after
+/// `limit`, and whether it exited with status 0.
+fn ros2(domain: &Domain, limit: Duration, args: &[&str]) -> (bool, String) {
+    let output = Command::new("timeout")
+        .args(["--signal=INT", "--kill-after=5", &format!("{}", limit.as_secs_f64())])
+        .arg(ros2_cli())
+        .args(args)
+        .env("ROS_DOMAIN_ID", domain.id.to_string())
+        .env("PYTHONUNBUFFERED", "1")
+        .output()
+        .expect("run ros2");
+    let text = format!("{}{}", String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    (output.status.success(), text)
+}
+
+/// A `ros2` command that must succeed within 30 s; its output.
+fn ros2_ok(domain: &Domain, args: &[&str]) -> String {
+    let (ok, output) = ros2(domain, Duration::from_secs(30), args);
+    assert!(ok, "`ros2 {}` failed:\n{output}", args.join(" "));
+    output
+}
+
+fn assert_contains(output: &str, expected: &[&str], what: &str) {
+    for line in expected {
+        assert!(output.contains(line), "{what}: no `{line}` in\n{output}");
+    }
+}
+
+/// The `ros2` daemon of a domain, stopped when dropped.
+struct Daemon<'a> {
+    domain: &'a Domain,
+}
+
+impl<'a> Daemon<'a> {
+    fn start(domain: &'a Domain) -> Daemon<'a> {
+        ros2_ok(domain, &["daemon", "start"]);
+        let daemon = Daemon { domain };
+        assert_contains(&ros2_ok(domain, &["daemon", "status"]), &["The daemon is running"], "ros2 daemon status");
+        daemon
+    }
+}
+
+impl Drop for Daemon<'_> {
+    fn drop(&mut self) {
+        let _ = ros2(self.domain, Duration::from_secs(15), &["daemon", "stop"]);
+    }
+}
+
+#[test]
+fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it() {
+    support::assert_isolated();
+    if !support::ros2_cli_or_skip() {
+        return;
+    }
+    let started = Instant::now();
+    let domain = Domain::reserve();
+    let daemon = Daemon::start(&domain);
+
+    let graph_script = Path::new(env!("CARGO_MANIFEST_DIR")).join("launch_scripts/rover-graph");
+    let log_dir = std::env::temp_dir().join(format!("rover-ros2-cli-{}-{}", domain.id, std::process::id()));
+    let (rover, port, domain_id) = (rover(), domain.port().to_string(), domain.id.to_string());
+    let log_dir = log_dir.to_str().unwrap();
+    // camera/image_raw is published only on request; the test wants every topic of the graph.
+    let args = ["--rover", rover.to_str().unwrap(), "--sim", "0", "--domain", &domain_id, "--port", &port];
+    let args = [&args[..], &["--log-dir", log_dir, "--", "-p", "bridge:publish_raw_image:=true"]].concat();
+    let mut graph = Process::start(&graph_script, &args, &domain, "ros2-cli-graph");
+
+    // Through the daemon, which existed before any participant of the graph.
+    let mut nodes = String::new();
+    let listed = eventually(Duration::from_secs(30), || {
+        nodes = ros2(&domain, Duration::from_secs(15), &["node", "list"]).1;
+        NODES.iter().all(|node| nodes.lines().any(|line| line.trim() == *node))
+    });
+    assert!(listed, "`ros2 node list` lacks nodes:\n{nodes}\ngraph log:\n{}", graph.log_text());
+    eprintln!("ros2 node list: all five nodes after {:.1} s", started.elapsed().as_secs_f64());
+
+    std::thread::scope(|scope| {
+        let domain = &domain;
+        let topics = scope.spawn(|| ros2_ok(domain, &["topic", "list", "-t"]));
+        let telemetry = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/rover/telemetry"]));
+        let map = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "--no-arr", "/map"]));
+        let odom = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/odom"]));
+        let hz = scope.spawn(|| ros2(domain, Duration::from_secs(8), &["topic", "hz", "/rover/telemetry"]).1);
+        let info = scope.spawn(|| ros2_ok(domain, &["topic", "info", "-v", "/map"]));
+        let interface = scope.spawn(|| ros2_ok(domain, &["interface", "show", "rover_msgs/msg/Telemetry"]));
+        let params = scope.spawn(|| {
+            let list = ros2_ok(domain, &["param", "list", "/bridge"]);
+            let before = ros2_ok(domain, &["param", "get", "/bridge", "teleop_timeout_ms"]);
+            let set = ros2_ok(domain, &["param", "set", "/bridge", "teleop_timeout_ms", "1500.0"]);
+            let after = ros2_ok(domain, &["param", "get", "/bridge", "teleop_timeout_ms"]);
+            let refused =
+                ros2(domain, Duration::from_secs(30), &["param", "set", "/bridge", "teleop_timeout_ms", "-1.0"]).1;
+            (list, before, set, after, refused)
+        });
+
+        let topics = topics.join().unwrap();
+        for topic in TOPICS {
+            assert!(topics.lines().any(|line| line.trim() == topic), "`ros2 topic list -t`: no `{topic}` in\n{topics}");
+        }
+        let telemetry = telemetry.join().unwrap();
+        assert_contains(
+            &telemetry,
+            &["frame_id: odom", "frame: ", "x_m: ", "speed_mps: ", "samples_remaining: ", "---"],
+            "telemetry",
+        );
+        assert_contains(
+            &map.join().unwrap(),
+            &["frame_id: map", "resolution: ", "width: 200", "height: 200"],
+            "latched map",
+        );
+        assert_contains(
+            &odom.join().unwrap(),
+            &["frame_id: odom", "child_frame_id: base_link", "position:", "orientation:"],
+            "odom",
+        );
+        let hz = hz.join().unwrap();
+        let rate = hz
+            .lines()
+            .filter_map(|line| line.trim().strip_prefix("average rate: "))
+            .filter_map(|rate| rate.trim().parse::<f64>().ok())
+            .last();
+        assert!(
+            rate.is_some_and(|rate| rate > 1.0),
+            "`ros2 topic hz /rover/telemetry` printed no rate above 1 Hz:\n{hz}"
+        );
+        eprintln!("ros2 topic hz /rover/telemetry: {:.1} Hz", rate.unwrap_or_default());
+        assert_contains(
+            &info.join().unwrap(),
+            &[
+                "Type: nav_msgs/msg/OccupancyGrid",
+                "Publisher count: 1",
+                "Node name: mapping",
+                "Node name: decision",
+                "Endpoint type: PUBLISHER",
+                "Endpoint type: SUBSCRIPTION",
+                "Durability: TRANSIENT_LOCAL",
+            ],
+            "ros2 topic info -v /map",
+        );
+        assert_contains(
+            &interface.join().unwrap(),
+            &["std_msgs/Header header", "uint64 frame", "uint8 samples_remaining"],
+            "interface show",
+        );
+        let (list, before, set, after, refused) = params.join().unwrap();
+        assert_contains(&list, &["teleop_timeout_ms", "diagnostics_period_ms", "port"], "ros2 param list /bridge");
+        assert_contains(&before, &["Double value is: 500.0"], "ros2 param get");
+        assert_contains(&set, &["Set parameter successful"], "ros2 param set");
+        assert_contains(&after, &["Double value is: 1500.0"], "ros2 param get after the set");
+        assert_contains(&refused, &["Setting parameter failed"], "ros2 param set out of range");
+    });
+
+    drop(daemon);
+    let status = graph.interrupt();
+    assert!(
+        status.is_some_and(|s| s.success()),
+        "the graph did not stop cleanly on SIGINT: {status:?}\n{}",
+        graph.log_text()
+    );
+    eprintln!("ros2 command line test: {:.1} s", started.elapsed().as_secs_f64());
+}
+
+#[test]
+fn the_ros2_command_line_shows_the_rover_interfaces() {
+    if !support::ros2_cli_or_skip() {
+        return;
+    }
+    let domain = Domain::reserve();
+    let (ok, shown) = ros2(&domain, Duration::from_secs(30), &["interface", "show", "rover_msgs/msg/DriveCommand"]);
+    assert!(ok, "{shown}");
+    assert_contains(
+        &shown,
+        &["std_msgs/Header header", "uint64 frame"],
+        "ros2 interface show rover_msgs/msg/DriveCommand",
+    );
+    let (ok, packages) = ros2(&domain, Duration::from_secs(30), &["interface", "package", "rover_msgs"]);
+    assert!(ok, "{packages}");
+    for message in ["DecisionState", "DriveCommand", "MapStats", "PickupRequest", "Telemetry", "TerrainScan"] {
+        assert!(
+            packages.lines().any(|l| l.trim() == format!("rover_msgs/msg/{message}")),
+            "{message} missing:\n{packages}"
+        );
+    }
+}
