@@ -157,7 +157,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
             .lines()
             .filter_map(|line| line.trim().strip_prefix("average rate: "))
             .filter_map(|rate| rate.trim().parse::<f64>().ok())
-            .last();
+            .next_back();
         assert!(
             rate.is_some_and(|rate| rate > 1.0),
             "`ros2 topic hz /rover/telemetry` printed no rate above 1 Hz:\n{hz}"
