@@ -111,7 +111,10 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
         NODES.iter().all(|node| nodes.lines().any(|line| line.trim() == *node))
     });
     assert!(listed, "`ros2 node list` lacks nodes:\n{nodes}\ngraph log:\n{}", graph.log_text());
-    eprintln!("ros2 node list: all five nodes after {:.1} s", started.elapsed().as_secs_f64());
+    eprintln!(
+        "ros2 node list: all five nodes {:.1} s after the test started the daemon",
+        started.elapsed().as_secs_f64()
+    );
 
     std::thread::scope(|scope| {
         let domain = &domain;
