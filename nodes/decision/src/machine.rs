@@ -846,13 +846,19 @@ mod tests {
         assert_eq!(machine.grid.cell(ahead), Cell::Free, "until the mark expires");
     }
 
-    #[test]
-    fn a_rover_stuck_on_the_way_home_recovers_and_goes_on_home() {
+    /// A machine that started its mission at (100.5, 100.5) in [`corridor`], and the frame of its
+    /// mission deadline.
+    fn started_at_home_in_the_corridor() -> (Machine, u64) {
         let params = DecisionParams::default();
         let mut machine = Machine::new(params.clone());
         machine.set_map(corridor());
         machine.step(&observation(1, 100.5, 100.5));
-        let late = params.frames(params.mission_deadline_s);
+        (machine, params.frames(params.mission_deadline_s))
+    }
+
+    #[test]
+    fn a_rover_stuck_on_the_way_home_recovers_and_goes_on_home() {
+        let (mut machine, late) = started_at_home_in_the_corridor();
         machine.step(&observation(late, 120.5, 100.5));
         assert_eq!(machine.status().mode, Mode::ReturnHome);
         let mut frame = late;
@@ -873,11 +879,7 @@ mod tests {
 
     #[test]
     fn at_the_deadline_the_rover_goes_home_without_detours_and_stops_there() {
-        let params = DecisionParams::default();
-        let mut machine = Machine::new(params.clone());
-        machine.set_map(corridor());
-        machine.step(&observation(1, 100.5, 100.5));
-        let late = params.frames(params.mission_deadline_s);
+        let (mut machine, late) = started_at_home_in_the_corridor();
         let mut sample_in_view = observation(late, 120.5, 100.5);
         sample_in_view.rock = Some(Sighting { bearing_rad: 0.0, distance_m: 3.0 });
         machine.step(&sample_in_view);
