@@ -115,13 +115,14 @@ impl Steering {
         free: &FreeSpace,
         params: &DecisionParams,
     ) -> Drive {
+        let beyond_turn_in_place = bearing_rad.to_degrees().abs() > params.turn_in_place_deg;
         if self.turning.is_none()
-            && bearing_rad.to_degrees().abs() > params.turn_in_place_deg
+            && beyond_turn_in_place
             && let Some(drive) = arc_turn(bearing_rad, speed_mps, free, params)
         {
             return drive;
         }
-        if self.turning.is_some() || bearing_rad.to_degrees().abs() > params.turn_in_place_deg {
+        if self.turning.is_some() || beyond_turn_in_place {
             return self.toward(bearing_rad, cruise_mps, speed_mps, params);
         }
         match free.best_toward(bearing_rad as f32, params.clearance_m as f32) {
@@ -153,16 +154,20 @@ fn speed_to_stop_within(free_m: f64, params: &DecisionParams) -> f64 {
 /// The speed at which steering by `steering_deg` keeps the sideways acceleration at
 /// `turn_accel_mps2`, m/s (unbounded when steering straight).
 fn speed_in_turn(steering_deg: f64, params: &DecisionParams) -> f64 {
-    let radius_m = WHEELBASE_M / steering_deg.to_radians().tan().abs();
-    (params.turn_accel_mps2 * radius_m).sqrt()
+    (params.turn_accel_mps2 * turn_radius_m(steering_deg)).sqrt()
+}
+
+/// The radius of the circle the rover drives on when steering by `steering_deg`, metres
+/// (unbounded when steering straight).
+fn turn_radius_m(steering_deg: f64) -> f64 {
+    WHEELBASE_M / steering_deg.to_radians().tan().abs()
 }
 
 /// Whether the rover can reach a point `distance_m` away at `bearing_rad` on an arc no tighter
 /// than its full-lock turn: the arc through it, tangent to the heading, has a radius of
 /// `distance_m / (2 sin |bearing|)`.
 fn on_reachable_arc(bearing_rad: f64, distance_m: f64) -> bool {
-    let tightest_radius_m = WHEELBASE_M / MAX_STEER_DEG.to_radians().tan();
-    distance_m >= 2.0 * tightest_radius_m * bearing_rad.sin().abs()
+    distance_m >= 2.0 * turn_radius_m(MAX_STEER_DEG) * bearing_rad.sin().abs()
 }
 
 /// A rover under way turns toward a bearing up to this large on the move, degrees...
