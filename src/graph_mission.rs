@@ -109,13 +109,7 @@ impl Evaluator {
     }
 
     fn on_diagnostics(&mut self, diagnostics: &DiagnosticArray) {
-        let bridge_misses = diagnostics
-            .status
-            .iter()
-            .flat_map(|status| &status.values)
-            .find(|value| value.key == BRIDGE_DEADLINE_MISSES)
-            .and_then(|value| value.value.parse().ok());
-        if let Some(misses) = bridge_misses {
+        if let Some(misses) = diagnostics.value(BRIDGE_DEADLINE_MISSES).and_then(|value| value.parse().ok()) {
             self.progress.deadline_misses = misses;
         }
     }

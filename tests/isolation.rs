@@ -75,7 +75,7 @@ impl DomainView {
         let name = format!("{namespace}/bridge: simulator link");
         let all = self.diagnostics.all();
         let status = all.iter().rev().flat_map(|d| d.status.iter()).find(|s| s.name == name)?;
-        status.values.iter().find(|kv| kv.key == key)?.value.parse().ok()
+        status.value(key)?.parse().ok()
     }
 }
 

@@ -252,12 +252,11 @@ mod tests {
         assert!((49.0..=51.0).contains(&latency.p50_ms), "{latency:?}");
         assert!(latency.p99_ms >= 99.0, "{latency:?}");
         let diagnostics = stats.diagnostics("/bridge", Header::default());
-        let values = &diagnostics.status[0].values;
-        let value = |key: &str| values.iter().find(|kv| kv.key == key).map(|kv| kv.value.clone());
-        assert_eq!(value("frames").as_deref(), Some("100"));
-        assert_eq!(value("deadline_misses").as_deref(), Some("1"));
-        assert_eq!(value("problem_not_a_number").as_deref(), Some("2"));
-        assert_eq!(value("link_up").as_deref(), Some("true"));
+        let status = &diagnostics.status[0];
+        assert_eq!(status.value("frames"), Some("100"));
+        assert_eq!(status.value("deadline_misses"), Some("1"));
+        assert_eq!(status.value("problem_not_a_number"), Some("2"));
+        assert_eq!(status.value("link_up"), Some("true"));
         let summary = stats.summary();
         assert!(summary.starts_with("100 frames; replies: 100 fresh, 1 held"), "{summary}");
         assert!(summary.contains("1 deadline misses") && summary.contains("\"not_a_number\": 2"), "{summary}");

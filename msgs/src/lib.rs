@@ -207,6 +207,18 @@ pub mod diagnostic_msgs {
         pub const ERROR: u8 = 2;
         /// Level: no recent data.
         pub const STALE: u8 = 3;
+
+        /// The value of `key`, if this status has one.
+        pub fn value(&self, key: &str) -> Option<&str> {
+            self.values.iter().find(|kv| kv.key == key).map(|kv| kv.value.as_str())
+        }
+    }
+
+    impl DiagnosticArray {
+        /// The value of `key` in the first status that has one.
+        pub fn value(&self, key: &str) -> Option<&str> {
+            self.status.iter().find_map(|status| status.value(key))
+        }
     }
 }
 

@@ -65,3 +65,19 @@ fn yaw_quaternion_is_a_unit_rotation_about_z() {
     assert!((q.w - std::f64::consts::FRAC_1_SQRT_2).abs() < 1e-12);
     assert_eq!((q.x, q.y), (0.0, 0.0));
 }
+
+#[test]
+fn diagnostic_values_are_found_by_key_in_the_first_status_that_has_them() {
+    use crate::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
+    let status = |name: &str, pairs: &[(&str, &str)]| DiagnosticStatus {
+        name: name.into(),
+        values: pairs.iter().map(|&(key, value)| KeyValue { key: key.into(), value: value.into() }).collect(),
+        ..DiagnosticStatus::default()
+    };
+    let array = DiagnosticArray {
+        status: vec![status("a", &[("frames", "3")]), status("b", &[("frames", "4"), ("late", "1")])],
+        ..DiagnosticArray::default()
+    };
+    assert_eq!((array.value("frames"), array.value("late"), array.value("none")), (Some("3"), Some("1"), None));
+    assert_eq!(array.status[1].value("frames"), Some("4"));
+}

@@ -182,7 +182,7 @@ impl<M: rover_msgs::RosMessage> Latest<M> {
 
 /// The value of `key` in the last `/diagnostics` message, if any.
 pub fn diagnostic_value(latest: &Latest<rover_msgs::diagnostic_msgs::DiagnosticArray>, key: &str) -> Option<String> {
-    latest.last()?.status.iter().flat_map(|s| s.values.iter()).find(|kv| kv.key == key).map(|kv| kv.value.clone())
+    latest.last()?.value(key).map(str::to_string)
 }
 
 /// A Python interpreter that can import `modules` (the project's `.venv` under `tools/test-all`).
