@@ -13,8 +13,6 @@ use std::time::{Duration, Instant};
 
 use support::{Domain, Process, eventually, ros2_cli, rover};
 
-const NODES: [&str; 5] = ["/bridge", "/perception", "/mapping", "/decision", "/pickup"];
-
 /// Every topic of the graph with its type, as `ros2 topic list -t` prints it.
 const TOPICS: [&str; 18] = [
     "/camera/image_raw/compressed [sensor_msgs/msg/CompressedImage]",
@@ -108,7 +106,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
     let mut nodes = String::new();
     let listed = eventually(Duration::from_secs(30), || {
         nodes = ros2(&domain, Duration::from_secs(15), &["node", "list"]).1;
-        NODES.iter().all(|node| nodes.lines().any(|line| line.trim() == *node))
+        rover::graph::NODES.iter().all(|node| nodes.lines().any(|line| line.trim() == format!("/{node}")))
     });
     assert!(listed, "`ros2 node list` lacks nodes:\n{nodes}\ngraph log:\n{}", graph.log_text());
     eprintln!(
