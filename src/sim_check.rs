@@ -299,6 +299,7 @@ pub fn check_world(
     let mut renderer = Renderer::new(world, CameraModel::rover(), options);
     let (mut real_view, _) = perception.pipeline()?;
     let (mut sim_view, _) = perception.pipeline()?;
+    let (width, height) = (real_view.calibration().width, real_view.calibration().height);
     if let Some(dir) = images {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
@@ -307,11 +308,12 @@ pub fn check_world(
     let mut bands = BandTally::new();
     let mut checks = Vec::with_capacity(frames.len());
     for (index, frame) in frames.iter().enumerate() {
-        let real = rover_imaging::decode_jpeg(&frame.jpeg()?).with_context(|| frame.image.display().to_string())?;
+        let real = rover_imaging::decode_jpeg(&frame.jpeg()?, width, height)
+            .with_context(|| frame.image.display().to_string())?;
         let pose = body_pose(frame, world.ground_height(frame.x_m, frame.y_m) as f64);
         renderer.render(world, &[], &pose, &mut rendered);
         rover_imaging::encode_jpeg_into(&rendered, UNITY_JPEG_QUALITY, &mut jpeg)?;
-        let simulated = rover_imaging::decode_jpeg(&jpeg)?;
+        let simulated = rover_imaging::decode_jpeg(&jpeg, rendered.width, rendered.height)?;
         bands.add(renderer.hits(), &real, &simulated, &thresholds);
         let real_classes = real_view.process_rgb(&real)?.to_vec();
         let sim_classes = sim_view.process_rgb(&simulated)?;

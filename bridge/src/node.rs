@@ -114,7 +114,7 @@ impl DdsSink {
     }
 
     fn publish_raw(&self, publisher: &Publisher<Image>, jpeg: &[u8], header: Header) {
-        match rover_imaging::decode_jpeg(jpeg) {
+        match rover_imaging::decode_jpeg(jpeg, self.camera.width as usize, self.camera.height as usize) {
             Ok(image) => log_publish("camera/image_raw", publisher.publish(rgb8_message(image, header))),
             Err(e) => tracing::warn!("camera/image_raw not published: {e}"),
         }

@@ -72,48 +72,67 @@ pub enum ImageError {
 /// JPEG quality of Unity's `Texture2D.EncodeToJPG()` default.
 pub const UNITY_JPEG_QUALITY: u8 = 75;
 
+/// The start-of-image marker every JPEG begins with.
+const START_OF_IMAGE: [u8; 2] = [0xFF, 0xD8];
+/// The end-of-image marker every complete JPEG ends with.
+const END_OF_IMAGE: [u8; 2] = [0xFF, 0xD9];
+
 /// Checks the JPEG markers and header and returns the image size, without decoding the pixels.
 pub fn jpeg_dimensions(jpeg: &[u8]) -> Result<(usize, usize), ImageError> {
-    if !jpeg.starts_with(&[0xFF, 0xD8]) {
-        return Err(ImageError::NotJpeg(jpeg.len()));
-    }
-    if !jpeg.ends_with(&[0xFF, 0xD9]) {
+    if jpeg.starts_with(&START_OF_IMAGE) && !jpeg.ends_with(&END_OF_IMAGE) {
         return Err(ImageError::Truncated);
     }
-    let mut decoder = JpegDecoder::new(ZCursor::new(jpeg));
-    decoder.decode_headers().map_err(|e| ImageError::Corrupt(format!("{e:?}")))?;
-    decoder.dimensions().ok_or_else(|| ImageError::Corrupt("no frame header".into()))
+    read_header(jpeg, DecoderOptions::default()).map(|(_, size)| size)
 }
 
 /// Checks that the JPEG header describes a `width` x `height` image.
 pub fn check_jpeg(jpeg: &[u8], width: usize, height: usize) -> Result<(), ImageError> {
-    let (w, h) = jpeg_dimensions(jpeg)?;
-    if (w, h) != (width, height) {
-        return Err(ImageError::WrongSize { width: w, height: h, expected_width: width, expected_height: height });
-    }
-    Ok(())
+    expect_size(jpeg_dimensions(jpeg)?, (width, height))
 }
 
-/// Decodes a JPEG into `out` (reusing its buffer), as RGB.
-pub fn decode_jpeg_into(jpeg: &[u8], out: &mut RgbImage) -> Result<(), ImageError> {
-    if !jpeg.starts_with(&[0xFF, 0xD8]) {
-        return Err(ImageError::NotJpeg(jpeg.len()));
-    }
+/// Decodes a `width` x `height` JPEG into `out` (reusing its buffer), as RGB. The size in the
+/// header is checked before the pixel buffer is sized, so a small JPEG that claims a huge image
+/// costs no memory.
+pub fn decode_jpeg_into(jpeg: &[u8], width: usize, height: usize, out: &mut RgbImage) -> Result<(), ImageError> {
     let options = DecoderOptions::default().jpeg_set_out_colorspace(ColorSpace::RGB).set_strict_mode(true);
-    let mut decoder = JpegDecoder::new_with_options(ZCursor::new(jpeg), options);
-    decoder.decode_headers().map_err(|e| ImageError::Corrupt(format!("{e:?}")))?;
-    let (width, height) = decoder.dimensions().ok_or_else(|| ImageError::Corrupt("no frame header".into()))?;
+    let (mut decoder, size) = read_header(jpeg, options)?;
+    expect_size(size, (width, height))?;
     out.width = width;
     out.height = height;
     out.data.resize(width * height * 3, 0);
     decoder.decode_into(&mut out.data).map_err(|e| ImageError::Corrupt(format!("{e:?}")))
 }
 
-/// Decodes a JPEG into a new RGB image.
-pub fn decode_jpeg(jpeg: &[u8]) -> Result<RgbImage, ImageError> {
+/// Decodes a `width` x `height` JPEG into a new RGB image.
+pub fn decode_jpeg(jpeg: &[u8], width: usize, height: usize) -> Result<RgbImage, ImageError> {
     let mut image = RgbImage::default();
-    decode_jpeg_into(jpeg, &mut image)?;
+    decode_jpeg_into(jpeg, width, height, &mut image)?;
     Ok(image)
+}
+
+/// A JPEG decoder reading from a byte slice.
+type HeaderDecoder<'a> = JpegDecoder<ZCursor<&'a [u8]>>;
+
+/// A decoder past the JPEG's headers, and the image size they give. The decoder's own size
+/// limits are lifted to the format's 16-bit maximum, so that [`expect_size`] names any size.
+fn read_header(jpeg: &[u8], options: DecoderOptions) -> Result<(HeaderDecoder<'_>, (usize, usize)), ImageError> {
+    if !jpeg.starts_with(&START_OF_IMAGE) {
+        return Err(ImageError::NotJpeg(jpeg.len()));
+    }
+    let options = options.set_max_width(usize::from(u16::MAX)).set_max_height(usize::from(u16::MAX));
+    let mut decoder = JpegDecoder::new_with_options(ZCursor::new(jpeg), options);
+    decoder.decode_headers().map_err(|e| ImageError::Corrupt(format!("{e:?}")))?;
+    let size = decoder.dimensions().ok_or_else(|| ImageError::Corrupt("no frame header".into()))?;
+    Ok((decoder, size))
+}
+
+/// Checks an image size (width, height) against the expected one.
+fn expect_size(size: (usize, usize), expected: (usize, usize)) -> Result<(), ImageError> {
+    if size != expected {
+        let ((width, height), (expected_width, expected_height)) = (size, expected);
+        return Err(ImageError::WrongSize { width, height, expected_width, expected_height });
+    }
+    Ok(())
 }
 
 /// Encodes RGB as a baseline JFIF JPEG with 4:2:0 chroma subsampling at `quality`.
@@ -186,7 +205,7 @@ mod tests {
         let jpeg = encode_jpeg(&image, UNITY_JPEG_QUALITY).unwrap();
         assert!(jpeg.starts_with(&[0xFF, 0xD8, 0xFF, 0xE0]), "JFIF APP0 first");
         assert_eq!(jpeg_dimensions(&jpeg).unwrap(), (320, 160));
-        let decoded = decode_jpeg(&jpeg).unwrap();
+        let decoded = decode_jpeg(&jpeg, 320, 160).unwrap();
         assert_eq!((decoded.width, decoded.height), (320, 160));
         let max_error = image.data.iter().zip(&decoded.data).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
         assert!(max_error < 16, "max error {max_error}");
@@ -201,7 +220,16 @@ mod tests {
         let mut garbage = jpeg.clone();
         let len = garbage.len();
         garbage[20..len - 2].fill(0xFF);
-        assert!(decode_jpeg(&garbage).is_err());
+        assert!(decode_jpeg(&garbage, 64, 32).is_err());
+    }
+
+    #[test]
+    fn a_jpeg_of_the_wrong_size_is_rejected_before_its_buffer_is_sized() {
+        let jpeg = encode_jpeg(&gradient(64, 32), 75).unwrap();
+        let mut out = RgbImage::default();
+        let error = decode_jpeg_into(&jpeg, 320, 160, &mut out).unwrap_err();
+        assert_eq!(error.to_string(), "image is 64x32, expected 320x160");
+        assert_eq!((out.width, out.height, out.data.capacity()), (0, 0, 0));
     }
 
     #[test]

@@ -130,13 +130,11 @@ impl Perception {
         &self.classes
     }
 
-    /// Decodes a camera JPEG and classifies it.
+    /// Decodes a camera JPEG of the calibration's size and classifies it; a JPEG of another size
+    /// is rejected from its header.
     pub fn process_jpeg(&mut self, jpeg: &[u8]) -> Result<&[Class], PerceptionError> {
-        let mut image = std::mem::take(&mut self.image);
-        let decoded = rover_imaging::decode_jpeg_into(jpeg, &mut image);
-        self.image = image;
-        decoded?;
-        self.check_size()?;
+        let (width, height) = (self.calibration.width, self.calibration.height);
+        rover_imaging::decode_jpeg_into(jpeg, width, height, &mut self.image)?;
         self.source.fill(&self.image.data, self.image.width, self.image.height);
         self.classify();
         Ok(&self.classes)
@@ -150,13 +148,6 @@ impl Perception {
         self.source.fill(&image.data, image.width, image.height);
         self.classify();
         Ok(&self.classes)
-    }
-
-    fn check_size(&self) -> Result<(), PerceptionError> {
-        if (self.image.width, self.image.height) != (self.calibration.width, self.calibration.height) {
-            return Err(self.wrong_size(self.image.width, self.image.height));
-        }
-        Ok(())
     }
 
     fn wrong_size(&self, width: usize, height: usize) -> PerceptionError {

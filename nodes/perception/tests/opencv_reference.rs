@@ -20,7 +20,8 @@ fn frames() -> Vec<RgbImage> {
     let mut files: Vec<PathBuf> =
         std::fs::read_dir(dataset()).expect("test_dataset/IMG").map(|e| e.unwrap().path()).collect();
     files.sort();
-    files.iter().map(|f| rover_imaging::decode_jpeg(&std::fs::read(f).unwrap()).unwrap()).collect()
+    let Calibration { width, height, .. } = Calibration::default();
+    files.iter().map(|f| rover_imaging::decode_jpeg(&std::fs::read(f).unwrap(), width, height).unwrap()).collect()
 }
 
 fn points(p: &[[f32; 2]; 4]) -> Vector<Point2f> {
