@@ -1,6 +1,7 @@
 //! Rust types for the ROS 2 messages of the rover graph.
 //!
 //! [`msg`] holds the `rover_msgs` interfaces, generated at build time from `msg/*.msg`.
+//! [`validate`] checks the fields of received messages before a node uses them.
 //! The other modules mirror the standard messages the graph uses, field for field in wire order;
 //! a test checks each of them against the `.msg` files of an installed ROS 2 distribution.
 //! Every type implements [`RosMessage`] (its DDS type name and field list) and
@@ -8,6 +9,7 @@
 
 pub mod idl;
 pub mod tally;
+pub mod validate;
 #[macro_use]
 mod macros;
 mod fixed_array;

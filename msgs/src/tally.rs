@@ -18,7 +18,7 @@ impl SampleTally {
     pub fn update(&mut self, samples_remaining: u8) -> u32 {
         let picked = self.last_remaining.map_or(0, |last| u32::from(last.saturating_sub(samples_remaining)));
         self.last_remaining = Some(samples_remaining);
-        self.collected += picked;
+        self.collected = self.collected.saturating_add(picked);
         picked
     }
 
@@ -41,5 +41,13 @@ mod tests {
         assert_eq!(tally.update(6), 0, "a restarted simulator does not count");
         assert_eq!(tally.update(3), 3);
         assert_eq!(tally.collected(), 5);
+    }
+
+    #[test]
+    fn a_count_taken_over_from_a_message_cannot_overflow() {
+        let mut tally = SampleTally::starting_at(u32::MAX);
+        tally.update(2);
+        tally.update(1);
+        assert_eq!(tally.collected(), u32::MAX);
     }
 }

@@ -1,5 +1,6 @@
 //! The shared node runtime of the rover graph: ROS arguments, names and remaps, typed parameters,
-//! QoS profiles, the topic table, logging to the console and `/rosout`, and shutdown.
+//! QoS profiles, the topic table, logging to the console and `/rosout`, the count of rejected
+//! inputs, and shutdown.
 //!
 //! A node binary creates a [`Runtime`] once per process, asks it for a [`RosNode`] with its
 //! parameter struct, and wires the node's [`topics`] to a plain library.
@@ -10,12 +11,14 @@ mod node;
 pub mod pairing;
 pub mod params;
 pub mod qos;
+pub mod rejections;
 pub mod ros_args;
 pub mod shutdown;
 pub mod topics;
 
 pub use node::{Params, RosNode, Runtime, domain_id_from_env, messages, resolve_params, spawn_subscriber};
 pub use params::NodeParams;
+pub use rejections::Rejections;
 pub use ros_args::{RosArgs, split_ros_args};
 pub use ros2_client::{Publisher, Subscription};
 pub use shutdown::Shutdown;

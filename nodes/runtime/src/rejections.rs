@@ -1,0 +1,81 @@
+//! Inputs a node cannot use: counted by kind (usually the topic) and logged as warnings, the 1st,
+//! 2nd, 4th, 8th... of each kind, so that a stream of bad messages cannot flood the log.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use rover_msgs::validate::Validate;
+
+/// Counts of rejected inputs by kind.
+#[derive(Debug, Default, Clone, PartialEq, Eq)]
+pub struct Rejections {
+    counts: BTreeMap<&'static str, u64>,
+}
+
+impl Rejections {
+    /// Whether `message`, received on `topic`, passes its checks; one that does not is counted
+    /// under the topic's name and logged with the field and value that failed.
+    pub fn accept<M: Validate>(&mut self, topic: &'static str, message: &M) -> bool {
+        match message.validate() {
+            Ok(()) => true,
+            Err(invalid) => {
+                self.reject(topic, &format_args!("rejected a {topic} message: {invalid}"));
+                false
+            }
+        }
+    }
+
+    /// Counts one rejection of `kind` and logs `problem` when it is the 1st, 2nd, 4th... of its kind.
+    pub fn reject(&mut self, kind: &'static str, problem: &dyn fmt::Display) {
+        let count = self.counts.entry(kind).or_default();
+        *count += 1;
+        if worth_logging(*count) {
+            tracing::warn!("{problem} ({count} such so far)");
+        }
+    }
+
+    /// Rejections of `kind` so far.
+    pub fn count(&self, kind: &str) -> u64 {
+        self.counts.get(kind).copied().unwrap_or_default()
+    }
+}
+
+impl fmt::Display for Rejections {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.counts.is_empty() {
+            return f.write_str("none");
+        }
+        let counts: Vec<String> = self.counts.iter().map(|(kind, count)| format!("{count} {kind}")).collect();
+        f.write_str(&counts.join(", "))
+    }
+}
+
+/// Whether the `count`-th occurrence of a repeated problem is worth a log line: the 1st, 2nd,
+/// 4th, 8th... are.
+pub fn worth_logging(count: u64) -> bool {
+    count.is_power_of_two()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rover_msgs::msg::TerrainScan;
+
+    #[test]
+    fn invalid_messages_are_counted_by_topic() {
+        let mut rejections = Rejections::default();
+        let valid = TerrainScan { resolution_m: 0.1, ..TerrainScan::default() };
+        assert!(rejections.accept("rover/terrain", &valid));
+        assert!(!rejections.accept("rover/terrain", &TerrainScan::default()));
+        rejections.reject("out_of_order", &"scan of frame 3 arrived after frame 4");
+        assert_eq!(rejections.count("rover/terrain"), 1);
+        assert_eq!(rejections.to_string(), "1 out_of_order, 1 rover/terrain");
+        assert_eq!(Rejections::default().to_string(), "none");
+    }
+
+    #[test]
+    fn repeated_problems_are_logged_ever_more_rarely() {
+        let logged: Vec<u64> = (1..=100).filter(|&count| worth_logging(count)).collect();
+        assert_eq!(logged, vec![1, 2, 4, 8, 16, 32, 64]);
+    }
+}
