@@ -12,12 +12,14 @@ pub mod params;
 pub mod plan;
 
 use rover_msgs::msg::{Telemetry, TerrainScan};
+use rover_node::{Rejections, topics};
 
 use crate::local::FreeSpaceRays;
 use crate::machine::{Observation, Sighting};
 use crate::plan::Position;
 
-/// The observation of one frame: the telemetry and the terrain scan of its camera image.
+/// The observation of one frame: the telemetry and the terrain scan of its camera image, both of
+/// which must have passed their checks (see [`checked_observation`]).
 pub fn observation(telemetry: &Telemetry, scan: &TerrainScan, rays: &mut FreeSpaceRays) -> Observation {
     Observation {
         frame: telemetry.frame,
@@ -35,10 +37,72 @@ pub fn observation(telemetry: &Telemetry, scan: &TerrainScan, rays: &mut FreeSpa
     }
 }
 
-/// Whether every number of the telemetry is finite (a frame with NaN is not decided on).
-pub fn telemetry_is_finite(telemetry: &Telemetry) -> bool {
-    [telemetry.x_m, telemetry.y_m].iter().all(|v| v.is_finite())
-        && [telemetry.yaw_rad, telemetry.pitch_rad, telemetry.roll_rad, telemetry.speed_mps]
-            .iter()
-            .all(|v| v.is_finite())
+/// The observation of one frame received from DDS, if the telemetry and the scan pass their
+/// checks; one that does not is counted and logged in `rejections` (a scan with a zero cell size
+/// would otherwise lay its free-space rays forever).
+pub fn checked_observation(
+    telemetry: &Telemetry,
+    scan: &TerrainScan,
+    rays: &mut FreeSpaceRays,
+    rejections: &mut Rejections,
+) -> Option<Observation> {
+    let valid = rejections.accept(topics::TELEMETRY.name, telemetry) && rejections.accept(topics::TERRAIN.name, scan);
+    valid.then(|| observation(telemetry, scan, rays))
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use super::*;
+
+    /// A navigable scan 2 m deep and 2 m wide at 0.1 m, as perception sends them.
+    fn scan() -> TerrainScan {
+        let (rows, cols) = (20, 20);
+        let cells = vec![TerrainScan::NAVIGABLE; rows * cols];
+        TerrainScan {
+            resolution_m: 0.1,
+            origin_x_m: 0.3,
+            origin_y_m: -1.0,
+            rows: rows as u32,
+            cols: cols as u32,
+            cells,
+            ..TerrainScan::default()
+        }
+    }
+
+    /// `checked_observation` on another thread; `None` if it takes longer than a second.
+    fn observe_within_a_second(scan: TerrainScan) -> Option<(Option<Observation>, Rejections)> {
+        let (sender, receiver) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut rejections = Rejections::default();
+            let mut rays = FreeSpaceRays::for_decision(0.6);
+            let observed = checked_observation(&Telemetry::default(), &scan, &mut rays, &mut rejections);
+            let _ = sender.send((observed, rejections));
+        });
+        receiver.recv_timeout(Duration::from_secs(1)).ok()
+    }
+
+    #[test]
+    fn a_valid_scan_is_observed() {
+        let (observed, rejections) = observe_within_a_second(scan()).expect("observed within a second");
+        assert!(observed.is_some_and(|o| o.free.toward(0.0) > 1.0));
+        assert_eq!(rejections.count(topics::TERRAIN.name), 0);
+    }
+
+    #[test]
+    fn a_zero_resolution_scan_is_rejected_promptly() {
+        let zero = TerrainScan { resolution_m: 0.0, ..scan() };
+        let (observed, rejections) = observe_within_a_second(zero).expect("rejected within a second, no endless rays");
+        assert!(observed.is_none());
+        assert_eq!(rejections.count(topics::TERRAIN.name), 1);
+    }
+
+    #[test]
+    fn a_scan_whose_cell_numbers_overflow_32_bits_is_rejected() {
+        let absurd = TerrainScan { rows: 61, cols: 1 << 27, ..scan() };
+        let (observed, rejections) = observe_within_a_second(absurd).expect("rejected within a second, no panic");
+        assert!(observed.is_none());
+        assert_eq!(rejections.count(topics::TERRAIN.name), 1);
+    }
 }

@@ -25,7 +25,7 @@ impl Geometry {
     }
 
     /// The scan cell containing rover-frame point (x, y): `Ok(None)` before the first row (under
-    /// the rover, assumed free), `Err(())` outside the scan.
+    /// the rover, assumed free), `Err(())` outside the scan or beyond 32-bit cell numbers.
     fn cell(&self, x: f64, y: f64) -> Result<Option<u32>, ()> {
         let res = self.resolution_m as f64;
         let row = ((x - self.origin_x_m as f64) / res).floor();
@@ -36,7 +36,8 @@ impl Geometry {
         if row >= self.rows as f64 || col < 0.0 || col >= self.cols as f64 {
             return Err(());
         }
-        Ok(Some(row as u32 * self.cols + col as u32))
+        let index = u64::from(row as u32) * u64::from(self.cols) + col as u64;
+        u32::try_from(index).map(Some).map_err(|_| ())
     }
 }
 

@@ -7,27 +7,20 @@ use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, Telemetry, TerrainS
 use rover_msgs::nav_msgs::OccupancyGrid;
 use rover_msgs::std_msgs::Header;
 use rover_node::pairing::Pairer;
-use rover_node::{Publisher, Runtime, messages, topics};
+use rover_node::{Publisher, Rejections, Runtime, messages, topics};
 use tracing::Instrument as _;
 
+use crate::checked_observation;
 use crate::drive::Drive;
-use crate::grid::Grid;
+use crate::grid::{Grid, SIDE};
 use crate::local::FreeSpaceRays;
 use crate::machine::{Machine, Memory};
 use crate::params::DecisionParams;
-use crate::{observation, telemetry_is_finite};
 
 /// How many unmatched telemetry messages or scans are kept while waiting for a partner.
 const PAIRING_BACKLOG: usize = 16;
 /// The mode is published at least every this many frames, even when it does not change.
 const STATUS_EVERY_FRAMES: u64 = 25;
-
-/// Counts of inputs the node could not use.
-#[derive(Debug, Default)]
-struct Rejections {
-    non_finite_telemetry: u64,
-    bad_map: u64,
-}
 
 struct Decision {
     machine: Machine,
@@ -42,14 +35,13 @@ struct Decision {
 
 impl Decision {
     fn decide(&mut self, telemetry: &Telemetry, scan: &TerrainScan) {
-        self.first_frame.get_or_insert(telemetry.frame);
-        let drive = if telemetry_is_finite(telemetry) {
-            self.frames += 1;
-            self.machine.step(&observation(telemetry, scan, &mut self.rays))
-        } else {
-            self.rejections.non_finite_telemetry += 1;
-            tracing::warn!(frame = telemetry.frame, "telemetry has a non-finite number: braking for this frame");
-            Drive::stop(DecisionParams::default().brake)
+        let drive = match checked_observation(telemetry, scan, &mut self.rays, &mut self.rejections) {
+            Some(observation) => {
+                self.first_frame.get_or_insert(telemetry.frame);
+                self.frames += 1;
+                self.machine.step(&observation)
+            }
+            None => Drive::stop(DecisionParams::default().brake),
         };
         let command = DriveCommand {
             header: Header { frame_id: "base_link".to_string(), ..telemetry.header.clone() },
@@ -87,17 +79,25 @@ impl Decision {
     }
 
     fn set_map(&mut self, map: &OccupancyGrid) {
-        match Grid::from_occupancy(&map.data) {
+        if !self.rejections.accept(topics::MAP.name, map) {
+            return;
+        }
+        let info = &map.info;
+        match Grid::from_occupancy(&map.data).filter(|_| is_the_planning_grid(map)) {
             Some(grid) => self.machine.set_map(grid),
-            None => {
-                self.rejections.bad_map += 1;
-                tracing::warn!(
-                    "ignored a map of {}x{} cells with {} values: expected 200x200",
-                    map.info.width,
-                    map.info.height,
-                    map.data.len()
-                );
-            }
+            None => self.rejections.reject(
+                topics::MAP.name,
+                &format_args!(
+                    "ignored a map of {}x{} cells of {} m: expected {SIDE}x{SIDE} cells of 1 m",
+                    info.width, info.height, info.resolution
+                ),
+            ),
+        }
+    }
+
+    fn set_rocks(&mut self, rocks: &PoseArray) {
+        if self.rejections.accept(topics::ROCKS.name, rocks) {
+            self.machine.set_rocks(rocks.poses.iter().map(|pose| (pose.position.x, pose.position.y)).collect());
         }
     }
 
@@ -105,7 +105,7 @@ impl Decision {
     /// before this node's first frame: the mission was already under way (this node was restarted).
     fn resume_from(&mut self, stats: &MapStats) {
         let earlier = stats.home_frame > 0 && self.first_frame.is_none_or(|first| stats.home_frame < first);
-        if self.resumed || !earlier || !stats.home_x_m.is_finite() || !stats.home_y_m.is_finite() {
+        if !self.rejections.accept(topics::MAP_STATS.name, stats) || self.resumed || !earlier {
             return;
         }
         self.resumed = true;
@@ -155,7 +155,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
                 Some(t) = telemetry.next() => pairs.push_first(t.frame, t),
                 Some(scan) = scans.next() => pairs.push_second(scan.frame, scan),
                 Some(map) = maps.next() => { decision.set_map(&map); None }
-                Some(located) = rocks.next() => { decision.machine.set_rocks(rock_positions(&located)); None }
+                Some(located) = rocks.next() => { decision.set_rocks(&located); None }
                 Some(s) = stats.next() => { decision.resume_from(&s); None }
                 Ok(()) = changes.changed() => {
                     let updated = changes.borrow_and_update().clone();
@@ -168,7 +168,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             }
         }
         tracing::info!(
-            "decision: {} frames decided, {} unpaired, rejected {:?}, final mode {}",
+            "decision: {} frames decided, {} unpaired, rejected {}, final mode {}",
             decision.frames,
             pairs.dropped(),
             decision.rejections,
@@ -180,11 +180,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn rock_positions(rocks: &PoseArray) -> Vec<(f64, f64)> {
-    rocks
-        .poses
-        .iter()
-        .map(|pose| (pose.position.x, pose.position.y))
-        .filter(|(x, y)| x.is_finite() && y.is_finite())
-        .collect()
+/// Whether a map has the size and cell size of the grid the machine plans on.
+fn is_the_planning_grid(map: &OccupancyGrid) -> bool {
+    (map.info.width as usize, map.info.height as usize, map.info.resolution) == (SIDE, SIDE, 1.0)
 }

@@ -10,7 +10,7 @@ use rover_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
 use rover_msgs::sensor_msgs::Image;
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tally::SampleTally;
-use rover_node::{Publisher, Runtime, messages, topics};
+use rover_node::{Publisher, Rejections, Runtime, messages, topics};
 use tracing::Instrument as _;
 
 use crate::image::{InsetStats, map_inset};
@@ -22,15 +22,6 @@ use crate::score::{MAP_SIDE, ground_truth_from_png, samples_located};
 /// A frame number this far below the last one means the bridge restarted.
 const RESTART_GAP: u64 = 1000;
 
-/// Counts of rejected scans, by reason.
-#[derive(Debug, Default)]
-struct Rejections {
-    out_of_order: u64,
-    bad_pose: u64,
-    malformed: u64,
-    tilted: u64,
-}
-
 /// The mapping node's state: the map and what it knows about samples.
 struct Mapping {
     map: WorldMap,
@@ -41,6 +32,7 @@ struct Mapping {
     home: Option<(u64, f64, f64)>,
     last_frame: Option<u64>,
     rejections: Rejections,
+    tilted_frames: u64,
     started: Instant,
     frames: u64,
     unpublished_scans: u64,
@@ -64,6 +56,7 @@ impl Mapping {
             home: None,
             last_frame: None,
             rejections: Rejections::default(),
+            tilted_frames: 0,
             started: Instant::now(),
             frames: 0,
             unpublished_scans: 0,
@@ -72,49 +65,44 @@ impl Mapping {
 
     fn add_scan(&mut self, scan: &TerrainScan) {
         self.unpublished_scans += 1;
+        if !self.rejections.accept(topics::TERRAIN.name, scan) {
+            return;
+        }
         if let Some(last) = self.last_frame
             && scan.frame <= last
             && scan.frame + RESTART_GAP > last
         {
-            self.rejections.out_of_order += 1;
-            log_rejection(
-                self.rejections.out_of_order,
-                &format!("scan of frame {} arrived after frame {last}", scan.frame),
-            );
-            return;
-        }
-        let pose = Pose::of_scan(scan);
-        if !pose.is_finite() {
-            self.rejections.bad_pose += 1;
-            log_rejection(self.rejections.bad_pose, &format!("scan of frame {} has a non-finite pose", scan.frame));
+            let problem = format_args!("skipped a terrain scan: frame {} arrived after frame {last}", scan.frame);
+            self.rejections.reject("out_of_order", &problem);
             return;
         }
         self.last_frame = Some(scan.frame);
-        match self.map.update(&ScanGrid::of(scan), pose) {
+        match self.map.update(&ScanGrid::of(scan), Pose::of_scan(scan)) {
             Update::Used(_) => self.frames += 1,
-            Update::SkippedTilt => self.rejections.tilted += 1,
+            Update::SkippedTilt => self.tilted_frames += 1,
             Update::Malformed => {
-                self.rejections.malformed += 1;
-                log_rejection(
-                    self.rejections.malformed,
-                    &format!(
-                        "scan of frame {}: {} cells for {}x{}",
-                        scan.frame,
-                        scan.cells.len(),
-                        scan.rows,
-                        scan.cols
-                    ),
-                );
+                let problem =
+                    format_args!("skipped a terrain scan: {} cells for {}x{}", scan.cells.len(), scan.rows, scan.cols);
+                self.rejections.reject("malformed", &problem);
             }
         }
     }
 
     fn on_telemetry(&mut self, telemetry: &Telemetry) {
-        if telemetry.x_m.is_finite() && telemetry.y_m.is_finite() {
-            self.home.get_or_insert((telemetry.frame, telemetry.x_m, telemetry.y_m));
+        if !self.rejections.accept(topics::TELEMETRY.name, telemetry) {
+            return;
         }
+        self.home.get_or_insert((telemetry.frame, telemetry.x_m, telemetry.y_m));
         if self.tally.update(telemetry.samples_remaining) > 0 {
             self.map.forget_picked_rock(telemetry.x_m, telemetry.y_m, telemetry.yaw_rad as f64);
+        }
+    }
+
+    /// Keeps the first true sample positions received (for scoring the located rocks).
+    fn set_samples_truth(&mut self, samples: &PoseArray) {
+        if self.rejections.accept(topics::SAMPLE_TRUTH.name, samples) {
+            self.samples_truth
+                .get_or_insert_with(|| samples.poses.iter().map(|p| (p.position.x, p.position.y)).collect());
         }
     }
 
@@ -146,12 +134,6 @@ impl Mapping {
             home_y_m: self.home.map_or(f64::NAN, |h| h.2),
             samples_collected: self.tally.collected(),
         }
-    }
-}
-
-fn log_rejection(count: u64, problem: &str) {
-    if count.is_power_of_two() {
-        tracing::warn!("skipped a terrain scan: {problem} ({count} such so far)");
     }
 }
 
@@ -255,9 +237,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
                 }
             }
             Some(t) = telemetry.next() => mapping.on_telemetry(&t),
-            Some(samples) = truth.next() => {
-                mapping.samples_truth.get_or_insert_with(|| samples.poses.iter().map(|p| (p.position.x, p.position.y)).collect());
-            }
+            Some(samples) = truth.next() => mapping.set_samples_truth(&samples),
             () = tokio::time::sleep_until(flush_at.into()), if mapping.unpublished_scans > 0 => outputs.publish(&mut mapping),
             Ok(()) = changes.changed() => {
                 let updated = changes.borrow_and_update().clone();
@@ -267,7 +247,12 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         }
     }
     outputs.publish(&mut mapping);
-    tracing::info!("mapping: {} frames mapped, rejected {:?}", mapping.frames, mapping.rejections);
+    tracing::info!(
+        "mapping: {} frames mapped, {} skipped while tilted, rejected {}",
+        mapping.frames,
+        mapping.tilted_frames,
+        mapping.rejections
+    );
     }
     .instrument(span)
     .await;

@@ -44,11 +44,6 @@ impl Pose {
             roll_rad: scan.roll_rad as f64,
         }
     }
-
-    /// Whether every number is finite.
-    pub fn is_finite(&self) -> bool {
-        [self.x_m, self.y_m, self.yaw_rad, self.pitch_rad, self.roll_rad].iter().all(|v| v.is_finite())
-    }
 }
 
 /// Projects rover-frame ground points of one frame into the world.

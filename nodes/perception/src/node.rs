@@ -7,7 +7,7 @@ use rover_msgs::msg::{Telemetry, TerrainScan};
 use rover_msgs::sensor_msgs::{CompressedImage, Image};
 use rover_msgs::std_msgs::Header;
 use rover_node::pairing::Pairer;
-use rover_node::{Publisher, Runtime, messages, topics};
+use rover_node::{Publisher, Rejections, Runtime, messages, topics};
 
 use crate::classify::{RockRule, Thresholds};
 use crate::scan::{ScanGeometry, vision_image};
@@ -113,7 +113,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         vision: node.publisher(&topics::VISION)?,
         settings,
         frames: 0,
-        rejected: 0,
+        rejections: Rejections::default(),
     };
     let telemetry_subscription = node.subscription(&topics::TELEMETRY)?;
     let camera_subscription = node.subscription(&topics::CAMERA_COMPRESSED)?;
@@ -133,7 +133,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             worker.handle(image.header, &image.data, pose);
         }
     }
-    tracing::info!(parent: &span, "perception: {} frames, {} rejected, {} unpaired", worker.frames, worker.rejected, pairs.dropped());
+    tracing::info!(parent: &span, "perception: {} frames, rejected {}, {} unpaired", worker.frames, worker.rejections, pairs.dropped());
     Ok(())
 }
 
@@ -144,21 +144,17 @@ struct Worker {
     vision: Publisher<Image>,
     settings: PerceptionParams,
     frames: u64,
-    rejected: u64,
+    rejections: Rejections,
 }
 
 impl Worker {
     fn handle(&mut self, header: Header, jpeg: &[u8], pose: Telemetry) {
-        if ![pose.x_m, pose.y_m].iter().all(|v| v.is_finite())
-            || ![pose.yaw_rad, pose.pitch_rad, pose.roll_rad].iter().all(|v| v.is_finite())
-        {
-            self.rejected += 1;
-            tracing::warn!(frame = pose.frame, "telemetry pose is not finite: frame skipped");
+        if !self.rejections.accept(topics::TELEMETRY.name, &pose) {
             return;
         }
         if let Err(e) = self.perception.process_jpeg(jpeg) {
-            self.rejected += 1;
-            tracing::warn!(frame = pose.frame, "camera image rejected: {e}");
+            let problem = format_args!("rejected the camera image of frame {}: {e}", pose.frame);
+            self.rejections.reject(topics::CAMERA_COMPRESSED.name, &problem);
             return;
         }
         self.frames += 1;

@@ -3,7 +3,7 @@
 use futures::StreamExt;
 use rover_msgs::msg::{PickupRequest, Telemetry};
 use rover_msgs::std_msgs::Header;
-use rover_node::{Runtime, messages, topics};
+use rover_node::{Rejections, Runtime, messages, topics};
 use tracing::Instrument as _;
 
 use crate::{ArmInput, Pickup, PickupParams};
@@ -18,13 +18,14 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let mut changes = params.watch();
     let mut settings = params.get();
     let mut pickup = Pickup::default();
+    let mut rejections = Rejections::default();
     let shutdown = runtime.shutdown();
     async {
         loop {
             tokio::select! {
                 () = shutdown.wait() => break,
                 Some(t) = telemetry.next() => {
-                    if pickup.on_telemetry(&arm_input(&t), &settings) {
+                    if rejections.accept(topics::TELEMETRY.name, &t) && pickup.on_telemetry(&arm_input(&t), &settings) {
                         tracing::info!(frame = t.frame, "sample within reach and rover stopped: requesting a pickup");
                         let request = PickupRequest { header: Header { frame_id: "base_link".to_string(), ..t.header }, frame: t.frame };
                         if let Err(e) = requests.publish(request) {
@@ -35,7 +36,11 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
                 Ok(()) = changes.changed() => settings = changes.borrow_and_update().clone(),
             }
         }
-        tracing::info!("pickup: {} requests, {} samples collected", pickup.requests, pickup.collected());
+        tracing::info!(
+            "pickup: {} requests, {} samples collected, rejected {rejections}",
+            pickup.requests,
+            pickup.collected()
+        );
     }
     .instrument(span)
     .await;
@@ -45,7 +50,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
 fn arm_input(telemetry: &Telemetry) -> ArmInput {
     ArmInput {
         frame: telemetry.frame,
-        speed_mps: if telemetry.speed_mps.is_finite() { telemetry.speed_mps as f64 } else { f64::INFINITY },
+        speed_mps: telemetry.speed_mps as f64,
         near_sample: telemetry.near_sample,
         picking_up: telemetry.picking_up,
         samples_remaining: telemetry.samples_remaining,
