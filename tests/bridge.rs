@@ -6,6 +6,12 @@ mod support;
 use std::collections::HashSet;
 use std::time::{Duration, Instant};
 
+use ros2_client::dds::rustdds::DomainParticipant;
+use ros2_client::parameters::{Parameter, ParameterValue};
+use ros2_client::rcl_interfaces::{SetParametersRequest, SetParametersResponse};
+use ros2_client::{Client, Context, Name, NodeName, NodeOptions, ServiceMapping, ServiceTypeName};
+use rover_msgs::geometry_msgs::{Twist, Vector3};
+use rover_node::Publisher;
 use rover_sim::wire::client::{Connection, unity_url};
 use rover_sim::wire::packet::Inbound;
 use support::echo_sim::{EchoCheckingSimulator, SeenReply, recorded_frames, run_fake_unity, telemetry_json};
@@ -137,7 +143,7 @@ struct BadInputCase {
     diagnostics: Latest<rover_msgs::diagnostic_msgs::DiagnosticArray>,
     telemetry: Latest<rover_msgs::msg::Telemetry>,
     _runtime: rover_node::Runtime,
-    _node: rover_node::RosNode,
+    node: rover_node::RosNode,
 }
 
 impl BadInputCase {
@@ -149,7 +155,7 @@ impl BadInputCase {
         let (mut node, _) = runtime.node::<support::NoParams>("observer").unwrap();
         let diagnostics = Latest::subscribe(&mut node, &rover_node::topics::DIAGNOSTICS);
         let telemetry = Latest::subscribe(&mut node, &rover_node::topics::TELEMETRY);
-        BadInputCase { domain, bridge, diagnostics, telemetry, _runtime: runtime, _node: node }
+        BadInputCase { domain, bridge, diagnostics, telemetry, _runtime: runtime, node }
     }
 
     /// Checks the log line, the diagnostics counter, and that a valid frame still gets a reply.
@@ -328,19 +334,135 @@ async fn raw_images_insets_params_file_and_clean_shutdown() {
     let _ = std::fs::remove_file(params);
 }
 
-#[test]
-fn a_bad_parameter_stops_the_bridge_with_a_message_naming_it() {
+/// The standard error of a bridge started with `-p parameter`, which must stop it at once (one
+/// that runs is interrupted after 20 s).
+fn refused_at_start(parameter: &str) -> String {
     support::assert_isolated();
-    let output = std::process::Command::new(rover())
-        .args(["bridge", "--ros-args", "-p", "reply_deadline_ms:=soon"])
+    let output = std::process::Command::new("timeout")
+        .args(["--signal=INT", "--kill-after=5", "20"])
+        .arg(rover())
+        .args(["bridge", "--ros-args", "-p", parameter])
         .output()
         .expect("run rover bridge");
-    assert!(!output.status.success());
-    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "the bridge started with -p {parameter}");
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
+
+#[test]
+fn a_bad_parameter_stops_the_bridge_with_a_message_naming_it() {
+    let stderr = refused_at_start("reply_deadline_ms:=soon");
     assert!(
         stderr.contains(
             "parameter `reply_deadline_ms` (from -p reply_deadline_ms:=soon) expects a finite number, got \"soon\""
         ),
         "{stderr}"
     );
+}
+
+#[test]
+fn an_unsafe_brake_stops_the_bridge_at_start() {
+    let stderr = refused_at_start("brake:=0.0");
+    assert!(
+        stderr.contains("parameter `brake` (from -p brake:=0.0) = 0 is outside the allowed range [1, 100]"),
+        "{stderr}"
+    );
+}
+
+/// A client of the bridge's `set_parameters` service (rcl_interfaces), the one `ros2 param set` calls.
+struct ParameterClient {
+    _node: ros2_client::Node,
+    client: Client<SetParametersRequest, SetParametersResponse>,
+}
+
+impl ParameterClient {
+    async fn of_bridge(domain: &Domain) -> ParameterClient {
+        let participant = DomainParticipant::new(domain.id).expect("a DDS participant");
+        let context = Context::from_domain_participant(participant).expect("a ROS context");
+        let name = NodeName::new("/", "parameter_client").unwrap();
+        let mut node = context.new_node(name, NodeOptions::new()).expect("a node");
+        tokio::spawn(node.spinner().expect("a spinner").spin());
+        let service = Name::new("/bridge", "set_parameters").unwrap();
+        let service_type = ServiceTypeName::new("rcl_interfaces", "SetParameters");
+        let qos = rover_node::qos::reliable(1);
+        let client = node
+            .create_client(ServiceMapping::Enhanced, &service, &service_type, qos.clone(), qos)
+            .expect("a service client");
+        tokio::time::timeout(Duration::from_secs(20), client.wait_for_service(&node))
+            .await
+            .expect("the bridge's set_parameters service is discovered");
+        ParameterClient { _node: node, client }
+    }
+
+    /// Sets double parameter `name` to `value`: whether it was taken, and the reason if not.
+    async fn set_double(&self, name: &str, value: f64) -> (bool, String) {
+        let parameter = Parameter { name: name.to_string(), value: ParameterValue::Double(value) };
+        let request = SetParametersRequest { parameter: vec![parameter.into()] };
+        for _attempt in 0..5 {
+            let call = self.client.async_call_service(request.clone());
+            if let Ok(Ok(response)) = tokio::time::timeout(Duration::from_secs(2), call).await {
+                let result = response.results.into_iter().next().expect("one result per parameter");
+                return (result.successful, result.reason);
+            }
+        }
+        panic!("no answer from /bridge/set_parameters to {name} := {value}");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn the_parameter_service_refuses_unsafe_safety_parameters_with_a_reason() {
+    support::assert_isolated();
+    let domain = Domain::reserve();
+    let _bridge = start_bridge(&domain, &[]);
+    let parameters = ParameterClient::of_bridge(&domain).await;
+    for (name, value, range) in [
+        ("brake", 0.0, "[1, 100]"),
+        ("silence_limit_ms", 600000.0, "[250, 2000]"),
+        ("reply_deadline_ms", 1000.0, "[0, 250]"),
+        ("teleop_timeout_ms", 10000.0, "[0, 2000]"),
+    ] {
+        let (taken, reason) = parameters.set_double(name, value).await;
+        assert!(!taken, "{name} := {value} was taken");
+        assert!(reason.contains(&format!("is outside the allowed range {range}")), "{name} := {value}: {reason:?}");
+    }
+    let (taken, reason) = parameters.set_double("brake", 20.0).await;
+    assert!(taken, "a safe brake is taken: {reason:?}");
+}
+
+fn twist_forward(linear_mps: f64) -> Twist {
+    Twist { linear: Vector3 { x: linear_mps, ..Vector3::default() }, ..Twist::default() }
+}
+
+/// Publishes `twist` on cmd_vel and exchanges a telemetry frame, every 50 ms for up to 10 s, until
+/// a reply's `data` satisfies `wanted`; that reply's data.
+async fn reply_under_teleop(
+    client: &mut RawClient,
+    cmd_vel: &Publisher<Twist>,
+    twist: Twist,
+    wanted: impl Fn(&serde_json::Value) -> bool,
+) -> Option<serde_json::Value> {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while Instant::now() < deadline {
+        cmd_vel.publish(twist.clone()).expect("publish cmd_vel");
+        if let Some((_, Some(data))) = client.exchange(&valid_telemetry().to_string()).await
+            && wanted(&data)
+        {
+            return Some(data);
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    None
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_nan_cmd_vel_brakes_the_rover_instead_of_releasing_the_brake() {
+    let mut case = BadInputCase::start(&[]);
+    let cmd_vel = case.node.publisher(&rover_node::topics::CMD_VEL).unwrap();
+    let mut client = RawClient::connect(case.domain.port()).await;
+    let throttle = |data: &serde_json::Value| data["throttle"].as_str().and_then(|t| t.parse::<f64>().ok());
+    let driving = reply_under_teleop(&mut client, &cmd_vel, twist_forward(1.0), |d| throttle(d) > Some(0.0)).await;
+    assert!(driving.is_some(), "cmd_vel drives the rover (no decision node runs, so only teleop gives throttle)");
+    let nan = reply_under_teleop(&mut client, &cmd_vel, twist_forward(f64::NAN), |d| throttle(d) == Some(0.0)).await;
+    let nan = nan.expect("a NaN cmd_vel takes over from the forward one");
+    assert_eq!(nan["brake"].as_str(), Some("10"), "a NaN cmd_vel brakes: {nan}");
+    case.assert_handled("cmd_vel field `linear.x` = NaN", "problem_bad_teleop").await;
 }

@@ -8,6 +8,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use rover_msgs::geometry_msgs::Twist;
+use rover_msgs::validate::Validate as _;
+use rover_node::rejections::worth_logging;
 use tokio::sync::oneshot;
 
 use crate::reply::{CommandSource, DriveValues, LastCommand, Reply, ReplyPolicy};
@@ -255,8 +257,15 @@ impl<S: FrameSink> LockStep<S> {
         self.pickup_requested.store(true, Ordering::Relaxed);
     }
 
-    /// Handles a `cmd_vel` twist from a teleoperation tool.
+    /// Handles a `cmd_vel` twist from a teleoperation tool; one with a NaN or infinite component
+    /// brakes the rover while it is fresh.
     pub fn on_teleop(&self, twist: Twist) {
+        if let Err(invalid) = twist.validate() {
+            let count = self.stats.problem("bad_teleop");
+            if worth_logging(count) {
+                tracing::warn!("cmd_vel {invalid}: braking while it is fresh ({count} such so far)");
+            }
+        }
         *lock(&self.teleop) = Some((twist, Instant::now()));
     }
 }
@@ -370,5 +379,18 @@ mod tests {
         tokio::time::sleep(Duration::from_millis(250)).await;
         let reply = core.reply(core.receive(Some(&payload(false)))).await;
         assert!(matches!(reply, Reply::Data(_, CommandSource::SilenceBrake)), "{reply:?}");
+    }
+
+    #[tokio::test]
+    async fn a_nan_cmd_vel_brakes_the_standing_rover_too() {
+        let (core, _frames) = core();
+        let mut twist = Twist::default();
+        twist.angular.z = f64::NAN;
+        core.on_teleop(twist);
+        let mut standing = payload(false);
+        standing["speed"] = "0.0000".into();
+        let reply = core.reply(core.receive(Some(&standing))).await;
+        assert_eq!(reply, Reply::Data(DriveValues::brake(10.0), CommandSource::Teleop));
+        assert_eq!(core.stats().problem_count("bad_teleop"), 1);
     }
 }

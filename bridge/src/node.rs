@@ -30,12 +30,15 @@ rover_node::node_params! {
         host: String = "127.0.0.1",
         /// TCP port the Socket.IO server listens on (the Unity simulator always uses 4567).
         port: i64 [1, 65535] = 4567,
-        /// How long to wait for the drive command of a frame before answering with the last one, ms.
-        reply_deadline_ms: f64 [0.0, 10000.0] = 50.0,
-        /// After this long without any drive command the rover is told to brake, ms.
-        silence_limit_ms: f64 [0.0, 600000.0] = 1000.0,
-        /// Brake value sent when braking on silence or on a rejected frame.
-        brake: f64 [0.0, 100.0] = 10.0,
+        /// How long to wait for the drive command of a frame before answering with the last one, ms
+        /// (at most 250: the simulator drives on meanwhile, up to 1.25 m at its top speed).
+        reply_deadline_ms: f64 [0.0, 250.0] = 50.0,
+        /// After this long without any drive command the rover is told to brake, ms (at least the
+        /// longest reply deadline, at most 2000: 10 m driven blind at the top speed).
+        silence_limit_ms: f64 [250.0, 2000.0] = 1000.0,
+        /// Brake value sent when braking on silence, on a rejected frame or on a bad cmd_vel (at
+        /// least 1, which decelerates 3.6 m/s^2; 10 locks the wheels).
+        brake: f64 [1.0, 100.0] = 10.0,
         /// Largest accepted telemetry payload, bytes; larger frames are rejected with a brake.
         max_payload_bytes: i64 [1024, 16777216] = 1048576,
         /// Width of the simulator's camera image, pixels.
@@ -44,8 +47,9 @@ rover_node::node_params! {
         image_height: i64 [1, 4096] = 160,
         /// Also publish the decoded camera image on camera/image_raw (rgb8).
         publish_raw_image: bool = false,
-        /// How long a cmd_vel twist overrides the decision node, ms.
-        teleop_timeout_ms: f64 [0.0, 10000.0] = 500.0,
+        /// How long a cmd_vel twist overrides the decision node, ms (at most 2000: a teleop tool
+        /// that stops publishing drives the rover that long).
+        teleop_timeout_ms: f64 [0.0, 2000.0] = 500.0,
         /// Teleoperation throttle per m/s of speed error.
         teleop_throttle_per_mps: f64 [0.0, 10.0] = 0.5,
         /// Period of the /diagnostics message, ms.
@@ -260,4 +264,47 @@ fn subscribe_insets(
         }
     });
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use rover_node::NodeParams as _;
+    use rover_node::params::{self, ParameterValue};
+
+    use super::*;
+
+    fn spec(name: &str) -> params::ParamSpec {
+        BridgeParams::specs().into_iter().find(|spec| spec.name == name).expect("a bridge parameter")
+    }
+
+    /// Why the parameter services refuse `value` for bridge parameter `name`.
+    fn refusal(name: &str, value: f64) -> String {
+        params::check_value(&spec(name), &ParameterValue::Double(value)).expect_err("refused")
+    }
+
+    #[test]
+    fn unsafe_values_of_the_safety_parameters_are_refused_with_their_range() {
+        assert_eq!(refusal("brake", 0.0), "= 0 is outside the allowed range [1, 100]");
+        assert_eq!(refusal("silence_limit_ms", 600000.0), "= 600000 is outside the allowed range [250, 2000]");
+        assert_eq!(refusal("reply_deadline_ms", 1000.0), "= 1000 is outside the allowed range [0, 250]");
+        assert_eq!(refusal("teleop_timeout_ms", 10000.0), "= 10000 is outside the allowed range [0, 2000]");
+    }
+
+    #[test]
+    fn a_parameter_file_with_brake_0_is_refused_at_start() {
+        let yaml = "bridge:\n  ros__parameters:\n    brake: 0.0\n";
+        let assignments = params::assignments_from_yaml(yaml, "unsafe.yaml", "/bridge").unwrap();
+        let error = params::resolve_values("/bridge", &BridgeParams::specs(), &assignments).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "node `/bridge`: parameter `brake` (from unsafe.yaml) = 0 is outside the allowed range [1, 100]"
+        );
+    }
+
+    #[test]
+    fn no_reply_deadline_outlasts_the_silence_limit() {
+        let (_, longest_deadline_ms) = spec("reply_deadline_ms").range.unwrap();
+        let (shortest_silence_ms, _) = spec("silence_limit_ms").range.unwrap();
+        assert!(longest_deadline_ms <= shortest_silence_ms);
+    }
 }

@@ -85,9 +85,13 @@ impl BridgeStats {
         self.problem(&format!("disconnect_{reason}"));
     }
 
-    /// Counts a problem of kind `kind` (a rejected frame, a disconnect, a bad command...).
-    pub fn problem(&self, kind: &str) {
-        *self.problems.lock().unwrap_or_else(|e| e.into_inner()).entry(kind.to_string()).or_default() += 1;
+    /// Counts a problem of kind `kind` (a rejected frame, a disconnect, a bad command...); returns
+    /// how many of its kind there were so far.
+    pub fn problem(&self, kind: &str) -> u64 {
+        let mut problems = self.problems.lock().unwrap_or_else(|e| e.into_inner());
+        let count = problems.entry(kind.to_string()).or_default();
+        *count += 1;
+        *count
     }
 
     /// Counts a drive command that was rejected (NaN...).

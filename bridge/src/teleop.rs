@@ -1,6 +1,7 @@
 //! Teleoperation: a `cmd_vel` twist turned into the simulator's throttle, brake and steering.
 
 use rover_msgs::geometry_msgs::Twist;
+use rover_msgs::validate::Validate as _;
 
 use crate::reply::{DriveValues, MAX_STEERING_DEG};
 
@@ -20,25 +21,32 @@ pub struct TeleopGains {
     pub brake: f64,
 }
 
-/// Converts a twist (linear.x m/s, angular.z rad/s, REP-103) into drive values at the current speed.
+/// Converts a twist (linear.x m/s, angular.z rad/s, REP-103) into drive values at the current
+/// speed. A twist with a NaN or infinite component, or one whose values overflow, brakes with
+/// `gains.brake`.
 pub fn twist_to_drive(twist: &Twist, speed_mps: f64, gains: TeleopGains) -> DriveValues {
+    let braking = DriveValues::brake(gains.brake as f32);
+    if twist.validate().is_err() {
+        return braking;
+    }
+    let (throttle, brake, steering_deg) = drive_controls(twist, speed_mps, gains);
+    DriveValues::checked(throttle as f32, brake as f32, steering_deg as f32).unwrap_or(braking)
+}
+
+/// Throttle, brake and steering (degrees) that follow a finite twist.
+fn drive_controls(twist: &Twist, speed_mps: f64, gains: TeleopGains) -> (f64, f64, f64) {
     let target_mps = twist.linear.x;
     let yaw_rate_dps = twist.angular.z.to_degrees();
     let stopping = target_mps.abs() < 0.05;
     if stopping && speed_mps.abs() < TURN_IN_PLACE_BELOW_MPS {
-        let steering = (yaw_rate_dps / TURN_IN_PLACE_DEG_PER_S) * MAX_STEERING_DEG as f64;
-        return clamp(0.0, 0.0, steering);
+        return (0.0, 0.0, (yaw_rate_dps / TURN_IN_PLACE_DEG_PER_S) * MAX_STEERING_DEG as f64);
     }
     if stopping {
-        return clamp(0.0, gains.brake, 0.0);
+        return (0.0, gains.brake, 0.0);
     }
     let throttle = gains.throttle_per_mps * (target_mps - speed_mps);
     let steering = (twist.angular.z * WHEELBASE_M / target_mps.abs().max(0.1)).atan().to_degrees();
-    clamp(throttle, 0.0, steering)
-}
-
-fn clamp(throttle: f64, brake: f64, steering_deg: f64) -> DriveValues {
-    DriveValues::checked(throttle as f32, brake as f32, steering_deg as f32).unwrap_or(DriveValues::brake(brake as f32))
+    (throttle, 0.0, steering)
 }
 
 #[cfg(test)]
@@ -72,7 +80,17 @@ mod tests {
     }
 
     #[test]
-    fn nan_twists_brake() {
-        assert_eq!(twist_to_drive(&twist(f64::NAN, 0.0), 1.0, GAINS).throttle, 0.0);
+    fn nan_or_infinite_twists_brake_whether_moving_or_standing() {
+        for (linear, angular) in [(f64::NAN, 0.0), (0.0, f64::NAN), (f64::INFINITY, 0.0), (0.0, f64::NEG_INFINITY)] {
+            for speed_mps in [0.0, 2.0] {
+                let drive = twist_to_drive(&twist(linear, angular), speed_mps, GAINS);
+                assert_eq!(drive, DriveValues::brake(10.0), "twist ({linear}, {angular}) at {speed_mps} m/s");
+            }
+        }
+    }
+
+    #[test]
+    fn a_twist_that_overflows_the_throttle_brakes() {
+        assert_eq!(twist_to_drive(&twist(f64::MAX, 0.0), 2.0, GAINS), DriveValues::brake(10.0));
     }
 }
