@@ -131,6 +131,18 @@ impl RawClient {
         self.send_text(&format!("42[\"telemetry\",{telemetry_argument}]")).await;
         self.next_event().await
     }
+
+    /// Whether the bridge closes the connection within 3 s without sending an event.
+    async fn closed_without_an_event(&mut self) -> bool {
+        let deadline = tokio::time::Instant::now() + Duration::from_secs(3);
+        loop {
+            match tokio::time::timeout_at(deadline, self.connection.receive()).await {
+                Ok(None | Some(Inbound::Close)) => return true,
+                Ok(Some(Inbound::Event { .. })) | Err(_) => return false,
+                Ok(Some(_)) => continue,
+            }
+        }
+    }
 }
 
 fn valid_telemetry() -> serde_json::Value {
@@ -158,8 +170,9 @@ impl BadInputCase {
         BadInputCase { domain, bridge, diagnostics, telemetry, _runtime: runtime, node }
     }
 
-    /// Checks the log line, the diagnostics counter, and that a valid frame still gets a reply.
-    async fn assert_handled(&self, log_needle: &str, counter: &str) {
+    /// Checks the log line, the diagnostics counter, and that a valid frame from `client` (the one
+    /// simulator the bridge serves) still gets a reply.
+    async fn assert_handled(&self, client: &mut RawClient, log_needle: &str, counter: &str) {
         assert!(
             eventually(Duration::from_secs(5), || self.bridge.log_text().contains(log_needle)),
             "no log line containing {log_needle:?} in:\n{}",
@@ -171,7 +184,6 @@ impl BadInputCase {
             "/diagnostics has no {counter} >= 1; last: {:?}",
             self.diagnostics.last()
         );
-        let mut client = RawClient::connect(self.domain.port()).await;
         let reply = client.exchange(&valid_telemetry().to_string()).await;
         assert_eq!(reply.map(|r| r.0).as_deref(), Some("data"), "the loop goes on after the bad input");
     }
@@ -184,9 +196,15 @@ fn assert_brake(reply: Option<(String, Option<serde_json::Value>)>) {
     assert_eq!((data["throttle"].as_str(), data["brake"].as_str()), (Some("0"), Some("10")), "{data}");
 }
 
-async fn rejected_with_brake(case: &BadInputCase, argument: &str) {
-    let mut client = RawClient::connect(case.domain.port()).await;
+async fn rejected_with_brake(client: &mut RawClient, argument: &str) {
     assert_brake(client.exchange(argument).await);
+}
+
+/// One telemetry frame with `argument` gets a brake; then [`BadInputCase::assert_handled`].
+async fn rejected_and_handled(case: &BadInputCase, argument: &str, log_needle: &str, counter: &str) {
+    let mut client = RawClient::connect(case.domain.port()).await;
+    rejected_with_brake(&mut client, argument).await;
+    case.assert_handled(&mut client, log_needle, counter).await;
 }
 
 fn with_field(field: &str, value: serde_json::Value) -> String {
@@ -201,7 +219,7 @@ async fn invalid_json_is_rejected_with_a_brake() {
     let mut client = RawClient::connect(case.domain.port()).await;
     client.send_text("42[\"telemetry\",{\"speed\":\"1.0\",]").await;
     assert_brake(client.next_event().await);
-    case.assert_handled("unparseable Socket.IO packet", "problem_unparseable_packet").await;
+    case.assert_handled(&mut client, "unparseable Socket.IO packet", "problem_unparseable_packet").await;
 }
 
 #[tokio::test(flavor = "multi_thread")]
@@ -209,19 +227,24 @@ async fn missing_fields_are_rejected_with_a_brake() {
     let case = BadInputCase::start(&[]);
     let mut telemetry = valid_telemetry();
     telemetry.as_object_mut().unwrap().remove("yaw");
-    rejected_with_brake(&case, &telemetry.to_string()).await;
-    case.assert_handled("telemetry field `yaw` is missing", "problem_missing_field").await;
+    rejected_and_handled(&case, &telemetry.to_string(), "telemetry field `yaw` is missing", "problem_missing_field")
+        .await;
 }
 
 #[tokio::test(flavor = "multi_thread")]
 async fn non_numeric_and_nan_values_are_rejected_with_a_brake() {
     let case = BadInputCase::start(&[]);
-    rejected_with_brake(&case, &with_field("speed", "fast".into())).await;
-    rejected_with_brake(&case, &with_field("pitch", "nan".into())).await;
-    rejected_with_brake(&case, &with_field("throttle", serde_json::json!(0.5))).await;
-    case.assert_handled("telemetry field `speed` = \"fast\" is not a number", "problem_not_a_number").await;
-    case.assert_handled("telemetry field `pitch` = \"nan\" is not finite", "problem_not_finite").await;
-    case.assert_handled("telemetry field `throttle` is a number, expected a string", "problem_not_a_string").await;
+    let mut client = RawClient::connect(case.domain.port()).await;
+    rejected_with_brake(&mut client, &with_field("speed", "fast".into())).await;
+    rejected_with_brake(&mut client, &with_field("pitch", "nan".into())).await;
+    rejected_with_brake(&mut client, &with_field("throttle", serde_json::json!(0.5))).await;
+    for (log_needle, counter) in [
+        ("telemetry field `speed` = \"fast\" is not a number", "problem_not_a_number"),
+        ("telemetry field `pitch` = \"nan\" is not finite", "problem_not_finite"),
+        ("telemetry field `throttle` is a number, expected a string", "problem_not_a_string"),
+    ] {
+        case.assert_handled(&mut client, log_needle, counter).await;
+    }
 }
 
 #[tokio::test(flavor = "multi_thread")]
@@ -248,8 +271,8 @@ async fn comma_decimals_are_read_as_decimals() {
 #[tokio::test(flavor = "multi_thread")]
 async fn corrupt_base64_is_rejected_with_a_brake() {
     let case = BadInputCase::start(&[]);
-    rejected_with_brake(&case, &with_field("image", "/9j/4AAQ***not base64***".into())).await;
-    case.assert_handled("telemetry field `image` is not valid base64", "problem_bad_base64").await;
+    let argument = with_field("image", "/9j/4AAQ***not base64***".into());
+    rejected_and_handled(&case, &argument, "telemetry field `image` is not valid base64", "problem_bad_base64").await;
 }
 
 #[tokio::test(flavor = "multi_thread")]
@@ -259,15 +282,15 @@ async fn corrupt_jpeg_is_rejected_with_a_brake() {
     let mut jpeg = recorded_frames()[10].jpeg.clone();
     jpeg.truncate(jpeg.len() / 2);
     let image = base64::engine::general_purpose::STANDARD.encode(&jpeg);
-    rejected_with_brake(&case, &with_field("image", image.into())).await;
-    case.assert_handled("telemetry field `image`: truncated JPEG", "problem_bad_image").await;
+    let argument = with_field("image", image.into());
+    rejected_and_handled(&case, &argument, "telemetry field `image`: truncated JPEG", "problem_bad_image").await;
 }
 
 #[tokio::test(flavor = "multi_thread")]
 async fn a_payload_over_the_size_limit_is_rejected_with_a_brake() {
     let case = BadInputCase::start(&["max_payload_bytes:=65536"]);
-    rejected_with_brake(&case, &with_field("image", "A".repeat(100_000).into())).await;
-    case.assert_handled("exceeds the limit of 65536 bytes", "problem_too_large").await;
+    let argument = with_field("image", "A".repeat(100_000).into());
+    rejected_and_handled(&case, &argument, "exceeds the limit of 65536 bytes", "problem_too_large").await;
 }
 
 #[tokio::test(flavor = "multi_thread")]
@@ -276,7 +299,7 @@ async fn a_binary_frame_is_rejected_with_a_brake() {
     let mut client = RawClient::connect(case.domain.port()).await;
     client.connection.send_message(Message::binary(vec![0x04, 0xFF, 0x00, 0x42])).await.expect("send binary");
     assert_brake(client.next_event().await);
-    case.assert_handled("binary websocket message of 3 bytes", "problem_binary_message").await;
+    case.assert_handled(&mut client, "binary websocket message of 3 bytes", "problem_binary_message").await;
 }
 
 #[tokio::test(flavor = "multi_thread")]
@@ -285,7 +308,10 @@ async fn an_abrupt_disconnect_is_followed_by_a_working_reconnect() {
     let mut client = RawClient::connect(case.domain.port()).await;
     client.connection.send_text(&format!("42[\"telemetry\",{}]", valid_telemetry())).await.expect("send");
     drop(client);
-    case.assert_handled("simulator connection lost", "problem_disconnect_transport_error").await;
+    let lost = || case.bridge.log_text().contains("simulator connection lost");
+    assert!(eventually(Duration::from_secs(5), lost), "the bridge frees its simulator slot when the connection drops");
+    let mut reconnected = RawClient::connect(case.domain.port()).await;
+    case.assert_handled(&mut reconnected, "simulator connection lost", "problem_disconnect_transport_error").await;
 }
 
 #[tokio::test(flavor = "multi_thread")]
@@ -464,5 +490,45 @@ async fn a_nan_cmd_vel_brakes_the_rover_instead_of_releasing_the_brake() {
     let nan = reply_under_teleop(&mut client, &cmd_vel, twist_forward(f64::NAN), |d| throttle(d) == Some(0.0)).await;
     let nan = nan.expect("a NaN cmd_vel takes over from the forward one");
     assert_eq!(nan["brake"].as_str(), Some("10"), "a NaN cmd_vel brakes: {nan}");
-    case.assert_handled("cmd_vel field `linear.x` = NaN", "problem_bad_teleop").await;
+    case.assert_handled(&mut client, "cmd_vel field `linear.x` = NaN", "problem_bad_teleop").await;
+}
+
+/// A telemetry argument no recorded frame has: its speed marks the frames of one client.
+fn marked_telemetry(speed: &str) -> String {
+    with_field("speed", speed.into())
+}
+
+fn speed_seen(case: &BadInputCase, speed_mps: f32) -> bool {
+    case.telemetry.all().iter().any(|t| t.speed_mps == speed_mps)
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_second_simulator_is_refused_while_the_first_keeps_being_served() {
+    let case = BadInputCase::start(&[]);
+    let mut first = RawClient::connect(case.domain.port()).await;
+    assert_eq!(first.exchange(&valid_telemetry().to_string()).await.map(|r| r.0).as_deref(), Some("data"));
+    let mut second = RawClient::connect(case.domain.port()).await;
+    let _ = second.connection.send_text(&format!("42[\"telemetry\",{}]", marked_telemetry("2,2200"))).await;
+    assert!(second.closed_without_an_event().await, "the second simulator is disconnected without a reply");
+    for _ in 0..5 {
+        let reply = first.exchange(&marked_telemetry("1,1100")).await;
+        assert_eq!(reply.map(|r| r.0).as_deref(), Some("data"), "the first simulator is still served");
+    }
+    assert!(
+        eventually(Duration::from_secs(10), || speed_seen(&case, 1.11)),
+        "the first simulator's frames reach the topics"
+    );
+    assert!(!speed_seen(&case, 2.22), "a frame of the refused simulator reached rover/telemetry");
+    case.assert_handled(&mut first, "refused a second simulator connection", "problem_simulator_refused").await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn with_replacement_a_new_simulator_takes_over_from_the_first() {
+    let case = BadInputCase::start(&["replace_connected_simulator:=true"]);
+    let mut first = RawClient::connect(case.domain.port()).await;
+    assert_eq!(first.exchange(&valid_telemetry().to_string()).await.map(|r| r.0).as_deref(), Some("data"));
+    let mut second = RawClient::connect(case.domain.port()).await;
+    assert!(first.closed_without_an_event().await, "the replaced simulator is disconnected");
+    case.assert_handled(&mut second, "a new simulator connection replaces simulator", "problem_disconnect_replaced")
+        .await;
 }

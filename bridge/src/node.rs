@@ -56,6 +56,9 @@ rover_node::node_params! {
         diagnostics_period_ms: f64 [10.0, 60000.0] = 1000.0,
         /// JPEG quality of the inset images sent to the simulator.
         inset_jpeg_quality: i64 [1, 100] = 60,
+        /// A new simulator connection replaces the one being served instead of being refused
+        /// (read at start).
+        replace_connected_simulator: bool = false,
     }
 }
 
@@ -80,6 +83,7 @@ impl BridgeParams {
         Ok(ServerConfig {
             address: SocketAddr::new(ip, self.port as u16),
             max_message_bytes: self.max_payload_bytes as usize * 4,
+            replace_connected_simulator: self.replace_connected_simulator,
         })
     }
 }

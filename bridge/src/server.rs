@@ -3,17 +3,22 @@
 //! its first telemetry the moment the websocket opens. The server is therefore `engineioxide` with
 //! its `v3` feature behind an `EIO=4` -> `EIO=3` rewrite, plus the small protocol-v4 layer of
 //! [`crate::sio`]: every message is handled in arrival order from the first byte on.
+//!
+//! One simulator is served at a time: a second connection is refused (or, when configured,
+//! replaces the first), so that two simulators never share the lock-step frame numbers.
 
 use std::net::SocketAddr;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use anyhow::Context as _;
 use axum::http::{Request, Uri};
 use bytes::Bytes;
 use engineioxide::handler::EngineIoHandler;
+use engineioxide::sid::Sid;
 use engineioxide::socket::{DisconnectReason, Socket};
 use engineioxide::{Str, config::EngineIoConfig, layer::EngineIoLayer};
+use rover_node::rejections::worth_logging;
 use tokio::sync::mpsc::error::TrySendError;
 use tower::util::MapRequestLayer;
 
@@ -29,6 +34,8 @@ pub struct ServerConfig {
     pub address: SocketAddr,
     /// Largest websocket message accepted by the transport (larger ones close the connection).
     pub max_message_bytes: usize,
+    /// A new simulator connection replaces the one being served instead of being refused.
+    pub replace_connected_simulator: bool,
 }
 
 /// Rewrites `EIO=4` to `EIO=3` in the query, so the Unity client gets the Engine.IO 3 behaviour it speaks.
@@ -63,7 +70,8 @@ pub async fn serve<S: FrameSink>(
         .ws_max_frame_size(config.max_message_bytes)
         .max_buffer_size(1024)
         .build();
-    let handler = Arc::new(SimulatorLink { core });
+    let handler =
+        Arc::new(SimulatorLink { core, served: Arc::default(), replace_connected: config.replace_connected_simulator });
     let app = axum::Router::new()
         .layer(EngineIoLayer::from_config(handler, engine_config))
         .layer(MapRequestLayer::new(rewrite_engine_io_version));
@@ -74,14 +82,72 @@ pub async fn serve<S: FrameSink>(
     axum::serve(listener, app).with_graceful_shutdown(shutdown).await.context("Socket.IO server failed")
 }
 
-/// The Engine.IO handler: one per server, shared by all simulator connections.
+/// What becomes of a new simulator connection.
+#[derive(Debug, PartialEq)]
+enum Admission<T> {
+    /// No simulator was being served: the new one is.
+    Served,
+    /// The new one is served instead of this one (its id and connection), which is to be closed.
+    Replacing(Sid, T),
+    /// The simulator with this id is being served: the new one is refused.
+    Refused(Sid),
+}
+
+/// The one simulator connection the bridge serves (`T` is the connection, a socket in the server).
+#[derive(Debug)]
+struct ServedSimulator<T> {
+    current: Mutex<Option<(Sid, T)>>,
+}
+
+impl<T> Default for ServedSimulator<T> {
+    fn default() -> Self {
+        ServedSimulator { current: Mutex::new(None) }
+    }
+}
+
+impl<T> ServedSimulator<T> {
+    /// Decides on connection `sid`: served if none is, else refused, or served in place of the
+    /// current one when `replace`.
+    fn admit(&self, sid: Sid, connection: T, replace: bool) -> Admission<T> {
+        let mut current = self.current();
+        if let Some((served, _)) = current.as_ref().filter(|_| !replace) {
+            return Admission::Refused(*served);
+        }
+        match current.replace((sid, connection)) {
+            None => Admission::Served,
+            Some((old_sid, old)) => Admission::Replacing(old_sid, old),
+        }
+    }
+
+    /// Whether connection `sid` is the one served.
+    fn serves(&self, sid: Sid) -> bool {
+        self.current().as_ref().is_some_and(|(served, _)| *served == sid)
+    }
+
+    /// Forgets connection `sid` if it is the one served; returns whether it was.
+    fn release(&self, sid: Sid) -> bool {
+        self.current().take_if(|(served, _)| *served == sid).is_some()
+    }
+
+    fn current(&self) -> std::sync::MutexGuard<'_, Option<(Sid, T)>> {
+        self.current.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// The Engine.IO handler: one per server; it serves one simulator connection at a time.
 struct SimulatorLink<S> {
     core: Arc<LockStep<S>>,
+    served: Arc<ServedSimulator<Arc<Socket<()>>>>,
+    replace_connected: bool,
 }
 
 impl<S> Clone for SimulatorLink<S> {
     fn clone(&self) -> Self {
-        SimulatorLink { core: self.core.clone() }
+        SimulatorLink {
+            core: self.core.clone(),
+            served: self.served.clone(),
+            replace_connected: self.replace_connected,
+        }
     }
 }
 
@@ -95,6 +161,15 @@ impl<S: FrameSink> EngineIoHandler for SimulatorLink<S> {
     type Data = ();
 
     fn on_connect(self: Arc<Self>, socket: Arc<Socket<()>>) {
+        match self.served.admit(socket.id, socket.clone(), self.replace_connected) {
+            Admission::Refused(served) => return self.refuse(&socket, served),
+            Admission::Replacing(old_sid, old) => {
+                tracing::warn!(sid = %socket.id, "a new simulator connection replaces simulator {old_sid}");
+                self.core.stats().client_disconnected("replaced");
+                old.close(DisconnectReason::ClosingServer);
+            }
+            Admission::Served => {}
+        }
         tracing::info!(sid = %socket.id, "simulator connected");
         self.core.stats().client_connected();
         if socket.emit(sio::CONNECT).is_err() {
@@ -103,10 +178,15 @@ impl<S: FrameSink> EngineIoHandler for SimulatorLink<S> {
     }
 
     fn on_disconnect(&self, socket: Arc<Socket<()>>, reason: DisconnectReason) {
-        log_disconnect(&socket, &reason, self.core.stats());
+        if self.served.release(socket.id) {
+            log_disconnect(&socket, &reason, self.core.stats());
+        }
     }
 
     fn on_message(self: &Arc<Self>, message: Str, socket: Arc<Socket<()>>) {
+        if !self.served.serves(socket.id) {
+            return;
+        }
         let in_flight = match sio::decode(&message) {
             Ok(Packet::Event { name, args }) if name == "telemetry" => self.core.receive(args.first()),
             Ok(Packet::Event { name, .. }) => {
@@ -120,6 +200,9 @@ impl<S: FrameSink> EngineIoHandler for SimulatorLink<S> {
     }
 
     fn on_binary(self: &Arc<Self>, data: Bytes, socket: Arc<Socket<()>>) {
+        if !self.served.serves(socket.id) {
+            return;
+        }
         let problem = format!("binary websocket message of {} bytes (the simulator only sends text)", data.len());
         let in_flight = self.core.receive_garbage("binary_message", &problem);
         self.spawn_reply(in_flight, socket);
@@ -127,6 +210,20 @@ impl<S: FrameSink> EngineIoHandler for SimulatorLink<S> {
 }
 
 impl<S: FrameSink> SimulatorLink<S> {
+    /// Closes a connection that arrived while simulator `served` is being served; its frames
+    /// never reach the lock-step core.
+    fn refuse(&self, socket: &Socket<()>, served: Sid) {
+        let count = self.core.stats().problem("simulator_refused");
+        if worth_logging(count) {
+            tracing::warn!(
+                sid = %socket.id,
+                "refused a second simulator connection: simulator {served} is connected and served \
+                 (parameter replace_connected_simulator lets a new one take over; {count} refused so far)"
+            );
+        }
+        socket.close(DisconnectReason::ClosingServer);
+    }
+
     fn spawn_reply(&self, in_flight: InFlight, socket: Arc<Socket<()>>) {
         let core = self.core.clone();
         tokio::spawn(async move {
@@ -197,5 +294,29 @@ mod tests {
         assert_eq!(rewrite_engine_io_version(request).uri(), "/socket.io/?transport=websocket&EIO=3");
         let request = Request::get("/socket.io/?EIO=40").body(()).unwrap();
         assert_eq!(rewrite_engine_io_version(request).uri(), "/socket.io/?EIO=40");
+    }
+
+    #[test]
+    fn one_simulator_is_served_and_a_second_is_refused_until_it_leaves() {
+        let (first, second) = (Sid::new(), Sid::new());
+        let served = ServedSimulator::default();
+        assert_eq!(served.admit(first, 1, false), Admission::Served);
+        assert_eq!(served.admit(second, 2, false), Admission::Refused(first));
+        assert!(served.serves(first) && !served.serves(second));
+        assert!(!served.release(second), "the refused connection was never served");
+        assert!(served.release(first));
+        assert_eq!(served.admit(second, 2, false), Admission::Served);
+        assert!(served.serves(second));
+    }
+
+    #[test]
+    fn with_replacement_the_newest_simulator_is_served() {
+        let (first, second) = (Sid::new(), Sid::new());
+        let served = ServedSimulator::default();
+        assert_eq!(served.admit(first, 1, true), Admission::Served);
+        assert_eq!(served.admit(second, 2, true), Admission::Replacing(first, 1));
+        assert!(served.serves(second) && !served.serves(first));
+        assert!(!served.release(first), "the replaced connection's close does not free the slot");
+        assert!(served.serves(second));
     }
 }
