@@ -27,8 +27,12 @@ pub struct MapConfig {
     pub correct_tilt: bool,
     /// A cell is navigable after this many navigable frames...
     pub min_navigable_hits: u16,
-    /// ...and when its navigable frames are at least this many times its obstacle frames.
+    /// ...and when its navigable evidence is at least this many times its obstacle evidence.
     pub navigable_ratio: f32,
+    /// A frame that sees a cell within this range weighs fully as evidence of its class; farther,
+    /// it weighs (this range / its range) squared, as the far floor's pixels are darker, hazier
+    /// and each covers more ground, metres.
+    pub full_weight_range_m: f64,
     /// A cell that is not navigable is an obstacle after this many obstacle frames.
     pub min_obstacle_hits: u16,
     /// A cell holds a rock after this many rock frames.
@@ -43,6 +47,7 @@ impl Default for MapConfig {
             correct_tilt: true,
             min_navigable_hits: 1,
             navigable_ratio: 0.2,
+            full_weight_range_m: 3.0,
             min_obstacle_hits: 2,
             min_rock_hits: 2,
         }
@@ -91,13 +96,20 @@ pub enum Update {
     Malformed,
 }
 
+/// Classes of evidence: navigable, obstacle, rock (the scan's class codes minus one).
+const CLASSES: usize = 3;
+/// Classes whose evidence is also weighed by range: navigable and obstacle.
+const WEIGHED: usize = 2;
+
 /// The evidence grid of the world.
 #[derive(Debug, Clone)]
 pub struct WorldMap {
     config: MapConfig,
     mount: CameraMount,
-    hits: [Vec<u16>; 3],
-    last_frame: [Vec<u32>; 3],
+    hits: [Vec<u16>; CLASSES],
+    weight: [Vec<f32>; WEIGHED],
+    frame_weight: [Vec<f32>; WEIGHED],
+    last_frame: [Vec<u32>; CLASSES],
     rock_range_m: Vec<f32>,
     frame: u32,
 }
@@ -110,6 +122,8 @@ impl WorldMap {
             config,
             mount: CameraMount::default(),
             hits: [vec![0; cells], vec![0; cells], vec![0; cells]],
+            weight: [vec![0.0; cells], vec![0.0; cells]],
+            frame_weight: [vec![0.0; cells], vec![0.0; cells]],
             last_frame: [vec![u32::MAX; cells], vec![u32::MAX; cells], vec![u32::MAX; cells]],
             rock_range_m: vec![f32::INFINITY; cells],
             frame: 0,
@@ -138,6 +152,7 @@ impl WorldMap {
         self.frame = self.frame.wrapping_add(1);
         let projector = Projector::new(pose, self.mount, self.config.correct_tilt);
         let max_range_sq = self.config.max_range_m * self.config.max_range_m;
+        let full_weight_sq = self.config.full_weight_range_m * self.config.full_weight_range_m;
         let mut landed = 0;
         let mut nearest_rock: Option<(f64, f64, f64)> = None;
         for row in 0..scan.rows {
@@ -161,7 +176,8 @@ impl WorldMap {
                     continue;
                 }
                 if let Some(cell) = projector.world(x, y).and_then(|(wx, wy)| cell_index(wx, wy)) {
-                    self.add(cell, (class - 1) as usize);
+                    let weight = (full_weight_sq / range_sq).min(1.0) as f32;
+                    self.add(cell, (class - 1) as usize, weight);
                     landed += 1;
                 }
             }
@@ -171,18 +187,28 @@ impl WorldMap {
             Some((cell, range_sq.sqrt() as f32))
         });
         if let Some((cell, range_m)) = rock {
-            self.add(cell, (ROCK - 1) as usize);
+            self.add(cell, (ROCK - 1) as usize, 1.0);
             self.rock_range_m[cell] = self.rock_range_m[cell].min(range_m);
             landed += 1;
         }
         Update::Used(landed)
     }
 
+    /// Counts `class` in `cell` once per frame, and weighs it by the heaviest `weight` the
+    /// frame gives it.
     #[inline]
-    fn add(&mut self, cell: usize, class: usize) {
-        if self.last_frame[class][cell] != self.frame {
+    fn add(&mut self, cell: usize, class: usize, weight: f32) {
+        let first_this_frame = self.last_frame[class][cell] != self.frame;
+        if first_this_frame {
             self.last_frame[class][cell] = self.frame;
             self.hits[class][cell] = self.hits[class][cell].saturating_add(1);
+        }
+        if class < WEIGHED {
+            let heaviest = if first_this_frame { 0.0 } else { self.frame_weight[class][cell] };
+            if weight > heaviest {
+                self.weight[class][cell] += weight - heaviest;
+                self.frame_weight[class][cell] = weight;
+            }
         }
     }
 
@@ -191,16 +217,22 @@ impl WorldMap {
         (self.hits[0][cell], self.hits[1][cell], self.hits[2][cell])
     }
 
+    /// Range-weighed navigable and obstacle evidence of a cell (see
+    /// [`MapConfig::full_weight_range_m`]).
+    pub fn weighed_evidence(&self, cell: usize) -> (f32, f32) {
+        (self.weight[0][cell], self.weight[1][cell])
+    }
+
     /// True if the map calls the cell navigable.
     pub fn is_navigable(&self, cell: usize) -> bool {
-        let (nav, obs, _) = self.evidence(cell);
-        nav >= self.config.min_navigable_hits && nav as f32 >= self.config.navigable_ratio * obs as f32
+        let (nav, obs) = self.weighed_evidence(cell);
+        self.hits[0][cell] >= self.config.min_navigable_hits && nav >= self.config.navigable_ratio * obs
     }
 
     /// True if the map calls the cell an obstacle.
     pub fn is_obstacle(&self, cell: usize) -> bool {
-        let (nav, obs, _) = self.evidence(cell);
-        obs >= self.config.min_obstacle_hits && !self.is_navigable(cell) && obs >= nav
+        let (nav, obs) = self.weighed_evidence(cell);
+        self.hits[1][cell] >= self.config.min_obstacle_hits && !self.is_navigable(cell) && obs >= nav
     }
 
     /// True if the map holds a rock in the cell.
@@ -297,6 +329,7 @@ mod tests {
         correct_tilt: true,
         min_navigable_hits: 2,
         navigable_ratio: 2.0,
+        full_weight_range_m: 8.0,
         min_obstacle_hits: 2,
         min_rock_hits: 2,
     };
@@ -333,6 +366,38 @@ mod tests {
         let tilted = Pose { pitch_rad: 5f64.to_radians(), ..pose };
         assert_eq!(map.update(&scan(&[NAVIGABLE; 16], 4, 4), tilted), Update::SkippedTilt);
         assert_eq!(map.update(&scan(&[NAVIGABLE; 3], 4, 4), pose), Update::Malformed);
+    }
+
+    #[test]
+    fn near_frames_outweigh_far_ones() {
+        let (rows, cols) = (16, 2);
+        let class_in_row = |row: usize, class: u8| {
+            let mut cells = vec![0; rows * cols];
+            cells[row * cols..(row + 1) * cols].fill(class);
+            cells
+        };
+        let (near, far) = (class_in_row(2, NAVIGABLE), class_in_row(12, rover_msgs::msg::TerrainScan::OBSTACLE));
+        let observe = |config: MapConfig| {
+            let mut map = WorldMap::new(config);
+            for _ in 0..3 {
+                map.update(&scan(&near, rows, cols), Pose { x_m: 28.5, y_m: 20.5, ..Pose::default() });
+            }
+            for _ in 0..6 {
+                map.update(&scan(&far, rows, cols), Pose { x_m: 23.5, y_m: 20.5, ..Pose::default() });
+            }
+            map
+        };
+        let cell = cell_index(30.5, 20.5).unwrap();
+        let config = MapConfig { navigable_ratio: 1.0, ..MapConfig::default() };
+        let map = observe(config);
+        assert_eq!(map.evidence(cell), (3, 6, 0), "each frame counts once");
+        let (navigable, obstacle) = map.weighed_evidence(cell);
+        assert!((navigable - 3.0).abs() < 1e-6, "seen from 2.25 m: full weight, {navigable}");
+        let far_weight = (3.0f32 / 7.25).powi(2);
+        assert!((obstacle / (6.0 * far_weight) - 1.0).abs() < 0.01, "seen from 7.25 m: {obstacle}");
+        assert!(map.is_navigable(cell), "three near frames outweigh six far ones");
+        let unweighed = observe(MapConfig { full_weight_range_m: 20.0, ..config });
+        assert!(unweighed.is_obstacle(cell), "counted alike, the six far frames win");
     }
 
     #[test]

@@ -13,8 +13,11 @@ rover_node::node_params! {
         correct_tilt: bool = true,
         /// A cell becomes navigable after this many frames saw it navigable...
         min_navigable_hits: i64 [1, 1000] = 1,
-        /// ...and when those frames are at least this many times the frames that saw an obstacle there.
+        /// ...and when its navigable evidence is at least this many times its obstacle evidence.
         navigable_ratio: f64 [0.0, 100.0] = 0.2,
+        /// A frame that sees a cell within this range weighs fully as evidence; farther, it weighs
+        /// (this range / its range) squared, metres.
+        full_weight_range_m: f64 [0.1, 20.0] = 3.0,
         /// A cell that is not navigable becomes an obstacle after this many obstacle frames.
         min_obstacle_hits: i64 [1, 1000] = 2,
         /// A cell holds a rock after this many rock frames.
@@ -41,6 +44,7 @@ impl MappingParams {
             correct_tilt: self.correct_tilt,
             min_navigable_hits: self.min_navigable_hits as u16,
             navigable_ratio: self.navigable_ratio as f32,
+            full_weight_range_m: self.full_weight_range_m,
             min_obstacle_hits: self.min_obstacle_hits as u16,
             min_rock_hits: self.min_rock_hits as u16,
         }
