@@ -3,7 +3,7 @@
     ros2 launch launch_scripts/rover.launch.py [namespace:=/rover1] [params_file:=FILE]
         [rover:=PATH] [port:=4567] [sim:=true] [seed:=0] [log_level:=debug]
 
-Every node (bridge, perception, mapping, decision, pickup) runs
+Every node that `rover nodes` lists runs
 `rover NODE --ros-args --params-file PARAMS -r __ns:=NAMESPACE [--log-level LEVEL]`; the bridge
 also gets `-p port:=PORT`. With sim:=true the headless simulator (`rover sim --seed SEED
 --port PORT`) drives the graph; without it the bridge waits for the Unity simulator. The DDS
@@ -14,12 +14,12 @@ the repository was built with colcon, so it is started by path.
 
 import os
 import shutil
+import subprocess
 
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, ExecuteProcess, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 
-NODES = ('bridge', 'perception', 'mapping', 'decision', 'pickup')
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
@@ -47,6 +47,12 @@ def colcon_installed_rover():
     except PackageNotFoundError:
         return None
     return candidate if os.access(candidate, os.X_OK) else None
+
+
+def node_names(rover):
+    """The nodes of the graph in start order, as `rover nodes` lists them."""
+    listed = subprocess.run([rover, 'nodes'], stdin=subprocess.DEVNULL, capture_output=True, text=True, check=True)
+    return listed.stdout.split()
 
 
 def arguments():
@@ -90,7 +96,7 @@ def processes(context):
     def value(name):
         return LaunchConfiguration(name).perform(context)
 
-    commands = [(name, node_command(name, value)) for name in NODES]
+    commands = [(name, node_command(name, value)) for name in node_names(value('rover'))]
     if value('sim') == 'true':
         commands.append(('sim', simulator_command(value)))
     return [ExecuteProcess(cmd=cmd, name=name, output='screen', sigterm_timeout='5', sigkill_timeout='5')

@@ -9,8 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 
-/// The nodes of the graph, in start order (the bridge first, so the simulator finds its port).
-pub const NODES: [&str; 5] = ["bridge", "perception", "mapping", "decision", "pickup"];
+use crate::nodes::node_names;
 
 /// How a graph is started.
 #[derive(Debug, Clone)]
@@ -137,9 +136,9 @@ pub struct Graph {
 }
 
 impl Graph {
-    /// Starts every node of [`NODES`].
+    /// Starts every node of [`crate::nodes::Node::ALL`].
     pub fn start(config: GraphConfig) -> anyhow::Result<Self> {
-        Self::start_nodes(config, &NODES)
+        Self::start_nodes(config, &node_names().collect::<Vec<_>>())
     }
 
     /// Starts the nodes `names` (subcommands of `rover`).

@@ -3,13 +3,9 @@
 use std::process::ExitCode;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
-use rover_node::params::{NodeParams, help_table};
+use rover::nodes::{Node, ROS_ARGS_HELP, node_names, run_all};
+use rover_node::params::help_table;
 use rover_node::{Runtime, Shutdown, logging, split_ros_args};
-
-const ROS_ARGS_HELP: &str = "ROS arguments (after the subcommand's own options):
-  --ros-args [-r FROM:=TO]... [-p NAME:=VALUE]... [--params-file FILE]... [--log-level LEVEL] [--]
-  -r __ns:=/NAMESPACE and -r __node:=NAME rename a node; prefix a rule with NODE: to aim it at one node.
-Environment: ROS_DOMAIN_ID (default 0) selects the DDS domain; RUST_LOG filters the log.";
 
 /// The rover autonomy stack: Socket.IO bridge to the simulator and ROS 2 nodes over DDS.
 #[derive(Parser)]
@@ -21,27 +17,14 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run the bridge node: Socket.IO server for the simulator, telemetry and camera topics out,
-    /// drive and pickup commands back.
-    #[command(after_help = ROS_ARGS_HELP)]
-    Bridge,
-    /// Run the perception node: camera JPEGs to rover-frame terrain scans and the bird's-eye view.
-    #[command(after_help = ROS_ARGS_HELP)]
-    Perception,
-    /// Run the mapping node: terrain scans to the world map, its image, statistics and rocks.
-    #[command(after_help = ROS_ARGS_HELP)]
-    Mapping,
-    /// Run the decision node: the state machine that explores, approaches samples, recovers and
-    /// returns home; one drive command per frame.
-    #[command(after_help = ROS_ARGS_HELP)]
-    Decision,
-    /// Run the pickup node: one pickup request when a sample is in reach and the rover has stopped.
-    #[command(after_help = ROS_ARGS_HELP)]
-    Pickup,
-    /// Run every node (bridge, perception, mapping, decision, pickup) in this one process, on one
-    /// DDS participant. Aim parameters at a node with -p NODE:NAME:=VALUE or a params file.
+    #[command(flatten)]
+    Node(Node),
+    /// Run every node (the list of `rover nodes`) in this one process, on one DDS participant.
+    /// Aim parameters at a node with -p NODE:NAME:=VALUE or a params file.
     #[command(after_help = ROS_ARGS_HELP)]
     All,
+    /// Print the name of every node, one a line, in start order (the launchers read this list).
+    Nodes,
     /// Replay a recorded dataset (robot_log.csv + IMG/) through perception and mapping and print
     /// the Udacity scores. Parameters: -p perception:NAME:=VALUE, -p mapping:NAME:=VALUE.
     #[command(after_help = ROS_ARGS_HELP)]
@@ -65,17 +48,15 @@ enum Command {
     Sim(rover_sim::cli::SimArgs),
 }
 
+/// The command line, with each node's parameter table in its long help.
 fn cli_command() -> clap::Command {
-    Cli::command()
-        .mut_subcommand("bridge", |c| c.after_long_help(node_help::<rover_bridge::node::BridgeParams>()))
-        .mut_subcommand("perception", |c| c.after_long_help(node_help::<rover_perception::node::PerceptionParams>()))
-        .mut_subcommand("mapping", |c| c.after_long_help(node_help::<rover_mapping::params::MappingParams>()))
-        .mut_subcommand("decision", |c| c.after_long_help(node_help::<rover_decision::params::DecisionParams>()))
-        .mut_subcommand("pickup", |c| c.after_long_help(node_help::<rover_pickup::PickupParams>()))
+    Node::ALL.into_iter().fold(Cli::command(), |command, node| {
+        command.mut_subcommand(node.name(), |c| c.after_long_help(node_help(node)))
+    })
 }
 
-fn node_help<P: NodeParams>() -> String {
-    format!("{}\n{ROS_ARGS_HELP}", help_table(&P::specs()))
+fn node_help(node: Node) -> String {
+    format!("{}\n{ROS_ARGS_HELP}", help_table(&node.param_specs()))
 }
 
 fn main() -> ExitCode {
@@ -115,19 +96,6 @@ fn main() -> ExitCode {
     }
 }
 
-/// Every node of the graph on one runtime; the first to fail stops the others.
-async fn run_all(runtime: &Runtime) -> anyhow::Result<()> {
-    let result = tokio::try_join!(
-        rover_bridge::node::run(runtime),
-        rover_perception::node::run(runtime),
-        rover_mapping::node::run(runtime),
-        rover_decision::node::run(runtime),
-        rover_pickup::node::run(runtime),
-    );
-    runtime.shutdown().request();
-    result.map(drop)
-}
-
 /// The ROS arguments as given on the command line (after `--ros-args`), for child processes.
 fn raw_ros_args() -> Vec<String> {
     std::env::args().skip_while(|a| a != "--ros-args").skip(1).collect()
@@ -141,12 +109,12 @@ fn dds(slot: &mut Option<Runtime>, ros_args: rover_node::RosArgs, shutdown: Shut
 async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut Option<Runtime>) -> anyhow::Result<()> {
     let shutdown = Shutdown::on_signals();
     match command {
-        Command::Bridge => rover_bridge::node::run(dds(participant, ros_args, shutdown)?).await,
-        Command::Perception => rover_perception::node::run(dds(participant, ros_args, shutdown)?).await,
-        Command::Mapping => rover_mapping::node::run(dds(participant, ros_args, shutdown)?).await,
-        Command::Decision => rover_decision::node::run(dds(participant, ros_args, shutdown)?).await,
-        Command::Pickup => rover_pickup::node::run(dds(participant, ros_args, shutdown)?).await,
+        Command::Node(node) => node.run(dds(participant, ros_args, shutdown)?).await,
         Command::All => run_all(dds(participant, ros_args, shutdown)?).await,
+        Command::Nodes => {
+            node_names().for_each(|name| println!("{name}"));
+            Ok(())
+        }
         Command::Replay(args) if args.via_dds => {
             rover::replay::run_via_dds(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
         }

@@ -9,12 +9,16 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
+use rover::nodes::Node;
 use rover_msgs::msg::{DriveCommand, Telemetry};
 use rover_node::ros_args::Remap;
 use rover_node::{RosArgs, RosNode, Runtime, Shutdown, topics};
 use support::{Domain, Latest, NoParams, eventually, rover};
 
-const PROCESSES: [&str; 6] = ["bridge", "perception", "mapping", "decision", "pickup", "sim"];
+/// The processes a launcher with the simulator starts: every node, then the simulator.
+fn processes() -> Vec<&'static str> {
+    rover::nodes::node_names().chain(["sim"]).collect()
+}
 
 fn launch_scripts() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("launch_scripts")
@@ -143,7 +147,7 @@ fn rover_graph_runs_the_graph_with_the_simulator_and_stops_every_process_on_sigi
     assert!(output.contains(&format!("logs in {}", log_dir.display())), "{output}");
     let started = started_processes(&output);
     let names: Vec<&str> = started.iter().map(|(name, _, _)| name.as_str()).collect();
-    assert_eq!(names, PROCESSES, "{output}");
+    assert_eq!(names, processes(), "{output}");
     let params_file = launch_scripts().join("rover_params.yaml");
     for (name, pid, log) in &started {
         assert!(log.starts_with(&log_dir) && log.exists(), "{name}: log {}", log.display());
@@ -172,7 +176,7 @@ fn rover_graph_stops_every_node_when_one_exits() {
     let domain = Domain::reserve();
     let log_dir = std::env::temp_dir().join(format!("rover-graph-crash-test-{}", std::process::id()));
     let mut launcher = Launcher::start(&mut rover_graph(&domain, "/crash", &log_dir, false), "rover-graph-crash");
-    assert!(eventually(Duration::from_secs(10), || started_processes(&launcher.output()).len() == 5));
+    assert!(eventually(Duration::from_secs(10), || started_processes(&launcher.output()).len() == Node::ALL.len()));
     let started = started_processes(&launcher.output());
     let mapping = started.iter().find(|(name, _, _)| name == "mapping").expect("mapping was started").1;
     std::thread::sleep(Duration::from_secs(1));
@@ -187,6 +191,14 @@ fn rover_graph_stops_every_node_when_one_exits() {
         assert!(output.contains(&format!("rover-graph: {name:<10} exited: 0")), "{name}:\n{output}");
         assert!(!is_running(*pid), "{name} (pid {pid}) still runs");
     }
+}
+
+#[test]
+fn rover_nodes_prints_every_node_in_start_order_for_the_launchers() {
+    let output = Command::new(rover()).arg("nodes").output().expect("run rover nodes");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let printed = String::from_utf8_lossy(&output.stdout);
+    assert_eq!(printed.lines().collect::<Vec<_>>(), rover::nodes::node_names().collect::<Vec<_>>());
 }
 
 #[test]
@@ -245,7 +257,7 @@ fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint
     assert!(watcher.graph_runs(), "no frames on /launched/rover/telemetry; ros2 launch output:\n{}", launcher.output());
     let launched = launched_processes(&launcher.output());
     let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
-    assert_eq!(names, PROCESSES, "{}", launcher.output());
+    assert_eq!(names, processes(), "{}", launcher.output());
 
     let interrupted = std::time::Instant::now();
     let code = launcher.interrupt();

@@ -12,19 +12,14 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use rover_node::params::{self, NodeParams, ParamSpec, ParameterValue};
+use rover::nodes::Node;
+use rover_node::params::{self, ParamSpec, ParameterValue};
 use rover_node::ros_args::Remap;
 use rover_node::{RosArgs, resolve_params};
 
 /// The nodes of the graph with their declared parameters, in launch order.
 fn declared_nodes() -> Vec<(&'static str, Vec<ParamSpec>)> {
-    vec![
-        ("bridge", rover_bridge::node::BridgeParams::specs()),
-        ("perception", rover_perception::node::PerceptionParams::specs()),
-        ("mapping", rover_mapping::params::MappingParams::specs()),
-        ("decision", rover_decision::params::DecisionParams::specs()),
-        ("pickup", rover_pickup::PickupParams::specs()),
-    ]
+    Node::ALL.into_iter().map(|node| (node.name(), node.param_specs())).collect()
 }
 
 fn params_file() -> PathBuf {

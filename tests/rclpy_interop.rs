@@ -131,7 +131,8 @@ fn start_graph(mode: Mode, domain: &Domain) -> Graph {
 fn start_probe(python: &Path, domain: &Domain, report: &Path) -> Process {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/python/interop_probe.py");
     let report = report.to_str().expect("a UTF-8 temporary path");
-    Process::start(python, &["-W", "ignore", script, "--out", report], domain, "interop-probe")
+    let nodes = rover::nodes::node_names().collect::<Vec<_>>().join(",");
+    Process::start(python, &["-W", "ignore", script, "--out", report, "--nodes", &nodes], domain, "interop-probe")
 }
 
 fn wait_for_exit(process: &mut Process, timeout: Duration) -> Option<ExitStatus> {
@@ -206,7 +207,7 @@ fn print_report(mode: Mode, report: &serde_json::Value, discovery: &[(&str, Opti
 /// The last lines of the probe's and the nodes' logs, for failure messages.
 fn log_tails(graph: &mut Graph, probe: &Process) -> String {
     let mut text = format!("\n--- probe log ({}):\n{}", probe.log.display(), tail(&probe.log_text(), 30));
-    for name in ["all", "bridge", "perception", "mapping", "decision", "pickup"] {
+    for name in std::iter::once("all").chain(rover::nodes::node_names()) {
         if let Some(node) = graph.node_mut(name) {
             text += &format!("\n--- {name} log ({}):\n{}", node.log.display(), tail(&node.log_text(), 10));
         }

@@ -42,7 +42,6 @@ from rover_msgs.msg import DecisionState, DriveCommand, MapStats, PickupRequest,
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from tf2_msgs.msg import TFMessage
 
-NODES = ["bridge", "perception", "mapping", "decision", "pickup"]
 WIDTH, HEIGHT = 320, 160
 MAP_SIDE = 200
 CAMERA_FRAME = "camera_optical_frame"
@@ -407,11 +406,11 @@ def wait_for_first_messages(node, probe, timeout_s):
     return [name for name in timed if name not in probe.first_at]
 
 
-def graph_mismatches(node):
-    """What the ROS graph lacks compared to DESIGN.md: nodes, topic types, endpoints."""
+def graph_mismatches(node, nodes):
+    """What the ROS graph lacks compared to DESIGN.md: the names `nodes`, topic types, endpoints."""
     found = []
     names = {name for name, ns in node.get_node_names_and_namespaces() if ns == "/"}
-    found += [f"node /{n} missing" for n in NODES if n not in names]
+    found += [f"node /{n} missing" for n in nodes if n not in names]
     for topic in TOPICS:
         for role, wanted, infos in (
             ("publisher", topic.publisher, node.get_publishers_info_by_topic(topic.absolute)),
@@ -436,13 +435,13 @@ def graph_mismatches(node):
     return found
 
 
-def settled_graph_mismatches(node, executor, timeout_s):
+def settled_graph_mismatches(node, nodes, executor, timeout_s):
     """Graph mismatches once they are gone or `timeout_s` has passed."""
-    mismatches = graph_mismatches(node)
+    mismatches = graph_mismatches(node, nodes)
     deadline = time.monotonic() + timeout_s
     while mismatches and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.1)
-        mismatches = graph_mismatches(node)
+        mismatches = graph_mismatches(node, nodes)
     return mismatches
 
 
@@ -463,12 +462,12 @@ class ToolParticipant:
         rclpy.try_shutdown(context=self.context)
 
 
-def check_graph(probe_node, tool, report, notes):
-    """The graph as the tool sees it; how the probe's own participant, which joined with the
-    nodes, sees it is a note (see the module docstring)."""
-    mismatches = settled_graph_mismatches(tool.node, tool.executor, 8.0)
-    report.record("graph", not mismatches, "; ".join(mismatches) or f"{len(NODES)} nodes, {len(TOPICS)} topics as designed")
-    notes["graph_seen_by_early_participant"] = "; ".join(graph_mismatches(probe_node)) or "complete"
+def check_graph(probe_node, tool, nodes, report, notes):
+    """The graph of the node names `nodes` as the tool sees it; how the probe's own participant,
+    which joined with the nodes, sees it is a note (see the module docstring)."""
+    mismatches = settled_graph_mismatches(tool.node, nodes, tool.executor, 8.0)
+    report.record("graph", not mismatches, "; ".join(mismatches) or f"{len(nodes)} nodes, {len(TOPICS)} topics as designed")
+    notes["graph_seen_by_early_participant"] = "; ".join(graph_mismatches(probe_node, nodes)) or "complete"
 
 
 def check_late_map(node, probe, report):
@@ -714,6 +713,7 @@ def wait_for_go(path, timeout_s=60.0):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", required=True, help="the JSON report")
+    parser.add_argument("--nodes", required=True, help="the graph's node names, comma-separated (`rover nodes`)")
     parser.add_argument("--first-message-timeout", type=float, default=10.0)
     parser.add_argument("--teleop-timeout-ms", type=float, default=1500.0, help="bridge teleop_timeout_ms to set")
     args = parser.parse_args()
@@ -729,7 +729,7 @@ def main():
     report.record("first_messages", not missing, f"nothing on {missing}" if missing else "every graph topic")
     notes = {}
     tool = ToolParticipant()
-    check_graph(node, tool, report, notes)
+    check_graph(node, tool, args.nodes.split(","), report, notes)
     check_late_map(node, probe, report)
     try:
         check_parameters(tool, report, args.teleop_timeout_ms)

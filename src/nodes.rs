@@ -1,0 +1,99 @@
+//! The nodes of the graph, each run by the `rover` subcommand of its name: the one list that
+//! `rover all`, the process graph of [`crate::graph`], the launchers (through `rover nodes`) and
+//! the tests take the nodes from.
+
+use futures::future::{FutureExt as _, LocalBoxFuture, try_join_all};
+use rover_node::Runtime;
+use rover_node::params::{NodeParams, ParamSpec};
+
+/// The help on ROS arguments that the node subcommands print.
+pub const ROS_ARGS_HELP: &str = "ROS arguments (after the subcommand's own options):
+  --ros-args [-r FROM:=TO]... [-p NAME:=VALUE]... [--params-file FILE]... [--log-level LEVEL] [--]
+  -r __ns:=/NAMESPACE and -r __node:=NAME rename a node; prefix a rule with NODE: to aim it at one node.
+Environment: ROS_DOMAIN_ID (default 0) selects the DDS domain; RUST_LOG filters the log.";
+
+/// A node of the graph, run by the `rover` subcommand of its name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Subcommand)]
+pub enum Node {
+    /// Run the bridge node: Socket.IO server for the simulator, telemetry and camera topics out,
+    /// drive and pickup commands back.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Bridge,
+    /// Run the perception node: camera JPEGs to rover-frame terrain scans and the bird's-eye view.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Perception,
+    /// Run the mapping node: terrain scans to the world map, its image, statistics and rocks.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Mapping,
+    /// Run the decision node: the state machine that explores, approaches samples, recovers and
+    /// returns home; one drive command per frame.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Decision,
+    /// Run the pickup node: one pickup request when a sample is in reach and the rover has stopped.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Pickup,
+}
+
+impl Node {
+    /// Every node, in start order (the bridge first, so the simulator finds its port).
+    pub const ALL: [Node; 5] = [Node::Bridge, Node::Perception, Node::Mapping, Node::Decision, Node::Pickup];
+
+    /// The node's name: its `rover` subcommand, its ROS node name and the name of its log file.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Node::Bridge => "bridge",
+            Node::Perception => "perception",
+            Node::Mapping => "mapping",
+            Node::Decision => "decision",
+            Node::Pickup => "pickup",
+        }
+    }
+
+    /// The parameters the node declares.
+    pub fn param_specs(self) -> Vec<ParamSpec> {
+        match self {
+            Node::Bridge => rover_bridge::node::BridgeParams::specs(),
+            Node::Perception => rover_perception::node::PerceptionParams::specs(),
+            Node::Mapping => rover_mapping::params::MappingParams::specs(),
+            Node::Decision => rover_decision::params::DecisionParams::specs(),
+            Node::Pickup => rover_pickup::PickupParams::specs(),
+        }
+    }
+
+    /// Runs the node on `runtime` until it shuts down.
+    pub fn run(self, runtime: &Runtime) -> LocalBoxFuture<'_, anyhow::Result<()>> {
+        match self {
+            Node::Bridge => rover_bridge::node::run(runtime).boxed_local(),
+            Node::Perception => rover_perception::node::run(runtime).boxed_local(),
+            Node::Mapping => rover_mapping::node::run(runtime).boxed_local(),
+            Node::Decision => rover_decision::node::run(runtime).boxed_local(),
+            Node::Pickup => rover_pickup::node::run(runtime).boxed_local(),
+        }
+    }
+}
+
+/// The names of every node, in start order.
+pub fn node_names() -> impl Iterator<Item = &'static str> {
+    Node::ALL.into_iter().map(Node::name)
+}
+
+/// Runs every node on one runtime (`rover all`); the first to fail stops the others.
+pub async fn run_all(runtime: &Runtime) -> anyhow::Result<()> {
+    let result = try_join_all(Node::ALL.map(|node| node.run(runtime))).await;
+    runtime.shutdown().request();
+    result.map(drop)
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Subcommand as _;
+
+    use super::*;
+
+    #[test]
+    fn every_node_subcommand_is_in_the_list_under_its_name() {
+        let command = Node::augment_subcommands(clap::Command::new("rover"));
+        let subcommands: Vec<&str> = command.get_subcommands().map(clap::Command::get_name).collect();
+        assert_eq!(subcommands, node_names().collect::<Vec<_>>());
+    }
+}
