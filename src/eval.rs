@@ -102,7 +102,7 @@ impl RunResult {
             && self.collected == self.samples
             && self.home_distance_m <= 3.0
             && self.sim_seconds <= 1200.0
-            && self.final_mode == "done"
+            && self.final_mode == Mode::Done.name()
     }
 
     /// The result of the mission of `seed` in a world with `samples` samples.

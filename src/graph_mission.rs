@@ -6,6 +6,7 @@
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use rover_decision::machine::Mode;
 use rover_imaging::RgbImage;
 use rover_mapping::score::{LocatedSamples, occupancy_scores};
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
@@ -217,7 +218,7 @@ fn subscribe_evaluator(
     let span = node.span();
     let done = done.clone();
     let on_mode = move |e: &mut Evaluator, state: DecisionState| {
-        if state.mode == "done" {
+        if state.mode == Mode::Done.name() {
             done.notify_one();
         }
         e.progress.mode = state.mode;
