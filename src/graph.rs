@@ -8,6 +8,8 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
+use nix::sys::signal::Signal;
+use nix::unistd::Pid;
 
 use crate::nodes::node_names;
 
@@ -107,7 +109,7 @@ pub fn interrupt_child(child: &mut Child, timeout: Duration) -> Option<ExitStatu
     if let Ok(Some(status)) = child.try_wait() {
         return Some(status);
     }
-    send_sigint(child.id());
+    send_signal(child.id(), Signal::SIGINT);
     let deadline = Instant::now() + timeout;
     while Instant::now() < deadline {
         if let Ok(Some(status)) = child.try_wait() {
@@ -124,8 +126,11 @@ pub fn free_port() -> anyhow::Result<u16> {
     Ok(listener.local_addr()?.port())
 }
 
-fn send_sigint(pid: u32) {
-    let _ = Command::new("kill").args(["-INT", &pid.to_string()]).stderr(Stdio::null()).status();
+/// Sends `signal` to the process `pid`; a process that has already gone is no error.
+pub fn send_signal(pid: u32, signal: Signal) {
+    if let Ok(pid) = i32::try_from(pid) {
+        let _ = nix::sys::signal::kill(Pid::from_raw(pid), signal);
+    }
 }
 
 /// The running node processes of one graph.
@@ -180,7 +185,7 @@ impl Graph {
     /// did not exit cleanly (killed, or a failure status).
     pub fn stop(mut self, timeout: Duration) -> Vec<String> {
         for node in &self.nodes {
-            send_sigint(node.pid());
+            send_signal(node.pid(), Signal::SIGINT);
         }
         let mut unclean = Vec::new();
         for mut node in self.nodes.drain(..) {

@@ -9,6 +9,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
+use nix::sys::signal::Signal;
+use rover::graph::send_signal;
 use rover::nodes::Node;
 use rover_msgs::msg::{DriveCommand, Telemetry};
 use rover_node::ros_args::Remap;
@@ -75,7 +77,7 @@ impl Launcher {
 
     /// Sends SIGINT and waits up to 30 s; returns the exit code.
     fn interrupt(&mut self) -> Option<i32> {
-        send_signal("INT", self.child.id());
+        send_signal(self.child.id(), Signal::SIGINT);
         let exited = eventually(Duration::from_secs(30), || self.child.try_wait().ok().flatten().is_some());
         exited.then(|| self.child.wait().ok().and_then(|s| s.code())).flatten()
     }
@@ -84,17 +86,13 @@ impl Launcher {
 impl Drop for Launcher {
     fn drop(&mut self) {
         if self.child.try_wait().ok().flatten().is_none() {
-            send_signal("INT", self.child.id());
+            send_signal(self.child.id(), Signal::SIGINT);
             if !eventually(Duration::from_secs(15), || self.child.try_wait().ok().flatten().is_some()) {
                 let _ = self.child.kill();
                 let _ = self.child.wait();
             }
         }
     }
-}
-
-fn send_signal(signal: &str, pid: u32) {
-    let _ = Command::new("kill").args([&format!("-{signal}"), &pid.to_string()]).stderr(Stdio::null()).status();
 }
 
 fn is_running(pid: u32) -> bool {
@@ -180,7 +178,7 @@ fn rover_graph_stops_every_node_when_one_exits() {
     let started = started_processes(&launcher.output());
     let mapping = started.iter().find(|(name, _, _)| name == "mapping").expect("mapping was started").1;
     std::thread::sleep(Duration::from_secs(1));
-    send_signal("KILL", mapping);
+    send_signal(mapping, Signal::SIGKILL);
 
     let exited = eventually(Duration::from_secs(30), || launcher.child.try_wait().ok().flatten().is_some());
     let output = launcher.output();
