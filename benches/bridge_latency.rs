@@ -11,7 +11,7 @@ mod support;
 use std::time::Duration;
 
 use support::echo_sim::{EchoCheckingSimulator, run_fake_unity};
-use support::{Domain, Process, echo_node, rover, wait_for_port};
+use support::{Domain, echo_node, rover, start_process, wait_for_port};
 
 const FRAMES: usize = 5000;
 const WARM_UP_FRAMES: usize = 300;
@@ -35,9 +35,9 @@ async fn measure(domain: &Domain, bridge_params: &[&str], with_echo: bool) -> (P
     for param in bridge_params {
         args.extend(["-p", param]);
     }
-    let _bridge = Process::start(&rover(), &args, domain, "bench-bridge");
+    let _bridge = start_process(&rover(), &args, domain, "bench-bridge");
     wait_for_port(domain.port(), Duration::from_secs(20));
-    let _echo = with_echo.then(|| Process::start(&echo_node(), &[], domain, "bench-echo"));
+    let _echo = with_echo.then(|| start_process(&echo_node(), &[], domain, "bench-echo"));
     let mut simulation = EchoCheckingSimulator::new(WARM_UP_FRAMES + FRAMES);
     run_fake_unity(&mut simulation, domain.port()).await;
     let measured: Vec<Duration> = simulation.replies[WARM_UP_FRAMES..].iter().map(|r| r.latency).collect();

@@ -36,10 +36,11 @@ impl GraphConfig {
     }
 }
 
-/// One node process; interrupted (SIGINT) when dropped, killed if it does not stop.
+/// One node process (or, through [`NodeProcess::spawn`], any child process, as the tests start);
+/// interrupted (SIGINT) when dropped, killed if it does not stop.
 #[derive(Debug)]
 pub struct NodeProcess {
-    /// The node's subcommand, e.g. `decision`.
+    /// The process's name: a node's subcommand, e.g. `decision`.
     pub name: String,
     /// The log file (stderr of the process).
     pub log: PathBuf,
@@ -51,8 +52,6 @@ impl NodeProcess {
     pub fn start(config: &GraphConfig, name: &str) -> anyhow::Result<Self> {
         std::fs::create_dir_all(&config.log_dir)
             .with_context(|| format!("cannot create the log folder {}", config.log_dir.display()))?;
-        let log = config.log_dir.join(format!("{name}.log"));
-        let stderr = File::create(&log).with_context(|| format!("cannot create {}", log.display()))?;
         let mut command = Command::new(&config.rover);
         command.arg(name).arg("--ros-args").args(&config.ros_args);
         // Aimed at the bridge node, so it also reaches the bridge of `rover all`; the other nodes ignore it.
@@ -60,12 +59,19 @@ impl NodeProcess {
         if let Some(id) = config.domain_id {
             command.env("ROS_DOMAIN_ID", id.to_string());
         }
+        Self::spawn(name, command, config.log_dir.join(format!("{name}.log")))
+    }
+
+    /// Starts `command` as the process called `name`, stdin and stdout closed, stderr into the
+    /// file `log`.
+    pub fn spawn(name: &str, mut command: Command, log: PathBuf) -> anyhow::Result<Self> {
+        let stderr = File::create(&log).with_context(|| format!("cannot create {}", log.display()))?;
         let child = command
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(stderr)
             .spawn()
-            .with_context(|| format!("cannot start {} {name}", config.rover.display()))?;
+            .with_context(|| format!("cannot start {} for {name}", command.get_program().display()))?;
         Ok(NodeProcess { name: name.to_string(), log, child })
     }
 
@@ -79,9 +85,27 @@ impl NodeProcess {
         self.child.try_wait().ok().flatten()
     }
 
-    /// Sends SIGINT and waits up to `timeout` for the exit status.
+    /// Waits up to `timeout` for the process to exit; its exit status if it did.
+    pub fn wait_for_exit(&mut self, timeout: Duration) -> Option<ExitStatus> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(status) = self.exited() {
+                return Some(status);
+            }
+            if Instant::now() >= deadline {
+                return None;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Sends SIGINT (unless the process has exited) and waits up to `timeout` for the exit status.
     pub fn interrupt(&mut self, timeout: Duration) -> Option<ExitStatus> {
-        interrupt_child(&mut self.child, timeout)
+        if let Some(status) = self.exited() {
+            return Some(status);
+        }
+        send_signal(self.pid(), Signal::SIGINT);
+        self.wait_for_exit(timeout)
     }
 
     /// Kills the process at once (a crash, as far as the other nodes can tell).
@@ -102,22 +126,6 @@ impl Drop for NodeProcess {
             self.kill();
         }
     }
-}
-
-/// Sends SIGINT to `child` (unless it has exited) and waits up to `timeout` for its exit status.
-pub fn interrupt_child(child: &mut Child, timeout: Duration) -> Option<ExitStatus> {
-    if let Ok(Some(status)) = child.try_wait() {
-        return Some(status);
-    }
-    send_signal(child.id(), Signal::SIGINT);
-    let deadline = Instant::now() + timeout;
-    while Instant::now() < deadline {
-        if let Ok(Some(status)) = child.try_wait() {
-            return Some(status);
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    None
 }
 
 /// A free TCP port on the loopback, e.g. for a bridge.

@@ -15,7 +15,10 @@ use rover_node::Publisher;
 use rover_sim::wire::client::{Connection, unity_url};
 use rover_sim::wire::packet::Inbound;
 use support::echo_sim::{EchoCheckingSimulator, SeenReply, recorded_frames, run_fake_unity, telemetry_json};
-use support::{Domain, Latest, Process, diagnostic_value, echo_node, eventually, rover, test_runtime, wait_for_port};
+use support::{
+    Domain, Latest, Process, STOP_TIMEOUT, diagnostic_value, echo_node, eventually, rover, start_process, test_runtime,
+    wait_for_port,
+};
 use tokio_tungstenite::tungstenite::Message;
 
 fn start_bridge(domain: &Domain, extra: &[&str]) -> Process {
@@ -24,7 +27,7 @@ fn start_bridge(domain: &Domain, extra: &[&str]) -> Process {
     for param in extra {
         args.extend(["-p", param]);
     }
-    let bridge = Process::start(&rover(), &args, domain, "bridge");
+    let bridge = start_process(&rover(), &args, domain, "bridge");
     wait_for_port(domain.port(), Duration::from_secs(20));
     bridge
 }
@@ -34,7 +37,7 @@ async fn a_thousand_frames_each_get_exactly_one_reply_with_the_command_for_that_
     support::assert_isolated();
     let domain = Domain::reserve();
     let _bridge = start_bridge(&domain, &[]);
-    let _echo = Process::start(&echo_node(), &[], &domain, "echo");
+    let _echo = start_process(&echo_node(), &[], &domain, "echo");
     let mut simulation = EchoCheckingSimulator::new(1000);
     let stats = run_fake_unity(&mut simulation, domain.port()).await;
 
@@ -64,7 +67,7 @@ async fn without_a_decision_node_replies_keep_their_deadline_and_brake_after_the
     support::assert_isolated();
     let domain = Domain::reserve();
     let _bridge = start_bridge(&domain, &["reply_deadline_ms:=50.0", "silence_limit_ms:=600.0"]);
-    let echo = std::sync::Arc::new(std::sync::Mutex::new(Some(Process::start(&echo_node(), &[], &domain, "echo"))));
+    let echo = std::sync::Arc::new(std::sync::Mutex::new(Some(start_process(&echo_node(), &[], &domain, "echo"))));
     let mut simulation = EchoCheckingSimulator::new(400);
     let killed_at = std::sync::Arc::new(std::sync::Mutex::new(None));
     let (echo_for_kill, killed_for_sim) = (echo.clone(), killed_at.clone());
@@ -322,7 +325,7 @@ async fn raw_images_insets_params_file_and_clean_shutdown() {
     support::assert_isolated();
     let domain = Domain::reserve();
     let port = format!("port:={}", domain.port());
-    let mut bridge = Process::start(
+    let mut bridge = start_process(
         &rover(),
         &["bridge", "--ros-args", "-p", &port, "--params-file", params.to_str().unwrap()],
         &domain,
@@ -355,7 +358,7 @@ async fn raw_images_insets_params_file_and_clean_shutdown() {
     let image = raw.last().expect("camera/image_raw was published");
     assert_eq!((image.width, image.height, image.encoding.as_str(), image.step), (320, 160, "rgb8", 960));
     assert_eq!(image.data.len(), 320 * 160 * 3);
-    let status = bridge.interrupt().expect("the bridge stops on SIGINT");
+    let status = bridge.interrupt(STOP_TIMEOUT).expect("the bridge stops on SIGINT");
     assert!(status.success(), "clean exit on SIGINT: {status}");
     let _ = std::fs::remove_file(params);
 }

@@ -17,7 +17,7 @@ use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{DriveCommand, Telemetry};
 use rover_node::ros_args::Remap;
 use rover_node::{RosArgs, RosNode, Runtime, Shutdown, topics};
-use support::{Domain, Latest, NoParams, Process, eventually, rover};
+use support::{Domain, Latest, NoParams, Process, STOP_TIMEOUT, eventually, rover, start_process};
 
 /// What a test node receives in one namespace of one domain.
 struct Observer {
@@ -100,7 +100,7 @@ impl SimulatedGraph {
         let port = port.to_string();
         let seed = seed.to_string();
         let args = ["sim", "--seed", &seed, "--port", &port, "--realtime"];
-        let sim = Process::start(&rover(), &args, domain, &format!("isolation-sim-{label}"));
+        let sim = start_process(&rover(), &args, domain, &format!("isolation-sim-{label}"));
         SimulatedGraph { label, graph, sim }
     }
 
@@ -108,7 +108,7 @@ impl SimulatedGraph {
     fn stop(mut self) {
         let unclean = self.graph.stop(Duration::from_secs(10));
         assert!(unclean.is_empty(), "graph {}: {unclean:?} did not exit cleanly", self.label);
-        let status = self.sim.interrupt().expect("the simulator stops on SIGINT");
+        let status = self.sim.interrupt(STOP_TIMEOUT).expect("the simulator stops on SIGINT");
         assert!(status.success(), "simulator of graph {}: {status}", self.label);
     }
 }

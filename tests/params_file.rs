@@ -254,11 +254,10 @@ fn every_node_stops_on_an_ill_typed_parameter_in_the_file_naming_it_and_the_type
 fn run_node_expecting_failure(node: &str, file: &Path) -> String {
     let domain = support::Domain::reserve();
     let args = [node, "--ros-args", "--params-file", file.to_str().expect("a UTF-8 path")];
-    let mut process = support::Process::start(&support::rover(), &args, &domain, &format!("bad-params-{node}"));
-    let exited = support::eventually(Duration::from_secs(20), || process.child.try_wait().ok().flatten().is_some());
+    let mut process = support::start_process(&support::rover(), &args, &domain, &format!("bad-params-{node}"));
+    let status = process.wait_for_exit(Duration::from_secs(20));
     let log = process.log_text();
-    assert!(exited, "{node} kept running with a bad parameter file:\n{log}");
-    let status = process.child.wait().expect("the exit status");
+    let status = status.unwrap_or_else(|| panic!("{node} kept running with a bad parameter file:\n{log}"));
     assert!(!status.success(), "{node} accepted a bad parameter file:\n{log}");
     log
 }

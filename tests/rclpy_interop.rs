@@ -7,12 +7,11 @@
 mod support;
 
 use std::path::{Path, PathBuf};
-use std::process::ExitStatus;
 use std::sync::Mutex;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use rover::graph::{Graph, GraphConfig};
-use support::{Domain, Process};
+use support::{Domain, Process, start_process};
 
 /// Seed of the procedural world (no sample is picked up during the probe's teleop phases).
 const SEED: &str = "7";
@@ -88,8 +87,8 @@ fn run_probe_against_graph(mode: Mode) {
     std::fs::write(go, b"go\n").expect("tell the probe the graph is up");
     let port = domain.port().to_string();
     let _sim =
-        Process::start(&support::rover(), &["sim", "--port", &port, "--seed", SEED, "--realtime"], &domain, "sim");
-    let status = wait_for_exit(&mut probe, PROBE_TIMEOUT);
+        start_process(&support::rover(), &["sim", "--port", &port, "--seed", SEED, "--realtime"], &domain, "sim");
+    let status = probe.wait_for_exit(PROBE_TIMEOUT);
     let logs = log_tails(&mut graph, &probe);
 
     assert!(status.is_some_and(|s| s.success()), "the probe did not finish cleanly ({status:?}){logs}");
@@ -132,18 +131,7 @@ fn start_probe(python: &Path, domain: &Domain, report: &Path) -> Process {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/python/interop_probe.py");
     let report = report.to_str().expect("a UTF-8 temporary path");
     let nodes = rover::nodes::node_names().collect::<Vec<_>>().join(",");
-    Process::start(python, &["-W", "ignore", script, "--out", report, "--nodes", &nodes], domain, "interop-probe")
-}
-
-fn wait_for_exit(process: &mut Process, timeout: Duration) -> Option<ExitStatus> {
-    let deadline = Instant::now() + timeout;
-    while Instant::now() < deadline {
-        if let Ok(Some(status)) = process.child.try_wait() {
-            return Some(status);
-        }
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    None
+    start_process(python, &["-W", "ignore", script, "--out", report, "--nodes", &nodes], domain, "interop-probe")
 }
 
 fn epoch_seconds(time: SystemTime) -> f64 {

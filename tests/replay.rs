@@ -9,7 +9,7 @@ use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::msg::{Telemetry, TerrainScan};
 use rover_msgs::sensor_msgs::CompressedImage;
 use rover_msgs::std_msgs::Header;
-use support::{Domain, Latest, Process, eventually, rover, shared_dir, test_runtime};
+use support::{Domain, Latest, Process, STOP_TIMEOUT, eventually, rover, shared_dir, start_process, test_runtime};
 
 fn ground_truth() -> String {
     shared_dir().join("udacity/calibration_images/map_bw.png").display().to_string()
@@ -43,8 +43,8 @@ fn the_libraries_map_the_test_dataset_with_at_least_85_percent_fidelity_and_20_p
 }
 
 fn start_nodes(domain: &Domain) -> (Process, Process) {
-    let perception = Process::start(&rover(), &["perception"], domain, "perception");
-    let mapping = Process::start(
+    let perception = start_process(&rover(), &["perception"], domain, "perception");
+    let mapping = start_process(
         &rover(),
         &[
             "mapping",
@@ -124,8 +124,8 @@ async fn bad_frames_are_logged_counted_and_skipped() {
     scans_out.publish(TerrainScan { frame: 1005, x_m: f64::NAN, ..scan.clone() }).unwrap();
     scans_out.publish(TerrainScan { frame: 1006, rows: 3, cells: vec![1; 5], ..scan }).unwrap();
     tokio::time::sleep(Duration::from_millis(500)).await;
-    perception.interrupt();
-    mapping.interrupt();
+    perception.interrupt(STOP_TIMEOUT);
+    mapping.interrupt(STOP_TIMEOUT);
     let perception_log = perception.log_text();
     let mapping_log = mapping.log_text();
     for needle in [

@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use support::{Domain, Process, eventually, ros2_cli, rover};
+use support::{Domain, STOP_TIMEOUT, eventually, ros2_cli, rover, start_process};
 
 /// Every topic of the graph with its type, as `ros2 topic list -t` prints it.
 const TOPICS: [&str; 18] = [
@@ -100,7 +100,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
     // camera/image_raw is published only on request; the test wants every topic of the graph.
     let args = ["--rover", rover.to_str().unwrap(), "--sim", "0", "--domain", &domain_id, "--port", &port];
     let args = [&args[..], &["--log-dir", log_dir, "--", "-p", "bridge:publish_raw_image:=true"]].concat();
-    let mut graph = Process::start(&graph_script, &args, &domain, "ros2-cli-graph");
+    let mut graph = start_process(&graph_script, &args, &domain, "ros2-cli-graph");
 
     // Through the daemon, which existed before any participant of the graph.
     let mut nodes = String::new();
@@ -191,7 +191,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
     });
 
     drop(daemon);
-    let status = graph.interrupt();
+    let status = graph.interrupt(STOP_TIMEOUT);
     assert!(
         status.is_some_and(|s| s.success()),
         "the graph did not stop cleanly on SIGINT: {status:?}\n{}",

@@ -9,11 +9,11 @@ use std::time::Duration;
 
 use rover_sim::sim::{SimConfig, Simulator};
 use rover_sim::wire::client::{ClientConfig, run_client};
-use support::{Domain, Process, echo_node, eventually, rover, wait_for_port};
+use support::{Domain, Process, echo_node, eventually, rover, start_process, wait_for_port};
 
 fn start_bridge(domain: &Domain) -> Process {
     let port = format!("port:={}", domain.port());
-    let bridge = Process::start(&rover(), &["bridge", "--ros-args", "-p", &port], domain, "bridge");
+    let bridge = start_process(&rover(), &["bridge", "--ros-args", "-p", &port], domain, "bridge");
     wait_for_port(domain.port(), Duration::from_secs(20));
     bridge
 }
@@ -22,7 +22,7 @@ fn start_bridge(domain: &Domain) -> Process {
 async fn the_simulator_reconnects_after_the_bridge_restarts() {
     support::assert_isolated();
     let domain = Arc::new(Domain::reserve());
-    let _echo = Process::start(&echo_node(), &[], &domain, "echo");
+    let _echo = start_process(&echo_node(), &[], &domain, "echo");
     let bridge = Arc::new(Mutex::new(Some(start_bridge(&domain))));
     let config = SimConfig { max_sim_seconds: Some(40.0), ..SimConfig::default() };
     let mut simulator = Simulator::new(rover_sim::procgen::procedural_world(4), config);

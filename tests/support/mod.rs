@@ -6,7 +6,7 @@ pub mod echo_sim;
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Fails unless the test runs in a network namespace whose only interface is `lo`
@@ -61,51 +61,21 @@ impl Drop for Domain {
     }
 }
 
-/// A child process of a test, stopped with SIGINT when dropped; its stderr goes to a log file.
-pub struct Process {
-    pub child: Child,
-    pub log: PathBuf,
-}
+/// A child process of a test: interrupted (SIGINT) when dropped, its stderr in a log file.
+pub type Process = rover::graph::NodeProcess;
 
-impl Process {
-    /// Starts `program` with `args` on `domain`, logging to a file named after `name`.
-    pub fn start(program: &Path, args: &[&str], domain: &Domain, name: &str) -> Process {
-        let log = std::env::temp_dir().join(format!("rover-test-{}-{name}-{}.log", domain.id, std::process::id()));
-        let stderr = File::create(&log).expect("create the log file");
-        let child = Command::new(program)
-            .args(args)
-            .env("ROS_DOMAIN_ID", domain.id.to_string())
-            .env("RUST_LOG", std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()))
-            .stdout(Stdio::null())
-            .stderr(stderr)
-            .spawn()
-            .unwrap_or_else(|e| panic!("cannot start {}: {e}", program.display()));
-        Process { child, log }
-    }
+/// How long a test process gets to exit after SIGINT.
+pub const STOP_TIMEOUT: Duration = Duration::from_secs(5);
 
-    /// The log written so far.
-    pub fn log_text(&self) -> String {
-        std::fs::read_to_string(&self.log).unwrap_or_default()
-    }
-
-    /// Sends SIGINT and waits up to 5 s for the exit status.
-    pub fn interrupt(&mut self) -> Option<std::process::ExitStatus> {
-        rover::graph::interrupt_child(&mut self.child, Duration::from_secs(5))
-    }
-
-    /// Kills the process at once (a crash, as far as the others can tell).
-    pub fn kill(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-impl Drop for Process {
-    fn drop(&mut self) {
-        if self.interrupt().is_none() {
-            self.kill();
-        }
-    }
+/// Starts `program` with `args` on `domain`, logging to a temporary file named after `name`.
+pub fn start_process(program: &Path, args: &[&str], domain: &Domain, name: &str) -> Process {
+    let log = std::env::temp_dir().join(format!("rover-test-{}-{name}-{}.log", domain.id, std::process::id()));
+    let mut command = Command::new(program);
+    command
+        .args(args)
+        .env("ROS_DOMAIN_ID", domain.id.to_string())
+        .env("RUST_LOG", std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()));
+    Process::spawn(name, command, log).unwrap_or_else(|e| panic!("{e:#}"))
 }
 
 /// The `rover` binary under test.
