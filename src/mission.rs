@@ -121,7 +121,7 @@ pub fn run_in_process(
         }
         if frame % settings.mapping.publish_every_scans as u64 == 0 {
             located.update(&map.rock_cells());
-            machine.set_map(Grid::from_occupancy(&map.occupancy()).expect("the map is 200 x 200"));
+            machine.set_map(Grid::from_occupancy(&map.occupancy()).expect("the map has the cells of map_grid"));
             machine.set_rocks(map.rocks(settings.mapping.rock_merge_m));
         }
         let drive = machine.step(&rover_decision::observation(&message, &scan, &mut rays));

@@ -8,6 +8,7 @@
 //! [`ros2_client::Message`], so it can be published and subscribed with `ros2-client`.
 
 pub mod idl;
+pub mod map_grid;
 pub mod tally;
 pub mod validate;
 #[macro_use]

@@ -4,8 +4,7 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
-/// Side of the grid, cells (1 m each).
-pub const SIDE: usize = 200;
+use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_at, cell_centre_m, cell_of_point, cell_xy, checked_cell_at};
 
 /// What a cell of the occupancy grid says.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -41,7 +40,7 @@ pub struct Grid {
 impl Grid {
     /// A grid from `nav_msgs/OccupancyGrid` data (row = y).
     pub fn from_occupancy(data: &[i8]) -> Option<Self> {
-        if data.len() != SIDE * SIDE {
+        if data.len() != CELLS {
             return None;
         }
         let cells: Vec<Cell> = data
@@ -52,7 +51,7 @@ impl Grid {
                 _ => Cell::Free,
             })
             .collect();
-        let near_wall = (0..SIDE * SIDE)
+        let near_wall = (0..CELLS)
             .map(|i| cells[i] != Cell::Blocked && neighbours8(i).any(|n| cells[n] == Cell::Blocked))
             .collect();
         Some(Grid { cells, near_wall })
@@ -69,22 +68,12 @@ impl Grid {
 
     /// An empty (all unknown) grid.
     pub fn unknown() -> Self {
-        Grid { cells: vec![Cell::Unknown; SIDE * SIDE], near_wall: vec![false; SIDE * SIDE] }
+        Grid { cells: vec![Cell::Unknown; CELLS], near_wall: vec![false; CELLS] }
     }
 
     /// The cell at index `i`.
     pub fn cell(&self, i: usize) -> Cell {
         self.cells[i]
-    }
-
-    /// Index of the cell containing (x, y), if on the grid.
-    pub fn index(x_m: f64, y_m: f64) -> Option<usize> {
-        (x_m >= 0.0 && y_m >= 0.0 && x_m < SIDE as f64 && y_m < SIDE as f64).then(|| y_m as usize * SIDE + x_m as usize)
-    }
-
-    /// Centre of cell `i`, metres.
-    pub fn centre(i: usize) -> (f64, f64) {
-        ((i % SIDE) as f64 + 0.5, (i / SIDE) as f64 + 0.5)
     }
 
     /// Whether `cell` is an obstacle beyond the escape radius of a plan from `start`.
@@ -115,8 +104,8 @@ impl Grid {
     /// obstacle cells right around it can be crossed at a premium: a rover that the map puts in or
     /// against a wall (a sample by the wall, a wall margin) can still leave.
     pub fn costs_from(&self, start: usize, costs: &Costs) -> CostMap {
-        let mut distance = vec![f32::INFINITY; SIDE * SIDE];
-        let mut parent = vec![usize::MAX; SIDE * SIDE];
+        let mut distance = vec![f32::INFINITY; CELLS];
+        let mut parent = vec![usize::MAX; CELLS];
         let mut heap = BinaryHeap::new();
         distance[start] = 0.0;
         heap.push(Reverse((Ordered(0.0), start)));
@@ -124,17 +113,13 @@ impl Grid {
             if d > distance[i] {
                 continue;
             }
-            let (x, y) = ((i % SIDE) as i64, (i / SIDE) as i64);
+            let (x, y) = cell_xy(i);
             for (dx, dy) in NEIGHBOURS8 {
-                let (nx, ny) = (x + dx, y + dy);
-                if !(0..SIDE as i64).contains(&nx) || !(0..SIDE as i64).contains(&ny) {
-                    continue;
-                }
-                let n = ny as usize * SIDE + nx as usize;
+                let Some(n) = checked_cell_at(x as i64 + dx, y as i64 + dy) else { continue };
+                let (nx, ny) = cell_xy(n);
                 let diagonal = dx != 0 && dy != 0;
                 if diagonal
-                    && (self.walls_off(y as usize * SIDE + nx as usize, start, costs)
-                        || self.walls_off(ny as usize * SIDE + x as usize, start, costs))
+                    && (self.walls_off(cell_at(nx, y), start, costs) || self.walls_off(cell_at(x, ny), start, costs))
                 {
                     continue;
                 }
@@ -152,29 +137,29 @@ impl Grid {
 
     /// Frontier cells: free cells with a 4-neighbour that is still `unexplored`.
     pub fn frontiers(&self, unexplored: impl Fn(usize) -> bool) -> Vec<usize> {
-        (0..SIDE * SIDE).filter(|&i| self.cells[i] == Cell::Free && neighbours4(i).any(&unexplored)).collect()
+        (0..CELLS).filter(|&i| self.cells[i] == Cell::Free && neighbours4(i).any(&unexplored)).collect()
     }
 
     /// Whether cell `to` can be seen from point `from` (metres): no obstacle cell farther than
     /// `around_cells` from `to` lies on the straight line between them (unknown cells may be
     /// floor and do not block the view).
     pub fn line_of_sight(&self, from: (f64, f64), to: usize, around_cells: usize) -> bool {
-        let target = Self::centre(to);
+        let target = cell_centre_m(to);
         let steps = ((target.0 - from.0).hypot(target.1 - from.1) / SIGHT_STEP_M).ceil() as usize;
         (1..steps).all(|k| {
             let t = k as f64 / steps as f64;
             let point = (from.0 + t * (target.0 - from.0), from.1 + t * (target.1 - from.1));
-            Self::index(point.0, point.1)
+            cell_of_point(point.0, point.1)
                 .is_none_or(|cell| chebyshev(cell, to) <= around_cells || self.cells[cell] != Cell::Blocked)
         })
     }
 
     /// Cells within `radius` cells of cell `i` (a square neighbourhood, clipped at the edges).
     pub fn cells_around(i: usize, radius: usize) -> impl Iterator<Item = usize> {
-        let (x, y) = (i % SIDE, i / SIDE);
-        let rows = y.saturating_sub(radius)..(y + radius + 1).min(SIDE);
+        let (x, y) = cell_xy(i);
+        let rows = y.saturating_sub(radius)..(y + radius + 1).min(SIDE_CELLS);
         rows.flat_map(move |row| {
-            (x.saturating_sub(radius)..(x + radius + 1).min(SIDE)).map(move |col| row * SIDE + col)
+            (x.saturating_sub(radius)..(x + radius + 1).min(SIDE_CELLS)).map(move |col| cell_at(col, row))
         })
     }
 
@@ -192,7 +177,8 @@ const ESCAPE_RADIUS_CELLS: usize = 1;
 
 /// Chebyshev distance between two cells, cells.
 fn chebyshev(a: usize, b: usize) -> usize {
-    (a % SIDE).abs_diff(b % SIDE).max((a / SIDE).abs_diff(b / SIDE))
+    let ((ax, ay), (bx, by)) = (cell_xy(a), cell_xy(b));
+    ax.abs_diff(bx).max(ay.abs_diff(by))
 }
 
 /// The result of [`Grid::costs_from`].
@@ -210,9 +196,7 @@ impl CostMap {
         if self.distance[goal].is_finite() {
             return Some(goal);
         }
-        let (x, y) = (goal % SIDE, goal / SIDE);
-        let rows = y.saturating_sub(radius)..(y + radius + 1).min(SIDE);
-        rows.flat_map(|ny| (x.saturating_sub(radius)..(x + radius + 1).min(SIDE)).map(move |nx| ny * SIDE + nx))
+        Grid::cells_around(goal, radius)
             .filter(|&cell| self.distance[cell].is_finite())
             .min_by(|&a, &b| self.distance[a].total_cmp(&self.distance[b]))
     }
@@ -254,12 +238,8 @@ impl Ord for Ordered {
 const NEIGHBOURS8: [(i64, i64); 8] = [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)];
 
 fn neighbours(i: usize, offsets: &'static [(i64, i64)]) -> impl Iterator<Item = usize> {
-    let (x, y) = ((i % SIDE) as i64, (i / SIDE) as i64);
-    offsets
-        .iter()
-        .map(move |&(dx, dy)| (x + dx, y + dy))
-        .filter(|&(nx, ny)| (0..SIDE as i64).contains(&nx) && (0..SIDE as i64).contains(&ny))
-        .map(|(nx, ny)| ny as usize * SIDE + nx as usize)
+    let (x, y) = cell_xy(i);
+    offsets.iter().filter_map(move |&(dx, dy)| checked_cell_at(x as i64 + dx, y as i64 + dy))
 }
 
 fn neighbours4(i: usize) -> impl Iterator<Item = usize> {
@@ -278,24 +258,24 @@ mod tests {
 
     #[test]
     fn an_obstacle_hides_what_lies_behind_it() {
-        let mut data = vec![0i8; SIDE * SIDE];
-        data[10 * SIDE + 12] = 100;
-        data[10 * SIDE + 14] = 100;
+        let mut data = vec![0i8; CELLS];
+        data[cell_at(12, 10)] = 100;
+        data[cell_at(14, 10)] = 100;
         let grid = Grid::from_occupancy(&data).unwrap();
-        assert!(grid.line_of_sight((10.5, 10.5), Grid::index(12.5, 10.5).unwrap(), 0), "the obstacle itself is seen");
-        assert!(!grid.line_of_sight((10.5, 10.5), Grid::index(13.5, 10.5).unwrap(), 0), "behind it is hidden");
-        assert!(grid.line_of_sight((10.5, 10.5), Grid::index(13.5, 12.5).unwrap(), 0), "beside it is not");
-        assert!(grid.line_of_sight((10.5, 10.5), Grid::index(13.5, 10.5).unwrap(), 1), "unless it is let through");
+        assert!(grid.line_of_sight((10.5, 10.5), cell_of_point(12.5, 10.5).unwrap(), 0), "the obstacle itself is seen");
+        assert!(!grid.line_of_sight((10.5, 10.5), cell_of_point(13.5, 10.5).unwrap(), 0), "behind it is hidden");
+        assert!(grid.line_of_sight((10.5, 10.5), cell_of_point(13.5, 12.5).unwrap(), 0), "beside it is not");
+        assert!(grid.line_of_sight((10.5, 10.5), cell_of_point(13.5, 10.5).unwrap(), 1), "unless it is let through");
     }
 
     #[test]
     fn a_blocked_cell_is_planned_around() {
-        let mut data = vec![0i8; SIDE * SIDE];
-        data[10 * SIDE + 10] = 100;
+        let mut data = vec![0i8; CELLS];
+        data[cell_at(10, 10)] = 100;
         let mut grid = Grid::from_occupancy(&data).unwrap();
-        let (start, goal) = (Grid::index(5.5, 12.5).unwrap(), Grid::index(15.5, 12.5).unwrap());
+        let (start, goal) = (cell_of_point(5.5, 12.5).unwrap(), cell_of_point(15.5, 12.5).unwrap());
         let straight = grid.costs_from(start, &COSTS).path_to(goal).unwrap();
-        let blocked = Grid::index(10.5, 12.5).unwrap();
+        let blocked = cell_of_point(10.5, 12.5).unwrap();
         assert!(straight.contains(&blocked));
         grid.block(blocked);
         let around = grid.costs_from(start, &COSTS).path_to(goal).unwrap();
@@ -303,15 +283,15 @@ mod tests {
     }
 
     fn corridor() -> Vec<i8> {
-        let mut data = vec![100i8; SIDE * SIDE];
+        let mut data = vec![100i8; CELLS];
         for x in 10..60 {
             for y in 10..14 {
-                data[y * SIDE + x] = 0;
+                data[cell_at(x, y)] = 0;
             }
         }
         for y in 14..40 {
             for x in 55..60 {
-                data[y * SIDE + x] = -1;
+                data[cell_at(x, y)] = -1;
             }
         }
         data
@@ -320,14 +300,14 @@ mod tests {
     #[test]
     fn paths_go_around_walls_and_through_unknown_ground() {
         let grid = Grid::from_occupancy(&corridor()).unwrap();
-        let start = Grid::index(11.5, 11.5).unwrap();
+        let start = cell_of_point(11.5, 11.5).unwrap();
         let costs = grid.costs_from(start, &COSTS);
-        let goal = Grid::index(57.5, 30.5).unwrap();
+        let goal = cell_of_point(57.5, 30.5).unwrap();
         let path = costs.path_to(goal).unwrap();
         assert_eq!(path[0], start);
         assert_eq!(*path.last().unwrap(), goal);
         assert!(path.iter().all(|&i| grid.cell(i) != Cell::Blocked));
-        assert!(costs.path_to(Grid::index(5.5, 5.5).unwrap()).is_none(), "walls are not crossed");
+        assert!(costs.path_to(cell_of_point(5.5, 5.5).unwrap()).is_none(), "walls are not crossed");
         let no_unknown = grid.costs_from(start, &Costs { cross_unknown: false, ..COSTS });
         assert!(no_unknown.path_to(goal).is_none());
     }
@@ -337,10 +317,10 @@ mod tests {
         let grid = Grid::from_occupancy(&corridor()).unwrap();
         let frontiers = grid.frontiers(|n| grid.cell(n) == Cell::Unknown);
         assert!(!frontiers.is_empty());
-        assert!(frontiers.iter().all(|&i| grid.cell(i) == Cell::Free && Grid::centre(i).1 < 14.0));
+        assert!(frontiers.iter().all(|&i| grid.cell(i) == Cell::Free && cell_centre_m(i).1 < 14.0));
         assert_eq!(Grid::from_occupancy(&[0; 3]).map(|_| ()), None);
-        let corner = Grid::index(0.5, 0.5).unwrap();
+        let corner = cell_of_point(0.5, 0.5).unwrap();
         assert_eq!(Grid::cells_around(corner, 2).count(), 9, "clipped at the edge");
-        assert_eq!(Grid::cells_around(Grid::index(50.5, 50.5).unwrap(), 2).count(), 25);
+        assert_eq!(Grid::cells_around(cell_of_point(50.5, 50.5).unwrap(), 2).count(), 25);
     }
 }

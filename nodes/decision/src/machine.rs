@@ -1,6 +1,7 @@
 //! The decision state machine: explore, approach a sample, wait for the pickup, recover, return
 //! home, done. One [`Machine::step`] per frame turns an observation into a drive command.
 
+use rover_msgs::map_grid::{cell_centre_m, cell_of_point};
 use rover_msgs::tally::SampleTally;
 
 use crate::drive::{Drive, Steering, speed_to_stop_in};
@@ -433,8 +434,8 @@ impl Machine {
         let again = self.stuck_spots.iter().any(|&(_, at)| obs.position.distance_to(at) < STUCK_AGAIN_M);
         self.stuck_spots.push((obs.frame, here));
         let ahead = obs.position.point_at(0.0, STUCK_MARK_AHEAD_M);
-        if let Some(cell) = Grid::index(ahead.0, ahead.1).filter(|_| again) {
-            tracing::debug!(cell = ?Grid::centre(cell), "stuck again here: the cell ahead is an obstacle for a while");
+        if let Some(cell) = cell_of_point(ahead.0, ahead.1).filter(|_| again) {
+            tracing::debug!(cell = ?cell_centre_m(cell), "stuck again here: the cell ahead is an obstacle for a while");
             self.stuck_marks.push((cell, obs.frame + self.params.frames(STUCK_MARK_S)));
             self.apply_stuck_marks();
         }
@@ -518,7 +519,7 @@ impl Machine {
                     let area = (STAGING_RADIUS_CELLS, STAGING_AWAY_M);
                     staging_cell(&self.grid, at, &obs.position, area, &failed, p)
                 })
-                .map(Grid::centre),
+                .map(cell_centre_m),
             unseen_since: None,
         };
         let seen = obs
@@ -579,7 +580,7 @@ impl Machine {
         let bearing = obs.position.bearing_to(chase.at);
         let in_view = (CHECK_RANGE_M.0..=CHECK_RANGE_M.1).contains(&distance_m)
             && bearing.abs() <= CHECK_BEARING_DEG.to_radians()
-            && Grid::index(chase.at.0, chase.at.1)
+            && cell_of_point(chase.at.0, chase.at.1)
                 .is_some_and(|cell| self.grid.line_of_sight((obs.position.x_m, obs.position.y_m), cell, 0));
         chase.unseen_since = (in_view && obs.rock.is_none()).then(|| chase.unseen_since.unwrap_or(obs.frame));
         if chase.unseen_since.is_some_and(|since| obs.frame >= since + p.frames(UNSEEN_S)) {
@@ -684,7 +685,9 @@ impl Machine {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::{Cell, SIDE};
+    use rover_msgs::map_grid::{CELLS, cell_at};
+
+    use crate::grid::Cell;
 
     fn open_ahead() -> FreeSpace {
         FreeSpace { directions_rad: vec![-0.3, 0.0, 0.3], free_m: vec![6.0, 6.0, 6.0] }
@@ -707,10 +710,10 @@ mod tests {
 
     /// A corridor along y = 100 from x = 90 to 130, unknown beyond x = 130.
     fn corridor() -> Grid {
-        let mut data = vec![100i8; SIDE * SIDE];
+        let mut data = vec![100i8; CELLS];
         for y in 98..103 {
             for x in 90..140 {
-                data[y * SIDE + x] = if x < 130 { 0 } else { -1 };
+                data[cell_at(x, y)] = if x < 130 { 0 } else { -1 };
             }
         }
         Grid::from_occupancy(&data).unwrap()
@@ -828,7 +831,7 @@ mod tests {
         let params = DecisionParams::default();
         let mut machine = Machine::new(params.clone());
         machine.set_map(corridor());
-        let ahead = Grid::index(101.4, 100.5).unwrap();
+        let ahead = cell_of_point(101.4, 100.5).unwrap();
         machine.mark_if_stuck_again(&observation(10, 100.5, 100.5));
         assert_eq!(machine.grid.cell(ahead), Cell::Free, "stuck once: nothing marked");
         machine.mark_if_stuck_again(&observation(200, 100.7, 100.4));

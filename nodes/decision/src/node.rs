@@ -3,6 +3,7 @@
 
 use futures::StreamExt;
 use rover_msgs::geometry_msgs::PoseArray;
+use rover_msgs::map_grid::SIDE_CELLS;
 use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, Telemetry, TerrainScan};
 use rover_msgs::nav_msgs::OccupancyGrid;
 use rover_msgs::std_msgs::Header;
@@ -12,7 +13,7 @@ use tracing::Instrument as _;
 
 use crate::checked_observation;
 use crate::drive::Drive;
-use crate::grid::{Grid, SIDE};
+use crate::grid::Grid;
 use crate::local::FreeSpaceRays;
 use crate::machine::{Machine, Memory};
 use crate::params::DecisionParams;
@@ -88,7 +89,7 @@ impl Decision {
             None => self.rejections.reject(
                 topics::MAP.name,
                 &format_args!(
-                    "ignored a map of {}x{} cells of {} m: expected {SIDE}x{SIDE} cells of 1 m",
+                    "ignored a map of {}x{} cells of {} m: expected {SIDE_CELLS}x{SIDE_CELLS} cells of 1 m",
                     info.width, info.height, info.resolution
                 ),
             ),
@@ -182,5 +183,5 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
 
 /// Whether a map has the size and cell size of the grid the machine plans on.
 fn is_the_planning_grid(map: &OccupancyGrid) -> bool {
-    (map.info.width as usize, map.info.height as usize, map.info.resolution) == (SIDE, SIDE, 1.0)
+    (map.info.width as usize, map.info.height as usize, map.info.resolution) == (SIDE_CELLS, SIDE_CELLS, 1.0)
 }

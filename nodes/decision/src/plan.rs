@@ -1,13 +1,15 @@
 //! Planning on the map: routes to a goal cell, frontier exploration, and the lookahead point of a
 //! path that the rover steers toward.
 
+use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_at, cell_centre_m, cell_of_point};
+
 use crate::grid::{Cell, CostMap, Costs, Grid};
 use crate::params::DecisionParams;
 
 /// A frontier needs enough unknown cells within this many cells.
 const FRONTIER_RADIUS_CELLS: usize = 2;
 /// Cells within this distance of a reached or abandoned target stop being frontier candidates.
-const EXPLORED_RADIUS_CELLS: i64 = 3;
+const EXPLORED_RADIUS_CELLS: usize = 3;
 /// Extra path cost of an obstacle cell once the explorer looks past obstacles (a narrow canyon
 /// whose floor the map got wrong).
 const OBSTACLE_CROSSING_COST: f32 = 50.0;
@@ -66,10 +68,10 @@ pub fn path_costs(params: &DecisionParams) -> Costs {
 /// The point of `path` the rover steers toward: the first cell at least `lookahead_m` away, after
 /// the cell nearest to the rover; the last cell when all are nearer.
 pub fn lookahead(path: &[usize], at: &Position, lookahead_m: f64) -> Option<(f64, f64)> {
-    let distance = |&cell: &usize| at.distance_to(Grid::centre(cell));
+    let distance = |&cell: &usize| at.distance_to(cell_centre_m(cell));
     let nearest = (0..path.len()).min_by(|&a, &b| distance(&path[a]).total_cmp(&distance(&path[b])))?;
     let ahead = &path[nearest..];
-    ahead.iter().find(|cell| distance(cell) >= lookahead_m).or(ahead.last()).map(|&cell| Grid::centre(cell))
+    ahead.iter().find(|cell| distance(cell) >= lookahead_m).or(ahead.last()).map(|&cell| cell_centre_m(cell))
 }
 
 /// A free cell beside `goal` (within `radius_cells`) with a clear line of sight to it on the
@@ -84,15 +86,15 @@ pub fn staging_cell(
     avoid: &[(f64, f64)],
     params: &DecisionParams,
 ) -> Option<usize> {
-    let (start, goal) = (Grid::index(at.x_m, at.y_m)?, Grid::index(goal.0, goal.1)?);
+    let (start, goal) = (cell_of_point(at.x_m, at.y_m)?, cell_of_point(goal.0, goal.1)?);
     let costs = grid.costs_from(start, &path_costs(params));
     let far_from_failures = |cell: usize| {
-        let (x, y) = Grid::centre(cell);
+        let (x, y) = cell_centre_m(cell);
         avoid.iter().all(|p| (p.0 - x).hypot(p.1 - y) >= away_m)
     };
     Grid::cells_around(goal, radius_cells)
         .filter(|&cell| cell != goal && grid.cell(cell) == Cell::Free && costs.distance[cell].is_finite())
-        .filter(|&cell| far_from_failures(cell) && grid.line_of_sight(Grid::centre(cell), goal, 1))
+        .filter(|&cell| far_from_failures(cell) && grid.line_of_sight(cell_centre_m(cell), goal, 1))
         .min_by(|&a, &b| costs.distance[a].total_cmp(&costs.distance[b]))
 }
 
@@ -107,7 +109,7 @@ pub struct Route {
 impl Route {
     /// A route to the cell containing `goal`, or `None` when that is off the map.
     pub fn to(goal: (f64, f64)) -> Option<Self> {
-        Some(Route { goal: Grid::index(goal.0, goal.1)?, path: Vec::new(), planned: None })
+        Some(Route { goal: cell_of_point(goal.0, goal.1)?, path: Vec::new(), planned: None })
     }
 
     /// The point to steer toward on the way from `at`, replanning when the route is older than
@@ -122,7 +124,7 @@ impl Route {
         frame: u64,
         params: &DecisionParams,
     ) -> Option<(f64, f64)> {
-        let start = Grid::index(at.x_m, at.y_m)?;
+        let start = cell_of_point(at.x_m, at.y_m)?;
         if replan_due(self.planned, frame, map_version, params) {
             let costs = grid.costs_from(start, &path_costs(params));
             self.path = costs
@@ -132,7 +134,7 @@ impl Route {
             self.planned = Some((frame, map_version));
         }
         let point = lookahead(&self.path, at, params.lookahead_m)?;
-        Some(if at.distance_to(point) < params.lookahead_m { Grid::centre(self.goal) } else { point })
+        Some(if at.distance_to(point) < params.lookahead_m { cell_centre_m(self.goal) } else { point })
     }
 }
 
@@ -174,7 +176,7 @@ struct Target {
 
 impl Default for Explorer {
     fn default() -> Self {
-        let cells = crate::grid::SIDE * crate::grid::SIDE;
+        let cells = CELLS;
         Explorer {
             target: None,
             look: None,
@@ -190,14 +192,14 @@ impl Default for Explorer {
 impl Explorer {
     /// The current target's centre, if any.
     pub fn target(&self) -> Option<(f64, f64)> {
-        self.target.as_ref().map(|t| Grid::centre(t.cell))
+        self.target.as_ref().map(|t| cell_centre_m(t.cell))
     }
 
     /// Path cost from the rover (as of the last plan) to the cell containing `point`, or to the
     /// cheapest reachable cell next to it when that is an obstacle.
     pub fn cost_to(&self, point: (f64, f64)) -> Option<f64> {
         let costs = self.costs.as_ref()?;
-        let cell = costs.reachable_near(Grid::index(point.0, point.1)?, GOAL_SLACK_CELLS)?;
+        let cell = costs.reachable_near(cell_of_point(point.0, point.1)?, GOAL_SLACK_CELLS)?;
         Some(costs.distance[cell] as f64)
     }
 
@@ -207,11 +209,13 @@ impl Explorer {
         let half_angle_rad = params.inspect_half_angle_deg.to_radians();
         let (x0, x1) = ((at.x_m - range_m).floor() as i64, (at.x_m + range_m).ceil() as i64);
         let (y0, y1) = ((at.y_m - range_m).floor() as i64, (at.y_m + range_m).ceil() as i64);
-        for y in y0.max(0)..y1.min(crate::grid::SIDE as i64) {
-            for x in x0.max(0)..x1.min(crate::grid::SIDE as i64) {
-                let centre = (x as f64 + 0.5, y as f64 + 0.5);
+        let side = SIDE_CELLS as i64;
+        for y in y0.max(0)..y1.min(side) {
+            for x in x0.max(0)..x1.min(side) {
+                let cell = cell_at(x as usize, y as usize);
+                let centre = cell_centre_m(cell);
                 if at.distance_to(centre) <= range_m && at.bearing_to(centre).abs() <= half_angle_rad {
-                    self.inspected[y as usize * crate::grid::SIDE + x as usize] = true;
+                    self.inspected[cell] = true;
                 }
             }
         }
@@ -258,22 +262,22 @@ impl Explorer {
         frame: u64,
         params: &DecisionParams,
     ) -> Option<(f64, f64)> {
-        let start = Grid::index(at.x_m, at.y_m)?;
+        let start = cell_of_point(at.x_m, at.y_m)?;
         if let Some(point) = self.look_point(grid, frame) {
             return Some(point);
         }
         if let Some((cell, chosen_frame)) = self.target.as_ref().map(|t| (t.cell, t.chosen_frame)) {
             let timed_out = frame >= chosen_frame + params.frames(params.target_timeout_s);
-            let reached = at.distance_to(Grid::centre(cell)) < params.frontier_reached_m;
+            let reached = at.distance_to(cell_centre_m(cell)) < params.frontier_reached_m;
             if reached && !timed_out {
                 self.look = Some(Look { around: cell, until_frame: frame + params.frames(LOOK_S) });
                 if let Some(point) = self.look_point(grid, frame) {
-                    tracing::debug!(target = ?Grid::centre(cell), ?point, "frontier target reached: looking");
+                    tracing::debug!(target = ?cell_centre_m(cell), ?point, "frontier target reached: looking");
                     return Some(point);
                 }
             }
             if timed_out || reached {
-                tracing::debug!(target = ?Grid::centre(cell), timed_out, "frontier target done");
+                tracing::debug!(target = ?cell_centre_m(cell), timed_out, "frontier target done");
                 self.abandon_target();
             }
         }
@@ -290,7 +294,7 @@ impl Explorer {
         let look = self.look?;
         let unexplored: Vec<(f64, f64)> = Grid::cells_around(look.around, FRONTIER_RADIUS_CELLS)
             .filter(|&n| self.unexplored(grid, n))
-            .map(Grid::centre)
+            .map(cell_centre_m)
             .collect();
         if unexplored.is_empty() || frame >= look.until_frame {
             self.abandon_target();
@@ -327,28 +331,21 @@ impl Explorer {
 
     fn best_frontier(&self, grid: &Grid, costs: &CostMap, at: &Position, params: &DecisionParams) -> Option<usize> {
         let score = |cell: usize| {
-            let turn = at.bearing_to(Grid::centre(cell)).abs() / std::f64::consts::PI;
+            let turn = at.bearing_to(cell_centre_m(cell)).abs() / std::f64::consts::PI;
             costs.distance[cell] as f64 + params.turn_penalty_m * turn
         };
         grid.frontiers(|n| self.unexplored(grid, n))
             .into_iter()
             .filter(|&cell| self.is_candidate(grid, costs, cell, params))
-            .filter(|&cell| at.distance_to(Grid::centre(cell)) >= params.frontier_reached_m)
+            .filter(|&cell| at.distance_to(cell_centre_m(cell)) >= params.frontier_reached_m)
             .min_by(|&a, &b| score(a).total_cmp(&score(b)))
     }
 
     fn abandon_target(&mut self) {
         self.look = None;
         let Some(target) = self.target.take() else { return };
-        let side = crate::grid::SIDE as i64;
-        let (x, y) = ((target.cell as i64) % side, (target.cell as i64) / side);
-        for dy in -EXPLORED_RADIUS_CELLS..=EXPLORED_RADIUS_CELLS {
-            for dx in -EXPLORED_RADIUS_CELLS..=EXPLORED_RADIUS_CELLS {
-                let (cx, cy) = (x + dx, y + dy);
-                if (0..side).contains(&cx) && (0..side).contains(&cy) {
-                    self.explored[(cy * side + cx) as usize] = true;
-                }
-            }
+        for cell in Grid::cells_around(target.cell, EXPLORED_RADIUS_CELLS) {
+            self.explored[cell] = true;
         }
     }
 }
@@ -356,14 +353,13 @@ impl Explorer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::SIDE;
 
     /// A map with a known corridor along y = 50..54 from x = 20 to 60, unknown beyond x = 60.
     fn half_explored() -> Grid {
-        let mut data = vec![100i8; SIDE * SIDE];
+        let mut data = vec![100i8; CELLS];
         for y in 50..54 {
             for x in 20..90 {
-                data[y * SIDE + x] = if x < 60 { 0 } else { -1 };
+                data[cell_at(x, y)] = if x < 60 { 0 } else { -1 };
             }
         }
         Grid::from_occupancy(&data).unwrap()
@@ -442,28 +438,28 @@ mod tests {
 
     #[test]
     fn a_staging_cell_sees_the_goal_past_the_wall_corner() {
-        let mut data = vec![0i8; SIDE * SIDE];
+        let mut data = vec![0i8; CELLS];
         let wall = (79..=83).flat_map(|x| (104..=110).map(move |y| (x, y)));
         for (x, y) in wall.chain([(84, 109), (84, 110), (84, 111), (83, 111)]) {
-            data[y * SIDE + x] = 100;
+            data[cell_at(x, y)] = 100;
         }
         let grid = Grid::from_occupancy(&data).unwrap();
         let params = DecisionParams::default();
         let rover = Position { x_m: 82.5, y_m: 111.5, yaw_rad: 0.0 };
-        let goal = Grid::index(84.5, 109.5).unwrap();
+        let goal = cell_of_point(84.5, 109.5).unwrap();
         assert!(!grid.line_of_sight((82.5, 111.5), goal, 1), "the corner is in the way");
         let cell = staging_cell(&grid, (84.5, 109.5), &rover, (2, 1.5), &[(82.5, 111.5)], &params).unwrap();
-        let centre = Grid::centre(cell);
+        let centre = cell_centre_m(cell);
         assert!(grid.cell(cell) == Cell::Free && centre.0 > 84.0, "beside the goal, past the corner: {centre:?}");
         assert!(grid.line_of_sight(centre, goal, 1));
     }
 
     #[test]
     fn past_obstacles_a_walled_off_frontier_becomes_a_target() {
-        let mut data = vec![100i8; SIDE * SIDE];
+        let mut data = vec![100i8; CELLS];
         for y in 50..54 {
             for x in 20..40 {
-                data[y * SIDE + x] = match x {
+                data[cell_at(x, y)] = match x {
                     24 | 25 => 100,
                     30.. => -1,
                     _ => 0,

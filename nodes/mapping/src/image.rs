@@ -3,9 +3,9 @@
 
 use rover_imaging::RgbImage;
 use rover_imaging::text::draw_text;
+use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_xy};
 
 use crate::map::WorldMap;
-use crate::score::MAP_SIDE;
 
 /// Height of the statistics band under the map, pixels.
 const BAND_PX: usize = 24;
@@ -27,9 +27,9 @@ pub struct InsetStats {
 
 /// Draws the inset of `map`.
 pub fn map_inset(map: &WorldMap, ground_truth: Option<&[bool]>, rocks: &[(f64, f64)], stats: &InsetStats) -> RgbImage {
-    let mut image = RgbImage::new(MAP_SIDE, MAP_SIDE + BAND_PX);
-    for cell in 0..MAP_SIDE * MAP_SIDE {
-        let (x, y) = (cell % MAP_SIDE, cell / MAP_SIDE);
+    let mut image = RgbImage::new(SIDE_CELLS, SIDE_CELLS + BAND_PX);
+    for cell in 0..CELLS {
+        let (x, y) = cell_xy(cell);
         let truth = ground_truth.is_some_and(|t| t[cell]);
         let rgb = if map.is_navigable(cell) {
             [0, if truth { 40 } else { 0 }, 255]
@@ -40,21 +40,21 @@ pub fn map_inset(map: &WorldMap, ground_truth: Option<&[bool]>, rocks: &[(f64, f
         } else {
             [0, 0, 0]
         };
-        image.set_pixel(x, MAP_SIDE - 1 - y, rgb);
+        image.set_pixel(x, SIDE_CELLS - 1 - y, rgb);
     }
     for &(x, y) in rocks {
         for (dx, dy) in [(0i64, 0i64), (1, 0), (-1, 0), (0, 1), (0, -1)] {
             let (px, py) = (x as i64 + dx, y as i64 + dy);
-            if (0..MAP_SIDE as i64).contains(&px) && (0..MAP_SIDE as i64).contains(&py) {
-                image.set_pixel(px as usize, MAP_SIDE - 1 - py as usize, [255, 255, 255]);
+            if (0..SIDE_CELLS as i64).contains(&px) && (0..SIDE_CELLS as i64).contains(&py) {
+                image.set_pixel(px as usize, SIDE_CELLS - 1 - py as usize, [255, 255, 255]);
             }
         }
     }
     let percent = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}%"));
     let first = format!("T {:.0}S M {} F {}", stats.time_s, percent(stats.mapped_pct), percent(stats.fidelity_pct));
     let second = format!("ROCKS {} COLLECTED {}", stats.rocks_located, stats.collected);
-    draw_text(&mut image, 2, MAP_SIDE + 2, &first, 2, [255, 255, 255]);
-    draw_text(&mut image, 2, MAP_SIDE + 13, &second, 2, [255, 255, 255]);
+    draw_text(&mut image, 2, SIDE_CELLS + 2, &first, 2, [255, 255, 255]);
+    draw_text(&mut image, 2, SIDE_CELLS + 13, &second, 2, [255, 255, 255]);
     image
 }
 
@@ -66,7 +66,7 @@ mod tests {
     #[test]
     fn draws_truth_rocks_and_text() {
         let map = WorldMap::new(MapConfig::default());
-        let mut truth = vec![false; MAP_SIDE * MAP_SIDE];
+        let mut truth = vec![false; CELLS];
         truth[0] = true;
         let stats = InsetStats {
             time_s: 12.0,

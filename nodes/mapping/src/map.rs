@@ -3,7 +3,9 @@
 
 use crate::projection::{CameraMount, Pose, Projector};
 use crate::rocks::{RockCell, rock_positions};
-use crate::score::{MAP_SIDE, Scores, udacity_scores};
+use rover_msgs::map_grid::{CELLS, cell_at, cell_of_point, cell_xy};
+
+use crate::score::{Scores, udacity_scores};
 
 /// Terrain-scan class codes (`rover_msgs/TerrainScan`).
 const NAVIGABLE: u8 = rover_msgs::msg::TerrainScan::NAVIGABLE;
@@ -117,7 +119,7 @@ pub struct WorldMap {
 impl WorldMap {
     /// An empty map.
     pub fn new(config: MapConfig) -> Self {
-        let cells = MAP_SIDE * MAP_SIDE;
+        let cells = CELLS;
         WorldMap {
             config,
             mount: CameraMount::default(),
@@ -175,7 +177,7 @@ impl WorldMap {
                     }
                     continue;
                 }
-                if let Some(cell) = projector.world(x, y).and_then(|(wx, wy)| cell_index(wx, wy)) {
+                if let Some(cell) = projector.world(x, y).and_then(|(wx, wy)| cell_of_point(wx, wy)) {
                     let weight = (full_weight_sq / range_sq).min(1.0) as f32;
                     self.add(cell, (class - 1) as usize, weight);
                     landed += 1;
@@ -183,7 +185,7 @@ impl WorldMap {
             }
         }
         let rock = nearest_rock.and_then(|(range_sq, x, y)| {
-            let cell = projector.world(x, y).and_then(|(wx, wy)| cell_index(wx, wy))?;
+            let cell = projector.world(x, y).and_then(|(wx, wy)| cell_of_point(wx, wy))?;
             Some((cell, range_sq.sqrt() as f32))
         });
         if let Some((cell, range_m)) = rock {
@@ -242,7 +244,7 @@ impl WorldMap {
 
     /// The occupancy grid: 0 navigable, 100 obstacle, -1 unknown; row = y.
     pub fn occupancy(&self) -> Vec<i8> {
-        (0..MAP_SIDE * MAP_SIDE)
+        (0..CELLS)
             .map(|cell| {
                 if self.is_navigable(cell) {
                     0
@@ -257,22 +259,21 @@ impl WorldMap {
 
     /// Counts of navigable and obstacle cells.
     pub fn cell_counts(&self) -> (usize, usize) {
-        let navigable = (0..MAP_SIDE * MAP_SIDE).filter(|&c| self.is_navigable(c)).count();
-        let obstacle = (0..MAP_SIDE * MAP_SIDE).filter(|&c| self.is_obstacle(c)).count();
+        let navigable = (0..CELLS).filter(|&c| self.is_navigable(c)).count();
+        let obstacle = (0..CELLS).filter(|&c| self.is_obstacle(c)).count();
         (navigable, obstacle)
     }
 
     /// The Udacity scores of the map against a ground-truth navigable mask.
     pub fn scores(&self, ground_truth: &[bool]) -> Scores {
-        let channel = |test: &dyn Fn(usize) -> bool| {
-            (0..MAP_SIDE * MAP_SIDE).map(|c| if test(c) { 255.0 } else { 0.0 }).collect::<Vec<f32>>()
-        };
+        let channel =
+            |test: &dyn Fn(usize) -> bool| (0..CELLS).map(|c| if test(c) { 255.0 } else { 0.0 }).collect::<Vec<f32>>();
         udacity_scores(&channel(&|c| self.is_obstacle(c)), &channel(&|c| self.is_navigable(c)), ground_truth)
     }
 
     /// Cells (x, y) holding a rock.
     pub fn rock_cells(&self) -> Vec<(usize, usize)> {
-        (0..MAP_SIDE * MAP_SIDE).filter(|&c| self.is_rock(c)).map(|c| (c % MAP_SIDE, c / MAP_SIDE)).collect()
+        (0..CELLS).filter(|&c| self.is_rock(c)).map(cell_xy).collect()
     }
 
     /// The located rocks, world metres: rock cells within `merge_m` are one rock (see
@@ -281,7 +282,7 @@ impl WorldMap {
         let cells: Vec<RockCell> = self
             .rock_cells()
             .into_iter()
-            .map(|(x, y)| RockCell { x, y, range_m: self.rock_range_m[y * MAP_SIDE + x] })
+            .map(|(x, y)| RockCell { x, y, range_m: self.rock_range_m[cell_at(x, y)] })
             .collect();
         rock_positions(&cells, merge_m)
     }
@@ -298,7 +299,7 @@ impl WorldMap {
         let reach = radius_m.ceil() as i64 + 1;
         for iy in (y_m as i64 - reach)..=(y_m as i64 + reach) {
             for ix in (x_m as i64 - reach)..=(x_m as i64 + reach) {
-                if let Some(cell) = cell_index(ix as f64 + 0.5, iy as f64 + 0.5)
+                if let Some(cell) = cell_of_point(ix as f64 + 0.5, iy as f64 + 0.5)
                     && (ix as f64 + 0.5 - x_m).hypot(iy as f64 + 0.5 - y_m) <= radius_m
                 {
                     self.hits[2][cell] = 0;
@@ -307,15 +308,6 @@ impl WorldMap {
             }
         }
     }
-}
-
-/// The map cell containing world point (x, y), if it is on the map.
-#[inline]
-pub fn cell_index(x_m: f64, y_m: f64) -> Option<usize> {
-    if x_m < 0.0 || y_m < 0.0 || x_m >= MAP_SIDE as f64 || y_m >= MAP_SIDE as f64 {
-        return None;
-    }
-    Some(y_m as usize * MAP_SIDE + x_m as usize)
 }
 
 #[cfg(test)]
@@ -344,7 +336,7 @@ mod tests {
         let pose = Pose { x_m: 100.0, y_m: 100.0, ..Pose::default() };
         let mut map = WorldMap::new(STRICT);
         assert_eq!(map.update(&scan(&cells, 4, 4), pose), Update::Used(16));
-        let cell = cell_index(101.8, 100.2).unwrap();
+        let cell = cell_of_point(101.8, 100.2).unwrap();
         assert_eq!(map.evidence(cell), (1, 0, 0), "four scan cells in one map cell count once");
         assert!(!map.is_navigable(cell));
         map.update(&scan(&cells, 4, 4), pose);
@@ -360,7 +352,7 @@ mod tests {
             map.update(&scan(&[rover_msgs::msg::TerrainScan::OBSTACLE; 16], 4, 4), pose);
         }
         map.update(&scan(&[NAVIGABLE; 16], 4, 4), pose);
-        let cell = cell_index(51.8, 50.2).unwrap();
+        let cell = cell_of_point(51.8, 50.2).unwrap();
         assert!(map.is_obstacle(cell) && !map.is_navigable(cell));
         assert_eq!(map.occupancy()[cell], 100);
         let tilted = Pose { pitch_rad: 5f64.to_radians(), ..pose };
@@ -387,7 +379,7 @@ mod tests {
             }
             map
         };
-        let cell = cell_index(30.5, 20.5).unwrap();
+        let cell = cell_of_point(30.5, 20.5).unwrap();
         let config = MapConfig { navigable_ratio: 1.0, ..MapConfig::default() };
         let map = observe(config);
         assert_eq!(map.evidence(cell), (3, 6, 0), "each frame counts once");

@@ -5,6 +5,7 @@ use std::time::{Duration, Instant};
 
 use futures::StreamExt;
 use rover_msgs::geometry_msgs::{Point, Pose as PoseMsg, PoseArray, Quaternion};
+use rover_msgs::map_grid::SIDE_CELLS;
 use rover_msgs::msg::{MapStats, Telemetry, TerrainScan};
 use rover_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
 use rover_msgs::sensor_msgs::Image;
@@ -17,7 +18,7 @@ use crate::image::{InsetStats, map_inset};
 use crate::map::{ScanGrid, Update, WorldMap};
 use crate::params::MappingParams;
 use crate::projection::Pose;
-use crate::score::{MAP_SIDE, ground_truth_from_png, samples_located};
+use crate::score::{ground_truth_from_png, samples_located};
 
 /// A frame number this far below the last one means the bridge restarted.
 const RESTART_GAP: u64 = 1000;
@@ -158,8 +159,8 @@ impl Outputs {
             info: MapMetaData {
                 map_load_time: header.stamp.clone(),
                 resolution: 1.0,
-                width: MAP_SIDE as u32,
-                height: MAP_SIDE as u32,
+                width: SIDE_CELLS as u32,
+                height: SIDE_CELLS as u32,
                 origin: PoseMsg { position: Point::default(), orientation: Quaternion::from_yaw(0.0) },
             },
             data: mapping.map.occupancy(),

@@ -2,8 +2,7 @@
 //! (unity-sim-spec 6.2): mapped % and fidelity % of a world map against the ground truth, and
 //! which samples count as located.
 
-/// Side of the world map, cells.
-pub const MAP_SIDE: usize = 200;
+use rover_msgs::map_grid::SIDE_CELLS;
 
 /// Mapped and fidelity percentages, rounded to one decimal like the starter.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -103,11 +102,11 @@ impl LocatedSamples {
     }
 }
 
-/// The ground-truth navigable mask of a 200x200 PNG (pixel > 0 is navigable).
+/// The ground-truth navigable mask of a PNG of one pixel per map cell (pixel > 0 is navigable).
 pub fn ground_truth_from_png(png: &[u8]) -> Result<Vec<bool>, String> {
     let image = rover_imaging::decode_png(png).map_err(|e| e.to_string())?;
-    if (image.width, image.height) != (MAP_SIDE, MAP_SIDE) {
-        return Err(format!("ground truth is {}x{}, expected 200x200", image.width, image.height));
+    if (image.width, image.height) != (SIDE_CELLS, SIDE_CELLS) {
+        return Err(format!("ground truth is {}x{}, expected {SIDE_CELLS}x{SIDE_CELLS}", image.width, image.height));
     }
     Ok(image.data.chunks_exact(3).map(|p| p[1] > 0).collect())
 }
