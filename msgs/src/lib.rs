@@ -6,7 +6,12 @@
 //! a test checks each of them against the `.msg` files of an installed ROS 2 distribution.
 //! Every type implements [`RosMessage`] (its DDS type name and field list) and
 //! [`ros2_client::Message`], so it can be published and subscribed with `ros2-client`.
+//!
+//! Beside the messages, the facts the nodes share about what the messages carry: [`map_grid`]
+//! (the map's cells), [`body`] (the camera mount, the arm's reach) and [`tally`] (samples counted
+//! from telemetry).
 
+pub mod body;
 pub mod idl;
 pub mod map_grid;
 pub mod tally;

@@ -1,6 +1,7 @@
 //! The decision state machine: explore, approach a sample, wait for the pickup, recover, return
 //! home, done. One [`Machine::step`] per frame turns an observation into a drive command.
 
+use rover_msgs::body::{ARM_REACH_M, SAMPLE_SPREAD_M};
 use rover_msgs::map_grid::{cell_centre_m, cell_of_point};
 use rover_msgs::tally::SampleTally;
 
@@ -10,16 +11,11 @@ use crate::local::FreeSpace;
 use crate::params::DecisionParams;
 use crate::plan::{Explorer, Position, Route, staging_cell};
 
-/// Within this distance a rock is taken to be one already given up or collected, metres (as
-/// the mapping node's radius for picked rocks: projections of one sample spread this far).
-const SAME_ROCK_M: f64 = 4.0;
 /// A rock is given up after this many approaches that ended stuck.
 const APPROACHES_PER_ROCK: usize = 2;
 /// Farther than this the rover drives to a sample along the map and around obstacles; closer, it
 /// drives straight at it (samples lie by the walls, where little ground counts as free).
 const ROUTE_APPROACH_M: f64 = 4.0;
-/// The arm reaches this far ahead of the rover's position, metres.
-const ARM_REACH_M: f64 = 0.84;
 /// After a failed approach the next one starts from a free cell this close to the sample, cells...
 const STAGING_RADIUS_CELLS: usize = 2;
 /// ...at least this far from where the failed ones ended, metres...
@@ -53,7 +49,7 @@ const STUCK_MARK_AHEAD_M: f64 = 0.9;
 
 /// Whether rocks located at `a` and `b` are taken to be one.
 fn same_rock(a: (f64, f64), b: (f64, f64)) -> bool {
-    (a.0 - b.0).hypot(a.1 - b.1) < SAME_ROCK_M
+    (a.0 - b.0).hypot(a.1 - b.1) < SAMPLE_SPREAD_M
 }
 
 /// Watches the rover's progress: how long it has stayed within some distance of one spot.

@@ -1,22 +1,16 @@
 //! The world map: per-cell evidence of navigable ground, obstacles and rocks, gathered from terrain
 //! scans, each cell counted at most once per frame and class, and the decisions drawn from it.
 
-use crate::projection::{CameraMount, Pose, Projector};
-use crate::rocks::{RockCell, rock_positions};
+use rover_msgs::body::{ARM_REACH_M, CameraMount, SAMPLE_SPREAD_M};
 use rover_msgs::map_grid::{CELLS, cell_at, cell_of_point, cell_xy};
 
+use crate::projection::{Pose, Projector};
+use crate::rocks::{RockCell, rock_positions};
 use crate::score::{Scores, udacity_scores};
 
 /// Terrain-scan class codes (`rover_msgs/TerrainScan`).
 const NAVIGABLE: u8 = rover_msgs::msg::TerrainScan::NAVIGABLE;
 const ROCK: u8 = rover_msgs::msg::TerrainScan::ROCK;
-
-/// The arm reaches this far ahead of the rover's position, metres.
-const REACH_AHEAD_M: f64 = 0.84;
-/// Rock evidence within this distance of a finished pickup is forgotten, metres: a sample seen
-/// from afar projects up to 3 m beyond where it lies, and no two sample places of the Unity
-/// world are closer than 7 m.
-const PICKED_RADIUS_M: f64 = 4.0;
 
 /// How scans become evidence and evidence becomes a map.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -291,7 +285,7 @@ impl WorldMap {
     /// (x, y) facing `yaw_rad`.
     pub fn forget_picked_rock(&mut self, x_m: f64, y_m: f64, yaw_rad: f64) {
         let (s, c) = yaw_rad.sin_cos();
-        self.clear_rocks_near(x_m + REACH_AHEAD_M * c, y_m + REACH_AHEAD_M * s, PICKED_RADIUS_M);
+        self.clear_rocks_near(x_m + ARM_REACH_M * c, y_m + ARM_REACH_M * s, SAMPLE_SPREAD_M);
     }
 
     /// Forgets the rock evidence within `radius_m` of (x, y), e.g. once the sample there is picked up.

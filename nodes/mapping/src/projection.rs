@@ -1,22 +1,7 @@
 //! From the rover frame to the world: a terrain-scan cell's ground point, corrected for the body's
 //! pitch and roll with the camera model, then rotated by yaw and moved to the rover's position.
 
-/// The camera's mounting, as the warp calibration assumes it on level ground.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CameraMount {
-    /// Camera ahead of the reported position, metres.
-    pub forward_m: f64,
-    /// Camera above the body origin, metres.
-    pub above_origin_m: f64,
-    /// Body origin below the floor, metres.
-    pub origin_below_floor_m: f64,
-}
-
-impl Default for CameraMount {
-    fn default() -> Self {
-        CameraMount { forward_m: 0.4287, above_origin_m: 0.2391, origin_below_floor_m: 0.0247 }
-    }
-}
+use rover_msgs::body::CameraMount;
 
 /// The body's attitude and position for one frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

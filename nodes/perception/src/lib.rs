@@ -12,6 +12,7 @@ pub mod scan;
 pub mod warp;
 
 use rover_imaging::{ImageError, RgbImage};
+use rover_msgs::body::CameraMount;
 
 use crate::classify::{Class, Thresholds};
 use crate::homography::Matrix3;
@@ -33,7 +34,7 @@ pub struct Calibration {
     /// Image height, pixels.
     pub height: usize,
     /// Distance from the rover's reported position to the cell's near edge, metres
-    /// (0.4287 m camera offset + 0.3992 m, unity-sim-spec 4.2).
+    /// (the camera's offset ahead, [`CameraMount::forward_m`], + 0.3992 m, unity-sim-spec 4.2).
     pub near_edge_ahead_m: f64,
 }
 
@@ -46,7 +47,7 @@ impl Default for Calibration {
             pixels_per_metre: 10.0,
             width: 320,
             height: 160,
-            near_edge_ahead_m: 0.4287 + 0.3992,
+            near_edge_ahead_m: CameraMount::UNITY.forward_m + 0.3992,
         }
     }
 }
