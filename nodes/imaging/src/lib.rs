@@ -1,8 +1,10 @@
 //! Image coding shared by the simulator, the bridge and the perception node.
 //!
 //! JPEGs are written the way Unity's `EncodeToJPG()` writes the simulator's camera frames
-//! (JFIF, IJG quality 75, 4:2:0) and read with `zune-jpeg` into RGB buffers.
+//! (JFIF, IJG quality 75, 4:2:0) and read with `zune-jpeg` into RGB buffers. [`text`] and
+//! [`shapes`] draw on RGB images, for the map pictures.
 
+pub mod shapes;
 pub mod text;
 
 use zune_jpeg::JpegDecoder;
