@@ -1,5 +1,5 @@
 //! `rover demo`: the simulator and the whole graph, each node in its own process, headless; one
-//! live progress line, then a summary table, the final map as PNG and the JSON report.
+//! live progress line, then a summary table, the mission's picture as PNG and the JSON report.
 
 use std::io::{IsTerminal as _, Write as _};
 use std::path::PathBuf;
@@ -12,8 +12,9 @@ use serde::Serialize;
 
 use crate::eval::{RunResult, table};
 use crate::graph::{GraphConfig, free_port};
-use crate::graph_mission::{rgb_image, run_graph_mission};
+use crate::graph_mission::run_graph_mission;
 use crate::mission::Progress;
+use crate::mission_map::write_mission_png;
 
 /// Without a terminal, a progress line is printed every this many simulated seconds.
 const LINE_EVERY_SIM_S: f64 = 50.0;
@@ -33,7 +34,8 @@ pub struct DemoArgs {
     /// Pace the simulation to the wall clock (default: as fast as the graph answers).
     #[arg(long)]
     pub realtime: bool,
-    /// Folder for the final map (map.png), the JSON report (report.json) and the node logs.
+    /// Folder for the mission's picture (map.png: the final map over the true world, the path,
+    /// the samples and the scores), the JSON report (report.json) and the node logs.
     #[arg(long, default_value = "rover-demo", value_name = "DIR")]
     pub out: PathBuf,
 }
@@ -67,12 +69,9 @@ pub async fn run_demo(args: &DemoArgs, runtime: &Runtime, ros_args: &[String]) -
     line.finish(&outcome.progress);
     let result = RunResult::of(args.seed, samples, &outcome.report, &outcome.progress, started.elapsed().as_secs_f64());
     print!("{}", table(std::slice::from_ref(&result)));
-    if let Some(image) = outcome.map_image.as_ref().and_then(rgb_image) {
-        let path = args.out.join("map.png");
-        std::fs::write(&path, rover_imaging::encode_png(&image)?)
-            .with_context(|| format!("cannot write {}", path.display()))?;
-        println!("map: {}", path.display());
-    }
+    let path = args.out.join("map.png");
+    write_mission_png(&path, &outcome.mission_map, &result)?;
+    println!("map: {}", path.display());
     let report = DemoReport { result: &result, complete: result.complete(), simulator: &outcome.report };
     let path = args.out.join("report.json");
     std::fs::write(&path, serde_json::to_string_pretty(&report)?)

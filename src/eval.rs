@@ -7,14 +7,14 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use rover_decision::machine::Mode;
-use rover_imaging::RgbImage;
 use rover_node::Runtime;
 use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 
 use crate::graph::{GraphConfig, free_port, log_dir};
-use crate::graph_mission::{rgb_image, run_graph_mission};
+use crate::graph_mission::run_graph_mission;
 use crate::mission::{NodeSettings, Progress, run_in_process};
+use crate::mission_map::{MissionMap, write_mission_png};
 use crate::time_by_mode::{self, TimeByMode};
 
 /// Options of `rover eval`.
@@ -38,7 +38,7 @@ pub struct EvalArgs {
     /// End a mission after this much simulated time, seconds.
     #[arg(long, default_value_t = 1200.0, value_name = "SECONDS")]
     pub max_sim_seconds: f64,
-    /// Write each run's final map as PNG into this folder.
+    /// Write each run's picture (the final map, path, samples and scores) as PNG into this folder.
     #[arg(long, value_name = "DIR")]
     pub maps: Option<PathBuf>,
 }
@@ -142,14 +142,13 @@ pub fn run_in_process_eval(args: &EvalArgs, settings: &NodeSettings) -> anyhow::
     for seed in args.seeds.clone() {
         let world = args.world(seed)?;
         let samples = world.samples.len();
-        let truth = world.ground_truth().to_vec();
         let outcome = run_in_process(world, settings, args.max_sim_seconds, 2500, |p| print_progress(seed, p))?;
-        if let Some(dir) = &args.maps {
-            let image = rover_mapping::image::map_inset(&outcome.map, Some(&truth), &[], &Default::default());
-            save_map(dir, seed, &image)?;
-        }
         let report = &outcome.report;
-        results.push(RunResult::of(seed, samples, report, &outcome.progress, report.wall_seconds));
+        let result = RunResult::of(seed, samples, report, &outcome.progress, report.wall_seconds);
+        if let Some(dir) = &args.maps {
+            save_picture(dir, &outcome.mission_map, &result)?;
+        }
+        results.push(result);
     }
     Ok(results)
 }
@@ -176,11 +175,12 @@ pub async fn run_graph_eval(args: &EvalArgs, runtime: &Runtime, ros_args: &[Stri
         if runtime.shutdown().is_requested() {
             anyhow::bail!("interrupted during seed {seed}");
         }
-        if let (Some(dir), Some(image)) = (&args.maps, outcome.map_image.as_ref().and_then(rgb_image)) {
-            save_map(dir, seed, &image)?;
-        }
         let wall_seconds = started.elapsed().as_secs_f64();
-        results.push(RunResult::of(seed, samples, &outcome.report, &outcome.progress, wall_seconds));
+        let result = RunResult::of(seed, samples, &outcome.report, &outcome.progress, wall_seconds);
+        if let Some(dir) = &args.maps {
+            save_picture(dir, &outcome.mission_map, &result)?;
+        }
+        results.push(result);
     }
     Ok(results)
 }
@@ -195,10 +195,10 @@ fn print_progress(seed: u64, p: &Progress) {
     );
 }
 
-fn save_map(dir: &Path, seed: u64, image: &RgbImage) -> anyhow::Result<()> {
+/// Writes the picture of the mission that gave `result` into `dir` as `map_seedN.png`.
+fn save_picture(dir: &Path, mission: &MissionMap, result: &RunResult) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let path = dir.join(format!("map_seed{seed}.png"));
-    std::fs::write(&path, rover_imaging::encode_png(image)?).with_context(|| format!("cannot write {}", path.display()))
+    write_mission_png(&dir.join(format!("map_seed{}.png", result.seed)), mission, result)
 }
 
 /// The results as a table.

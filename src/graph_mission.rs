@@ -7,13 +7,11 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use rover_decision::machine::Mode;
-use rover_imaging::RgbImage;
 use rover_mapping::score::{LocatedSamples, occupancy_scores};
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{DecisionState, Telemetry};
 use rover_msgs::nav_msgs::OccupancyGrid;
-use rover_msgs::sensor_msgs::Image;
 use rover_node::{Runtime, spawn_subscriber, topics};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
 use rover_sim::wire::client::{ClientConfig, run_client};
@@ -22,6 +20,7 @@ use tokio::sync::Notify;
 
 use crate::graph::{Graph, GraphConfig};
 use crate::mission::Progress;
+use crate::mission_map::{MissionMap, sample_marks};
 use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
 
 /// How often the progress callback runs, wall clock.
@@ -45,8 +44,9 @@ pub struct GraphOutcome {
     pub report: SimReport,
     /// The evaluator's last snapshot.
     pub progress: Progress,
-    /// The last `map/image` the mapping node published (the Udacity-style inset), if any.
-    pub map_image: Option<Image>,
+    /// The last map the mapping node published, the path and the samples, for the mission's
+    /// picture.
+    pub mission_map: MissionMap,
     /// Nodes that did not exit cleanly at the end.
     pub unclean_nodes: Vec<String>,
 }
@@ -54,13 +54,13 @@ pub struct GraphOutcome {
 /// What the evaluator has heard from the graph.
 #[derive(Debug)]
 struct Evaluator {
-    ground_truth: Vec<bool>,
     samples: usize,
     located: LocatedSamples,
     progress: Progress,
     last_frame_at: Instant,
-    map_image: Option<Image>,
     clock: ModeClock,
+    /// The map, path and start so far; the samples are filled in at the end.
+    mission_map: MissionMap,
 }
 
 impl Evaluator {
@@ -76,14 +76,18 @@ impl Evaluator {
             time_by_mode: TimeByMode::default(),
             deadline_misses: 0,
         };
-        Evaluator {
+        let mission_map = MissionMap {
             ground_truth: world.ground_truth().to_vec(),
+            home_m: (world.start.x_m, world.start.y_m),
+            ..MissionMap::default()
+        };
+        Evaluator {
             samples: samples.len(),
             located: LocatedSamples::new(samples),
             progress,
             last_frame_at: Instant::now(),
-            map_image: None,
             clock: ModeClock::default(),
+            mission_map,
         }
     }
 
@@ -93,9 +97,10 @@ impl Evaluator {
     }
 
     fn on_map(&mut self, map: &OccupancyGrid) {
-        let scores = occupancy_scores(&map.data, &self.ground_truth);
+        let scores = occupancy_scores(&map.data, &self.mission_map.ground_truth);
         self.progress.mapped_pct = scores.mapped_pct;
         self.progress.fidelity_pct = scores.fidelity_pct;
+        self.mission_map.occupancy.clone_from(&map.data);
     }
 
     fn on_rocks(&mut self, rocks: &PoseArray) {
@@ -119,6 +124,7 @@ impl Evaluator {
         self.progress.sim_seconds = telemetry.frame as f64 * step_s;
         self.clock.on_frame(telemetry.frame, activity_of(&self.progress.mode, telemetry), step_s);
         self.progress.collected = self.samples.saturating_sub(telemetry.samples_remaining as usize);
+        self.mission_map.path.record(telemetry.x_m, telemetry.y_m);
         self.last_frame_at = Instant::now();
     }
 }
@@ -175,14 +181,8 @@ pub async fn run_graph_mission(
     let mut evaluator = evaluator.lock().expect("evaluator lock");
     evaluator.progress.sim_seconds = report.sim_seconds;
     evaluator.progress.collected = report.samples_collected;
-    Ok(GraphOutcome { report, progress: evaluator.snapshot(), map_image: evaluator.map_image.take(), unclean_nodes })
-}
-
-/// The pixels of an `rgb8` image message, or `None` for another encoding or a wrong size.
-pub fn rgb_image(image: &Image) -> Option<RgbImage> {
-    let (width, height) = (image.width as usize, image.height as usize);
-    let packed = image.encoding == "rgb8" && image.step as usize == width * 3;
-    (packed && image.data.len() == width * height * 3).then(|| RgbImage { width, height, data: image.data.clone() })
+    let mission_map = MissionMap { samples: sample_marks(&simulator), ..std::mem::take(&mut evaluator.mission_map) };
+    Ok(GraphOutcome { report, progress: evaluator.snapshot(), mission_map, unclean_nodes })
 }
 
 /// Why the run cannot go on: the bridge is gone, or no frame arrived for too long.
@@ -242,13 +242,8 @@ fn subscribe_evaluator(
         spawn_subscriber(node.subscription(&topics::MODE)?, span.clone(), handler(evaluator, on_mode)),
         spawn_subscriber(
             node.subscription(&topics::DIAGNOSTICS)?,
-            span.clone(),
-            handler(evaluator, |e, d: DiagnosticArray| e.on_diagnostics(&d)),
-        ),
-        spawn_subscriber(
-            node.subscription(&topics::MAP_IMAGE)?,
             span,
-            handler(evaluator, |e, i: Image| e.map_image = Some(i)),
+            handler(evaluator, |e, d: DiagnosticArray| e.on_diagnostics(&d)),
         ),
     ])
 }

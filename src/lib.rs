@@ -7,6 +7,7 @@ pub mod eval;
 pub mod graph;
 pub mod graph_mission;
 pub mod mission;
+pub mod mission_map;
 pub mod nodes;
 pub mod replay;
 pub mod replay_dds;

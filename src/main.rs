@@ -30,8 +30,8 @@ enum Command {
     #[command(after_help = ROS_ARGS_HELP)]
     Replay(rover::replay::ReplayArgs),
     /// Run the demo: the simulator on the built-in procedural world and the whole graph, each node
-    /// in its own process, headless; a live progress line, then a summary table, the final map
-    /// (PNG) and the JSON report. Ctrl-C stops everything.
+    /// in its own process, headless; a live progress line, then a summary table, the mission's
+    /// picture (PNG: map, path, samples, scores) and the JSON report. Ctrl-C stops everything.
     #[command(after_help = ROS_ARGS_HELP)]
     Demo(rover::demo::DemoArgs),
     /// Run one full mission per seed and print a table of the scores (mapped and fidelity against

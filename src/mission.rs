@@ -23,6 +23,7 @@ use rover_sim::sim::{SimConfig, SimReport, Simulator};
 use rover_sim::wire::command::Command;
 use rover_sim::world::World;
 
+use crate::mission_map::{DrivenPath, MissionMap, sample_marks};
 use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
 
 /// The largest telemetry payload accepted, bytes (as the bridge's default).
@@ -69,8 +70,8 @@ pub struct MissionOutcome {
     pub report: SimReport,
     /// The last progress snapshot.
     pub progress: Progress,
-    /// The final map.
-    pub map: WorldMap,
+    /// The final map, the path and the samples, for the mission's picture.
+    pub mission_map: MissionMap,
 }
 
 /// Runs one mission in `world` until the decision is done or `max_sim_seconds` pass; `on_progress`
@@ -95,6 +96,7 @@ pub fn run_in_process(
     let mut tally = SampleTally::default();
     let mut located = LocatedSamples::new(samples);
     let mut clock = ModeClock::default();
+    let mut path = DrivenPath::default();
     let snapshot = |sim: &Simulator, map: &WorldMap, located: &LocatedSamples, mode: Mode, clock: &ModeClock| {
         let scores = map.scores(&truth);
         Progress {
@@ -112,6 +114,7 @@ pub fn run_in_process(
     for frame in 1.. {
         let telemetry = read_telemetry(&mut sim)?;
         let message = telemetry_message(&telemetry, frame, Header::default());
+        path.record(message.x_m, message.y_m);
         clock.on_frame(frame, activity_of(machine.status().mode.name(), &message), config.step_s);
         let classes = perception.process_jpeg(&telemetry.image_jpeg)?;
         let scan = geometry.terrain_scan(classes, &message, Header::default());
@@ -148,7 +151,15 @@ pub fn run_in_process(
     }
     tracing::debug!("mission took {:.1} s", started.elapsed().as_secs_f64());
     let progress = snapshot(&sim, &map, &located, machine.status().mode, &clock);
-    Ok(MissionOutcome { report: sim.report(), progress, map })
+    let start = sim.world().start;
+    let mission_map = MissionMap {
+        occupancy: map.occupancy(),
+        ground_truth: truth,
+        path,
+        home_m: (start.x_m, start.y_m),
+        samples: sample_marks(&sim),
+    };
+    Ok(MissionOutcome { report: sim.report(), progress, mission_map })
 }
 
 fn read_telemetry(sim: &mut Simulator) -> anyhow::Result<SimTelemetry> {
