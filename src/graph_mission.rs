@@ -21,6 +21,7 @@ use tokio::sync::Notify;
 use crate::graph::{Graph, GraphConfig};
 use crate::mission::Progress;
 use crate::mission_map::{MissionMap, sample_marks};
+use crate::nodes::Node;
 use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
 
 /// How often the progress callback runs, wall clock.
@@ -187,7 +188,7 @@ pub async fn run_graph_mission(
 
 /// Why the run cannot go on: the bridge is gone, or no frame arrived for too long.
 fn graph_problem(graph: &mut Graph, evaluator: &Mutex<Evaluator>) -> Option<String> {
-    if let Some((_, status)) = graph.exited().into_iter().find(|(name, _)| name == "bridge") {
+    if let Some((_, status)) = graph.exited().into_iter().find(|(name, _)| name == Node::Bridge.name()) {
         return Some(format!("the bridge exited ({status}); see {}", graph.config().log_dir.display()));
     }
     let silent = evaluator.lock().expect("evaluator lock").last_frame_at.elapsed();

@@ -119,17 +119,12 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
             rover::replay::run_via_dds(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
         }
         Command::Replay(args) => {
-            let perception = rover_node::resolve_params("perception", &ros_args)?;
-            let mapping = rover_node::resolve_params("mapping", &ros_args)?;
+            let perception = rover_node::resolve_params(Node::Perception.name(), &ros_args)?;
+            let mapping = rover_node::resolve_params(Node::Mapping.name(), &ros_args)?;
             rover::replay::run(&args, &perception, &mapping).map(drop)
         }
         Command::Eval(args) => {
-            let settings = rover::mission::NodeSettings {
-                perception: rover_node::resolve_params("perception", &ros_args)?,
-                mapping: rover_node::resolve_params("mapping", &ros_args)?,
-                decision: rover_node::resolve_params("decision", &ros_args)?,
-                pickup: rover_node::resolve_params("pickup", &ros_args)?,
-            };
+            let settings = rover::mission::NodeSettings::resolve(&ros_args)?;
             let results = if args.in_process {
                 rover::eval::run_in_process_eval(&args, &settings)?
             } else {
@@ -146,7 +141,7 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
             rover::demo::run_demo(&args, dds(participant, ros_args, shutdown)?, &raw_ros_args()).await.map(drop)
         }
         Command::SimCheck(args) => {
-            let perception = rover_node::resolve_params("perception", &ros_args)?;
+            let perception = rover_node::resolve_params(Node::Perception.name(), &ros_args)?;
             let report = rover::sim_check::check(&args, &perception)?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&report)?);

@@ -17,6 +17,7 @@ use rover_mapping::projection::Pose;
 use rover_mapping::score::LocatedSamples;
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tally::SampleTally;
+use rover_node::{RosArgs, resolve_params};
 use rover_perception::node::PerceptionParams;
 use rover_pickup::{ArmInput, Pickup, PickupParams};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
@@ -24,6 +25,7 @@ use rover_sim::wire::command::Command;
 use rover_sim::world::World;
 
 use crate::mission_map::{DrivenPath, MissionMap, sample_marks};
+use crate::nodes::Node;
 use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
 
 /// The largest telemetry payload accepted, bytes (as the bridge's default).
@@ -40,6 +42,18 @@ pub struct NodeSettings {
     pub decision: DecisionParams,
     /// Pickup.
     pub pickup: PickupParams,
+}
+
+impl NodeSettings {
+    /// The parameters of every node as the ROS arguments `ros_args` set them.
+    pub fn resolve(ros_args: &RosArgs) -> anyhow::Result<Self> {
+        Ok(NodeSettings {
+            perception: resolve_params(Node::Perception.name(), ros_args)?,
+            mapping: resolve_params(Node::Mapping.name(), ros_args)?,
+            decision: resolve_params(Node::Decision.name(), ros_args)?,
+            pickup: resolve_params(Node::Pickup.name(), ros_args)?,
+        })
+    }
 }
 
 /// A snapshot of a running mission, for progress lines.
