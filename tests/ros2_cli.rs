@@ -1,7 +1,7 @@
 //! The official `ros2` command line against the graph (issue 17): in one loopback-only namespace,
 //! `ros2 daemon start` first, then the graph in separate processes with the headless simulator
 //! (`launch_scripts/rover-graph --sim 0`), then `ros2 node list`, `topic list -t`, `topic echo
-//! --once` (telemetry, the latched map, odom), `topic hz`, `topic info -v`, `param list/get/set`
+//! --once` (telemetry, the latched map and static transforms, odom), `topic hz`, `topic info -v`, `param list/get/set`
 //! and `interface show`, each checked on its output. The CLI comes from the wheels of
 //! `../shared/ros2-python` that `tools/setup-ros` installs into `.venv`.
 
@@ -14,12 +14,13 @@ use std::time::{Duration, Instant};
 use support::{Domain, STOP_TIMEOUT, eventually, ros2_cli, rover, start_process};
 
 /// Every topic of the graph with its type, as `ros2 topic list -t` prints it.
-const TOPICS: [&str; 18] = [
+const TOPICS: [&str; 19] = [
     "/camera/image_raw/compressed [sensor_msgs/msg/CompressedImage]",
     "/camera/image_raw [sensor_msgs/msg/Image]",
     "/camera/camera_info [sensor_msgs/msg/CameraInfo]",
     "/odom [nav_msgs/msg/Odometry]",
     "/tf [tf2_msgs/msg/TFMessage]",
+    "/tf_static [tf2_msgs/msg/TFMessage]",
     "/rover/telemetry [rover_msgs/msg/Telemetry]",
     "/sim/sample_truth [geometry_msgs/msg/PoseArray]",
     "/rover/terrain [rover_msgs/msg/TerrainScan]",
@@ -120,6 +121,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
         let telemetry = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/rover/telemetry"]));
         let map = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "--no-arr", "/map"]));
         let odom = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/odom"]));
+        let tf_static = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/tf_static"]));
         let hz = scope.spawn(|| ros2(domain, Duration::from_secs(8), &["topic", "hz", "/rover/telemetry"]).1);
         let info = scope.spawn(|| ros2_ok(domain, &["topic", "info", "-v", "/map"]));
         let interface = scope.spawn(|| ros2_ok(domain, &["interface", "show", "rover_msgs/msg/Telemetry"]));
@@ -152,6 +154,16 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
             &odom.join().unwrap(),
             &["frame_id: odom", "child_frame_id: base_link", "position:", "orientation:"],
             "odom",
+        );
+        assert_contains(
+            &tf_static.join().unwrap(),
+            &[
+                "frame_id: map",
+                "child_frame_id: odom",
+                "child_frame_id: camera_link",
+                "child_frame_id: camera_optical_frame",
+            ],
+            "latched static transforms",
         );
         let hz = hz.join().unwrap();
         let rate = hz

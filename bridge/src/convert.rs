@@ -1,5 +1,6 @@
 //! Conversion of a parsed telemetry frame into the ROS messages the bridge publishes.
 
+use rover_msgs::body::CameraMount;
 use rover_msgs::geometry_msgs::{
     Point, Pose, PoseArray, PoseWithCovariance, Quaternion, Transform, TransformStamped, Twist, TwistWithCovariance,
     Vector3,
@@ -12,12 +13,18 @@ use rover_msgs::tf2_msgs::TFMessage;
 
 use crate::telemetry::SimTelemetry;
 
-/// Frame of the world map and of the odometry origin.
+/// Frame of the world map (the mapping node's `map`).
+pub const MAP_FRAME: &str = "map";
+/// Frame of the odometry origin (the same place as the map's: the simulator's world frame).
 pub const ODOM_FRAME: &str = "odom";
-/// Frame of the rover body.
+/// Frame of the rover body, on the floor below its reported position.
 pub const BASE_FRAME: &str = "base_link";
-/// Optical frame of the camera.
+/// Frame of the camera body (REP 103: x forward, y left, z up).
+pub const CAMERA_LINK_FRAME: &str = "camera_link";
+/// Optical frame of the camera (REP 103: z forward, x right, y down).
 pub const CAMERA_FRAME: &str = "camera_optical_frame";
+/// Rotation of an optical frame in its camera body frame: roll -90 degrees, then yaw -90 degrees.
+const OPTICAL_IN_CAMERA_LINK: Quaternion = Quaternion { x: -0.5, y: 0.5, z: -0.5, w: 0.5 };
 
 /// The simulator camera's pinhole model: 320x160, vertical field of view 70 degrees.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -127,6 +134,29 @@ pub fn transform_message(t: &SimTelemetry, header: Header) -> TFMessage {
     }
 }
 
+/// The `/tf_static` message: `map` -> `odom` (the same place), `base_link` -> `camera_link` (the
+/// camera `mount`) and `camera_link` -> `camera_optical_frame`.
+pub fn static_transforms_message(mount: &CameraMount, header: &Header) -> TFMessage {
+    let camera_height_m = mount.above_origin_m - mount.origin_below_floor_m;
+    let transform = |parent: &str, child: &str, translation: Vector3, rotation: Quaternion| TransformStamped {
+        header: Header { frame_id: parent.to_string(), ..header.clone() },
+        child_frame_id: child.to_string(),
+        transform: Transform { translation, rotation },
+    };
+    TFMessage {
+        transforms: vec![
+            transform(MAP_FRAME, ODOM_FRAME, Vector3::default(), Quaternion::IDENTITY),
+            transform(
+                BASE_FRAME,
+                CAMERA_LINK_FRAME,
+                Vector3 { x: mount.forward_m, y: 0.0, z: camera_height_m },
+                Quaternion::IDENTITY,
+            ),
+            transform(CAMERA_LINK_FRAME, CAMERA_FRAME, Vector3::default(), OPTICAL_IN_CAMERA_LINK),
+        ],
+    }
+}
+
 /// The `camera/image_raw/compressed` message, with the simulator's JPEG untouched.
 pub fn compressed_image_message(t: &SimTelemetry, header: Header) -> CompressedImage {
     CompressedImage { header, format: "jpeg".to_string(), data: t.image_jpeg.clone() }
@@ -155,6 +185,33 @@ mod tests {
         assert_eq!(wrapped_rad(180.0), std::f64::consts::PI);
         assert_eq!(wrapped_rad(-180.0), std::f64::consts::PI);
         assert!((wrapped_rad(360.0)).abs() < 1e-12);
+    }
+
+    /// `v` rotated by the unit quaternion `q`.
+    fn rotate(q: &Quaternion, v: [f64; 3]) -> [f64; 3] {
+        let (u, w) = ([q.x, q.y, q.z], q.w);
+        let cross = |a: [f64; 3], b: [f64; 3]| {
+            [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+        };
+        let t = cross(u, v).map(|c| 2.0 * c);
+        let ut = cross(u, t);
+        [0, 1, 2].map(|i| v[i] + w * t[i] + ut[i])
+    }
+
+    #[test]
+    fn static_transforms_place_the_camera_and_turn_its_optical_frame() {
+        let message = static_transforms_message(&CameraMount::UNITY, &Header::default());
+        let pairs: Vec<(&str, &str)> =
+            message.transforms.iter().map(|t| (t.header.frame_id.as_str(), t.child_frame_id.as_str())).collect();
+        assert_eq!(pairs, [("map", "odom"), ("base_link", "camera_link"), ("camera_link", "camera_optical_frame")]);
+        let camera = &message.transforms[1].transform.translation;
+        assert_eq!(camera.x, 0.4287);
+        assert!((camera.z - 0.2144).abs() < 1e-12, "camera above the floor: {}", camera.z);
+        let optical = &message.transforms[2].transform.rotation;
+        let close = |a: [f64; 3], b: [f64; 3]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12);
+        assert!(close(rotate(optical, [0.0, 0.0, 1.0]), [1.0, 0.0, 0.0]), "optical z looks forward");
+        assert!(close(rotate(optical, [1.0, 0.0, 0.0]), [0.0, -1.0, 0.0]), "optical x points right");
+        assert!(close(rotate(optical, [0.0, 1.0, 0.0]), [0.0, 0.0, -1.0]), "optical y points down");
     }
 
     #[test]

@@ -7,6 +7,7 @@ use std::time::Duration;
 use anyhow::Context as _;
 use base64::Engine as _;
 use rover_imaging::RgbImage;
+use rover_msgs::body::CameraMount;
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::Telemetry;
 use rover_msgs::nav_msgs::Odometry;
@@ -16,7 +17,7 @@ use rover_msgs::tf2_msgs::TFMessage;
 use rover_node::{Publisher, RosNode, Runtime, spawn_subscriber, topics};
 use tracing::Instrument as _;
 
-use crate::convert::{self, CAMERA_FRAME, ODOM_FRAME, PinholeCamera};
+use crate::convert::{self, CAMERA_FRAME, MAP_FRAME, ODOM_FRAME, PinholeCamera};
 use crate::lockstep::{FrameSink, LockStep, LockStepConfig};
 use crate::reply::ReplyPolicy;
 use crate::server::{self, ServerConfig};
@@ -90,6 +91,8 @@ impl BridgeParams {
 
 /// Publishes the topics of each accepted telemetry frame.
 struct DdsSink {
+    /// Held, never read: while it lives, late subscribers still get the latched transforms.
+    _tf_static: Publisher<TFMessage>,
     telemetry: Publisher<Telemetry>,
     compressed: Publisher<CompressedImage>,
     camera_info: Publisher<CameraInfo>,
@@ -108,7 +111,11 @@ impl DdsSink {
             height: params.image_height as u32,
             focal_px: (params.image_height as f64 / 2.0) / 35f64.to_radians().tan(),
         };
+        let tf_static = node.publisher(&topics::TF_STATIC)?;
+        let static_transforms = convert::static_transforms_message(&CameraMount::UNITY, &Header::now(MAP_FRAME));
+        log_publish("/tf_static", tf_static.publish(static_transforms));
         Ok(DdsSink {
+            _tf_static: tf_static,
             telemetry: node.publisher(&topics::TELEMETRY)?,
             compressed: node.publisher(&topics::CAMERA_COMPRESSED)?,
             camera_info: node.publisher(&topics::CAMERA_INFO)?,

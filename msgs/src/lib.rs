@@ -128,6 +128,9 @@ pub mod geometry_msgs {
     "geometry_msgs" / TransformStamped { header: Header, child_frame_id: String, transform: Transform } }
 
     impl Quaternion {
+        /// No rotation.
+        pub const IDENTITY: Quaternion = Quaternion { x: 0.0, y: 0.0, z: 0.0, w: 1.0 };
+
         /// The rotation by `yaw_rad` about z.
         pub fn from_yaw(yaw_rad: f64) -> Self {
             Self::from_rpy(0.0, 0.0, yaw_rad)
