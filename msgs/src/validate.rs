@@ -130,42 +130,43 @@ fn vector(field: &str, vector: &Vector3) -> Result<(), InvalidField> {
     Ok(())
 }
 
+/// The frame number and pose that telemetry and terrain scans share: a frame number, a position
+/// and finite angles.
+fn frame_and_pose(frame_number: u64, x_m: f64, y_m: f64, angles_rad: [(&str, f32); 3]) -> Result<(), InvalidField> {
+    frame(frame_number)?;
+    position_m("x_m", x_m)?;
+    position_m("y_m", y_m)?;
+    all_finite(&angles_rad)
+}
+
+/// Every one of `fields` (name, value) is finite.
+fn all_finite(fields: &[(&str, f32)]) -> Result<(), InvalidField> {
+    fields.iter().try_for_each(|&(field, value)| finite(field, value))
+}
+
 impl Validate for Telemetry {
     fn validate(&self) -> Result<(), InvalidField> {
-        frame(self.frame)?;
-        position_m("x_m", self.x_m)?;
-        position_m("y_m", self.y_m)?;
-        for (field, value) in [
-            ("yaw_rad", self.yaw_rad),
-            ("pitch_rad", self.pitch_rad),
-            ("roll_rad", self.roll_rad),
+        let angles = [("yaw_rad", self.yaw_rad), ("pitch_rad", self.pitch_rad), ("roll_rad", self.roll_rad)];
+        frame_and_pose(self.frame, self.x_m, self.y_m, angles)?;
+        all_finite(&[
             ("speed_mps", self.speed_mps),
             ("throttle", self.throttle),
             ("brake", self.brake),
             ("steering_angle_deg", self.steering_angle_deg),
-        ] {
-            finite(field, value)?;
-        }
-        Ok(())
+        ])
     }
 }
 
 impl Validate for TerrainScan {
     fn validate(&self) -> Result<(), InvalidField> {
-        frame(self.frame)?;
-        position_m("x_m", self.x_m)?;
-        position_m("y_m", self.y_m)?;
-        for (field, value) in [
-            ("yaw_rad", self.yaw_rad),
-            ("pitch_rad", self.pitch_rad),
-            ("roll_rad", self.roll_rad),
+        let angles = [("yaw_rad", self.yaw_rad), ("pitch_rad", self.pitch_rad), ("roll_rad", self.roll_rad)];
+        frame_and_pose(self.frame, self.x_m, self.y_m, angles)?;
+        all_finite(&[
             ("navigable_bearing_rad", self.navigable_bearing_rad),
             ("navigable_distance_m", self.navigable_distance_m),
             ("rock_bearing_rad", self.rock_bearing_rad),
             ("rock_distance_m", self.rock_distance_m),
-        ] {
-            finite(field, value)?;
-        }
+        ])?;
         cell_size_m("resolution_m", self.resolution_m)?;
         position_m("origin_x_m", self.origin_x_m)?;
         position_m("origin_y_m", self.origin_y_m)?;
