@@ -119,10 +119,47 @@ mod tests {
         );
     }
 
-    proptest::proptest! {
-        #[test]
-        fn never_panics(text in ".{0,64}") {
-            let _ = decode(&text);
+    /// Fuzz targets: the decoder takes any text without panicking, and an event it accepts has
+    /// the name and arguments of a `2["name",...]` array.
+    mod fuzz {
+        use proptest::prelude::*;
+        use rover_fuzzing::mutation::mutated_text;
+
+        use super::*;
+
+        /// Valid packets of every kind, to mutate.
+        fn valid_packets() -> Vec<String> {
+            ["0", "1", "2[\"telemetry\",{\"speed\":\"1.0\"}]", "2/,12[\"manual\"]", "3", "4"].map(String::from).to_vec()
+        }
+
+        /// An accepted packet is of the kind its first character names.
+        fn check(text: &str) -> Result<(), TestCaseError> {
+            let kind = match decode(text) {
+                Ok(Packet::Connect) => '0',
+                Ok(Packet::Disconnect) => '1',
+                Ok(Packet::Event { .. }) => '2',
+                Ok(Packet::Other(kind)) => kind,
+                Err(_) => return Ok(()),
+            };
+            prop_assert!(text.starts_with(kind));
+            Ok(())
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_sio_decode_arbitrary_text(text in "\\PC{0,64}") {
+                check(&text)?;
+            }
+
+            #[test]
+            fn fuzz_sio_decode_arbitrary_bytes(bytes in proptest::collection::vec(any::<u8>(), 0..64)) {
+                check(&String::from_utf8_lossy(&bytes))?;
+            }
+
+            #[test]
+            fn fuzz_sio_decode_mutated_packets(text in mutated_text(valid_packets())) {
+                check(&text)?;
+            }
         }
     }
 }

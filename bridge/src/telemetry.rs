@@ -341,32 +341,97 @@ pub(crate) mod tests {
     }
 
     proptest::proptest! {
-        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(20_000))]
-
-        #[test]
-        fn never_panics_on_arbitrary_payloads(payload in ".{0,300}") {
-            let _ = parse_telemetry(&payload, 1 << 20);
-        }
-
-        #[test]
-        fn never_panics_on_arbitrary_field_values(
-            field in proptest::sample::select(vec!["speed", "position", "pitch", "samples_x", "image", "sample_count", "near_sample"]),
-            value in proptest::prelude::any::<String>(),
-        ) {
-            let mut fields = sample_payload();
-            fields.insert(field.to_string(), Value::String(value));
-            let result = parse(&fields);
-            if let Ok(Some(t)) = result {
-                proptest::prop_assert!(t.speed_mps.is_finite() && t.x_m.is_finite() && t.pitch_deg.is_finite());
-            }
-        }
-
         #[test]
         fn n4_numbers_round_trip(value in -99_999.0f64..99_999.0, comma in proptest::prelude::any::<bool>()) {
             let text = format!("{value:.4}");
             let text = if comma { text.replace('.', ",") } else { text };
             let parsed = parse_number("speed", &text).unwrap();
             proptest::prop_assert!((parsed - value).abs() < 1e-4);
+        }
+    }
+
+    /// Fuzz targets: telemetry parsing takes any payload without panicking, and a frame it
+    /// accepts has finite numbers and one position per sample.
+    mod fuzz {
+        use proptest::prelude::*;
+        use rover_fuzzing::mutation::mutated_text;
+
+        use super::*;
+
+        /// Names of the real fields, and a few others.
+        fn field_name() -> impl Strategy<Value = String> {
+            let names = sample_payload().keys().cloned().chain(["".into(), "x".into()]).collect::<Vec<_>>();
+            prop_oneof![4 => proptest::sample::select(names), 1 => "\\PC{0,8}"]
+        }
+
+        /// Text that looks like a number, a list or a position, or anything.
+        fn field_text() -> impl Strategy<Value = String> {
+            prop_oneof![
+                any::<f64>().prop_map(|v| v.to_string()),
+                "[-0-9.,;eE ]{0,24}",
+                Just("NaN".to_string()),
+                Just("inf;-inf".to_string()),
+                "\\PC{0,24}",
+            ]
+        }
+
+        /// A JSON value a field might hold: text, a number, a boolean, null or a list.
+        fn field_value() -> impl Strategy<Value = Value> {
+            prop_oneof![
+                6 => field_text().prop_map(Value::String),
+                1 => any::<f64>().prop_map(Value::from),
+                1 => any::<bool>().prop_map(Value::Bool),
+                1 => Just(Value::Null),
+                1 => Just(serde_json::json!(["1.0"])),
+            ]
+        }
+
+        /// The valid frame with some fields replaced or removed, and maybe some added.
+        fn edited_payload() -> impl Strategy<Value = Map<String, Value>> {
+            let edits = proptest::collection::vec((field_name(), proptest::option::of(field_value())), 0..8);
+            edits.prop_map(|edits| {
+                let mut fields = sample_payload();
+                for (name, value) in edits {
+                    match value {
+                        Some(value) => fields.insert(name, value),
+                        None => fields.remove(&name),
+                    };
+                }
+                fields
+            })
+        }
+
+        /// An accepted frame has finite numbers and one (x, y) per sample.
+        fn check(payload: &str) -> Result<(), TestCaseError> {
+            if let Ok(Some(t)) = parse_telemetry(payload, 1 << 20) {
+                let numbers =
+                    [t.steering_angle_deg, t.throttle, t.brake, t.speed_mps, t.x_m, t.y_m, t.pitch_deg, t.yaw_deg];
+                prop_assert!(numbers.iter().chain([&t.roll_deg]).all(|v| v.is_finite()));
+                prop_assert!(t.samples.iter().all(|(x, y)| x.is_finite() && y.is_finite()));
+            }
+            Ok(())
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_telemetry_arbitrary_payloads(payload in "\\PC{0,300}") {
+                check(&payload)?;
+            }
+
+            #[test]
+            fn fuzz_telemetry_arbitrary_objects(fields in proptest::collection::btree_map(field_name(), field_value(), 0..16)) {
+                check(&serde_json::to_string(&fields).unwrap())?;
+            }
+
+            #[test]
+            fn fuzz_telemetry_edited_frames(fields in edited_payload()) {
+                check(&serde_json::to_string(&fields).unwrap())?;
+            }
+
+            #[test]
+            fn fuzz_telemetry_mutated_frames(payload in mutated_text(vec![serde_json::to_string(&sample_payload()).unwrap()])) {
+                check(&payload)?;
+            }
         }
     }
 }

@@ -239,4 +239,33 @@ mod tests {
         let image = gradient(20, 10);
         assert_eq!(decode_png(&encode_png(&image).unwrap()).unwrap(), image);
     }
+
+    /// Fuzz targets: a mutated JPEG (flipped, inserted or removed bytes, truncated) is checked and
+    /// decoded without panicking, and its pixel buffer is only sized when the header gives the
+    /// expected size.
+    mod fuzz {
+        use proptest::prelude::*;
+        use rover_fuzzing::mutation::mutated_bytes;
+
+        use super::*;
+
+        const SIZE: (usize, usize) = (16, 8);
+
+        fn small_jpeg() -> Vec<u8> {
+            encode_jpeg(&gradient(SIZE.0, SIZE.1), 75).unwrap()
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_jpeg_mutated_bytes(jpeg in mutated_bytes(small_jpeg())) {
+                let header_size = jpeg_dimensions(&jpeg);
+                prop_assert_eq!(check_jpeg(&jpeg, SIZE.0, SIZE.1).is_ok(), header_size == Ok(SIZE));
+                let mut out = RgbImage::default();
+                match decode_jpeg_into(&jpeg, SIZE.0, SIZE.1, &mut out) {
+                    Ok(()) => prop_assert_eq!(out.data.len(), SIZE.0 * SIZE.1 * 3),
+                    Err(_) => prop_assert!(out.data.capacity() == 0 || out.data.len() == SIZE.0 * SIZE.1 * 3),
+                }
+            }
+        }
+    }
 }

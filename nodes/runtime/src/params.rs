@@ -475,4 +475,47 @@ mod tests {
         assert!(error.contains("no `ros__parameters`"), "{error}");
         assert!(assignments_from_yaml("[1, 2", "p.yaml", "/bridge").unwrap_err().contains("invalid YAML"));
     }
+
+    /// Fuzz targets: parameter files and `-p` values are any text; they parse or give an error,
+    /// never a panic, and every assignment read names its source.
+    mod fuzz {
+        use proptest::prelude::*;
+        use rover_fuzzing::mutation::mutated_text;
+
+        use super::*;
+
+        /// The launch parameter file and a small file with nested and list values.
+        fn valid_files() -> Vec<String> {
+            let nested = "/**:\n  ros__parameters:\n    a: {b: [1, 2.5], c: [true]}\n    d: ~\n    e: [x, y]\n";
+            vec![include_str!("../../../launch_scripts/rover_params.yaml").to_string(), nested.to_string()]
+        }
+
+        fn check_file(text: &str) -> Result<(), TestCaseError> {
+            for node in ["/bridge", "/mapping", "/ns/decision"] {
+                if let Ok(assignments) = assignments_from_yaml(text, "fuzz.yaml", node) {
+                    prop_assert!(assignments.iter().all(|a| a.source_name == "fuzz.yaml"));
+                }
+            }
+            Ok(())
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_params_arbitrary_yaml(text in "\\PC{0,200}") {
+                check_file(&text)?;
+            }
+
+            #[test]
+            fn fuzz_params_mutated_yaml(text in mutated_text(valid_files())) {
+                check_file(&text)?;
+            }
+
+            #[test]
+            fn fuzz_params_arbitrary_override(text in "\\PC{0,40}") {
+                if let Ok(value) = parse_override(&text) {
+                    let _ = check_value(&TestParams::specs()[0], &value);
+                }
+            }
+        }
+    }
 }

@@ -190,4 +190,34 @@ mod tests {
             RosArgsError::Unknown("--bogus".into())
         );
     }
+
+    /// Fuzz targets: any argument vector splits into own and ROS arguments or gives an error,
+    /// never a panic; own arguments keep their order and no parsed rule has an empty name.
+    mod fuzz {
+        use proptest::prelude::*;
+
+        use super::*;
+
+        /// An argument: an option the parser knows, an assignment, or any text.
+        fn argument() -> impl Strategy<Value = String> {
+            let options = vec!["--ros-args", "--", "-r", "--remap", "-p", "--param", "--params-file", "--log-level"];
+            prop_oneof![
+                3 => proptest::sample::select(options).prop_map(String::from),
+                3 => "[a-z/~:=_]{0,12}",
+                1 => "\\PC{0,12}",
+            ]
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_ros_args_arbitrary_argv(argv in proptest::collection::vec(argument(), 0..16)) {
+                if let Ok((own, ros)) = split_ros_args(argv.clone()) {
+                    let mut rest = argv.iter();
+                    prop_assert!(own.iter().all(|arg| rest.any(|a| a == arg)));
+                    prop_assert!(ros.remaps.iter().all(|r| !r.from.is_empty()));
+                    prop_assert!(ros.params.iter().all(|p| !p.name.is_empty()));
+                }
+            }
+        }
+    }
 }

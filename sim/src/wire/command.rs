@@ -146,4 +146,56 @@ mod tests {
         assert_eq!(parse_command("get_samples", Some(&json!({}))).unwrap(), None);
         assert_eq!(parse_command("whatever", None).unwrap(), None);
     }
+
+    /// Fuzz targets: any event name and argument gives a command or an error, never a panic, and
+    /// an accepted command holds finite numbers only.
+    mod fuzz {
+        use proptest::prelude::*;
+
+        use super::*;
+
+        /// A field value: a number as text (maybe not finite), any text, a number or null.
+        fn field_value() -> impl Strategy<Value = Value> {
+            prop_oneof![
+                4 => any::<f64>().prop_map(|v| Value::String(v.to_string())),
+                2 => "\\PC{0,12}".prop_map(Value::String),
+                1 => prop_oneof![Just("nan"), Just("-inf"), Just(" 1e-05 "), Just("1e999")].prop_map(Value::from),
+                1 => any::<f64>().prop_map(Value::from),
+                1 => Just(Value::Null),
+            ]
+        }
+
+        /// An argument object over the commands' field names, or a value that is no object.
+        fn argument() -> impl Strategy<Value = Option<Value>> {
+            let names = proptest::sample::select(vec!["steering_angle", "throttle", "brake", "angle", "time", "x"]);
+            let object = proptest::collection::btree_map(names, field_value(), 0..6)
+                .prop_map(|fields| Value::from_iter(fields.into_iter().map(|(k, v)| (k.to_string(), v))));
+            proptest::option::of(prop_oneof![4 => object, 1 => field_value()])
+        }
+
+        fn event_name() -> impl Strategy<Value = String> {
+            let names = vec!["data", "manual", "pickup", "fixed_turn", "get_samples"];
+            prop_oneof![4 => proptest::sample::select(names).prop_map(String::from), 1 => "\\PC{0,12}"]
+        }
+
+        /// Every number of a command is finite.
+        fn is_finite(command: &Command) -> bool {
+            match *command {
+                Command::Drive { steering_deg, throttle, brake } => {
+                    [steering_deg, throttle, brake].iter().all(|v| v.is_finite())
+                }
+                Command::FixedTurn { angle_deg, time_s } => angle_deg.is_finite() && time_s.is_finite(),
+                Command::Manual | Command::Pickup => true,
+            }
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_sim_command_arbitrary_arguments(name in event_name(), data in argument()) {
+                if let Ok(Some(command)) = parse_command(&name, data.as_ref()) {
+                    prop_assert!(is_finite(&command), "{command:?}");
+                }
+            }
+        }
+    }
 }

@@ -76,12 +76,13 @@ fn decode_message(body: &str) -> Inbound {
     if body.len() <= 1 {
         return Inbound::Ignored("Socket.IO packet without payload");
     }
-    match &body[..1] {
-        "2" => {}
-        "0" => return Inbound::Ignored("Socket.IO CONNECT"),
+    let mut chars = body.chars();
+    match chars.next() {
+        Some('2') => {}
+        Some('0') => return Inbound::Ignored("Socket.IO CONNECT"),
         _ => return Inbound::Ignored("Socket.IO packet other than EVENT"),
     }
-    let mut rest = &body[1..];
+    let mut rest = chars.as_str();
     if rest.starts_with('/')
         && let Some(comma) = rest.find(',')
     {
@@ -138,7 +139,48 @@ mod tests {
     }
 
     #[test]
+    fn a_multibyte_socket_io_type_is_ignored() {
+        assert_eq!(decode("4\u{fffd}2[\"data\"]"), Inbound::Ignored("Socket.IO packet other than EVENT"));
+    }
+
+    #[test]
     fn events_are_encoded_compactly() {
         assert_eq!(encode_event("telemetry", "{\"a\":\"1\"}"), "42[\"telemetry\",{\"a\":\"1\"}]");
+    }
+
+    /// Fuzz targets: the client decodes any message without panicking, and an event it accepts
+    /// came in a `42` message with at most an object argument.
+    mod fuzz {
+        use proptest::prelude::*;
+        use rover_fuzzing::mutation::mutated_text;
+
+        use super::*;
+
+        /// Valid messages of every kind, to mutate.
+        fn valid_messages() -> Vec<String> {
+            let events = [encode_event("data", "{\"throttle\":\"0.2\"}"), "42/ns,17[\"manual\"]".to_string()];
+            ["0{\"sid\":\"abc\"}", "1", "2", "3", "40", "6"].map(String::from).into_iter().chain(events).collect()
+        }
+
+        /// An accepted event came in a `42` message and its argument, if any, is an object.
+        fn check(text: &str) -> Result<(), TestCaseError> {
+            if let Inbound::Event { data, .. } = decode(text) {
+                prop_assert!(text.starts_with("42"));
+                prop_assert!(data.is_none_or(|data| data.is_object()));
+            }
+            Ok(())
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_sim_packet_arbitrary_text(text in "\\PC{0,64}") {
+                check(&text)?;
+            }
+
+            #[test]
+            fn fuzz_sim_packet_mutated_messages(text in mutated_text(valid_messages())) {
+                check(&text)?;
+            }
+        }
     }
 }
