@@ -5,11 +5,12 @@
 
 mod support;
 
+use std::os::unix::process::CommandExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::Duration;
 
-use nix::sys::signal::Signal;
+use nix::sys::signal::{SigHandler, Signal};
 use rover::graph::send_signal;
 use rover::nodes::Node;
 use rover_msgs::msg::{DriveCommand, Telemetry};
@@ -58,10 +59,18 @@ struct Launcher {
 }
 
 impl Launcher {
+    /// Starts `command` with SIGINT at its default action: a test run started in the background
+    /// inherits SIGINT ignored, and Python (`ros2 launch`) then never sees the Ctrl-C the test sends.
     fn start(command: &mut Command, what: &str) -> Launcher {
         let output = std::env::temp_dir().join(format!("rover-launch-{what}-{}.out", std::process::id()));
         let file = std::fs::File::create(&output).expect("create the launcher's output file");
         let stderr = file.try_clone().expect("share the output file");
+        // SAFETY: between fork and exec the child only calls sigaction, which is async-signal-safe.
+        unsafe {
+            command.pre_exec(|| {
+                nix::sys::signal::signal(Signal::SIGINT, SigHandler::SigDfl).map(drop).map_err(std::io::Error::from)
+            });
+        }
         let child = command
             .stdin(Stdio::null())
             .stdout(file)
