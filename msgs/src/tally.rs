@@ -13,6 +13,17 @@ impl SampleTally {
         SampleTally { last_remaining: None, collected }
     }
 
+    /// A tally that carries on from `collected` samples with `samples_remaining` in the last frame
+    /// it followed (e.g. restored from a snapshot: pickups since then still count).
+    pub fn resumed(collected: u32, last_remaining: Option<u8>) -> Self {
+        SampleTally { last_remaining, collected }
+    }
+
+    /// `samples_remaining` of the last frame followed, if any.
+    pub fn last_remaining(&self) -> Option<u8> {
+        self.last_remaining
+    }
+
     /// Follows one frame's `samples_remaining`; returns how many samples were picked up since the
     /// previous frame.
     pub fn update(&mut self, samples_remaining: u8) -> u32 {

@@ -93,9 +93,32 @@ pub enum Update {
 }
 
 /// Classes of evidence: navigable, obstacle, rock (the scan's class codes minus one).
-const CLASSES: usize = 3;
+pub const CLASSES: usize = 3;
 /// Classes whose evidence is also weighed by range: navigable and obstacle.
-const WEIGHED: usize = 2;
+pub const WEIGHED: usize = 2;
+
+/// What a map has gathered, without its configuration: what a restarted mapping node must get
+/// back (see [`crate::snapshot`]). One entry per cell in each vector.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Evidence {
+    /// Navigable, obstacle and rock frames.
+    pub hits: [Vec<u16>; CLASSES],
+    /// Range-weighed navigable and obstacle evidence.
+    pub weight: [Vec<f32>; WEIGHED],
+    /// Nearest range a rock was seen at, metres (infinite: none).
+    pub rock_range_m: Vec<f32>,
+}
+
+impl Evidence {
+    /// No evidence yet.
+    pub fn empty() -> Self {
+        Evidence {
+            hits: std::array::from_fn(|_| vec![0; CELLS]),
+            weight: std::array::from_fn(|_| vec![0.0; CELLS]),
+            rock_range_m: vec![f32::INFINITY; CELLS],
+        }
+    }
+}
 
 /// The evidence grid of the world.
 #[derive(Debug, Clone)]
@@ -113,17 +136,27 @@ pub struct WorldMap {
 impl WorldMap {
     /// An empty map.
     pub fn new(config: MapConfig) -> Self {
-        let cells = CELLS;
+        Self::with_evidence(config, Evidence::empty())
+    }
+
+    /// A map that carries on from `evidence` (e.g. a snapshot of an earlier node's map).
+    pub fn with_evidence(config: MapConfig, evidence: Evidence) -> Self {
+        let Evidence { hits, weight, rock_range_m } = evidence;
         WorldMap {
             config,
             mount: CameraMount::default(),
-            hits: [vec![0; cells], vec![0; cells], vec![0; cells]],
-            weight: [vec![0.0; cells], vec![0.0; cells]],
-            frame_weight: [vec![0.0; cells], vec![0.0; cells]],
-            last_frame: [vec![u32::MAX; cells], vec![u32::MAX; cells], vec![u32::MAX; cells]],
-            rock_range_m: vec![f32::INFINITY; cells],
+            hits,
+            weight,
+            frame_weight: std::array::from_fn(|_| vec![0.0; CELLS]),
+            last_frame: std::array::from_fn(|_| vec![u32::MAX; CELLS]),
+            rock_range_m,
             frame: 0,
         }
+    }
+
+    /// A copy of the evidence gathered so far.
+    pub fn gathered(&self) -> Evidence {
+        Evidence { hits: self.hits.clone(), weight: self.weight.clone(), rock_range_m: self.rock_range_m.clone() }
     }
 
     /// The configuration.

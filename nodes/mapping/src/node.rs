@@ -1,6 +1,7 @@
 //! The mapping node (`rover mapping`): terrain scans in; the map, its image, statistics and the
 //! located rocks out.
 
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use futures::StreamExt;
@@ -19,9 +20,11 @@ use crate::map::{ScanGrid, Update, WorldMap};
 use crate::params::MappingParams;
 use crate::projection::Pose;
 use crate::score::{ground_truth_from_png, samples_located};
+use crate::snapshot::{self, Home, Memory};
 
-/// A frame number this far below the last one means the bridge restarted.
-const RESTART_GAP: u64 = 1000;
+/// Where a scan stands in time: its stamp (seconds, nanoseconds), then its frame. Scans come in
+/// this order; a restarted bridge numbers frames from 1 again, but its stamps go on.
+type ScanOrder = (i32, u32, u64);
 
 /// The mapping node's state: the map and what it knows about samples.
 struct Mapping {
@@ -30,8 +33,8 @@ struct Mapping {
     ground_truth: Option<Vec<bool>>,
     samples_truth: Option<Vec<(f64, f64)>>,
     tally: SampleTally,
-    home: Option<(u64, f64, f64)>,
-    last_frame: Option<u64>,
+    home: Option<Home>,
+    last_scan: Option<ScanOrder>,
     rejections: Rejections,
     tilted_frames: u64,
     started: Instant,
@@ -55,7 +58,7 @@ impl Mapping {
             samples_truth: None,
             tally: SampleTally::default(),
             home: None,
-            last_frame: None,
+            last_scan: None,
             rejections: Rejections::default(),
             tilted_frames: 0,
             started: Instant::now(),
@@ -69,15 +72,13 @@ impl Mapping {
         if !self.rejections.accept(topics::TERRAIN.name, scan) {
             return;
         }
-        if let Some(last) = self.last_frame
-            && scan.frame <= last
-            && scan.frame + RESTART_GAP > last
-        {
-            let problem = format_args!("skipped a terrain scan: frame {} arrived after frame {last}", scan.frame);
+        let order = (scan.header.stamp.sec, scan.header.stamp.nanosec, scan.frame);
+        if let Some(last) = self.last_scan.filter(|&last| order <= last) {
+            let problem = format_args!("skipped a terrain scan: frame {} arrived after frame {}", scan.frame, last.2);
             self.rejections.reject("out_of_order", &problem);
             return;
         }
-        self.last_frame = Some(scan.frame);
+        self.last_scan = Some(order);
         match self.map.update(&ScanGrid::of(scan), Pose::of_scan(scan)) {
             Update::Used(_) => self.frames += 1,
             Update::SkippedTilt => self.tilted_frames += 1,
@@ -93,7 +94,7 @@ impl Mapping {
         if !self.rejections.accept(topics::TELEMETRY.name, telemetry) {
             return;
         }
-        self.home.get_or_insert((telemetry.frame, telemetry.x_m, telemetry.y_m));
+        self.home.get_or_insert(Home { frame: telemetry.frame, x_m: telemetry.x_m, y_m: telemetry.y_m });
         if self.tally.update(telemetry.samples_remaining) > 0 {
             self.map.forget_picked_rock(telemetry.x_m, telemetry.y_m, telemetry.yaw_rad as f64);
         }
@@ -116,6 +117,18 @@ impl Mapping {
         self.map.rocks(self.params.rock_merge_m)
     }
 
+    /// What a snapshot keeps.
+    fn memory(&self) -> Memory {
+        Memory { evidence: self.map.gathered(), home: self.home, tally: self.tally }
+    }
+
+    /// Carries on from `memory`, an earlier node's snapshot.
+    fn restore(&mut self, memory: Memory) {
+        self.map = WorldMap::with_evidence(self.params.map_config(), memory.evidence);
+        self.home = memory.home;
+        self.tally = memory.tally;
+    }
+
     fn stats(&self, header: Header) -> MapStats {
         let (navigable_cells, obstacle_cells) = self.map.cell_counts();
         let scores = self.ground_truth.as_deref().map(|truth| self.map.scores(truth));
@@ -130,10 +143,71 @@ impl Mapping {
             mapped_pct: scores.map_or(f32::NAN, |s| s.mapped_pct as f32),
             fidelity_pct: scores.map_or(f32::NAN, |s| s.fidelity_pct as f32),
             rocks_located: rocks_located as u32,
-            home_frame: self.home.map_or(0, |h| h.0),
-            home_x_m: self.home.map_or(f64::NAN, |h| h.1),
-            home_y_m: self.home.map_or(f64::NAN, |h| h.2),
+            home_frame: self.home.map_or(0, |h| h.frame),
+            home_x_m: self.home.map_or(f64::NAN, |h| h.x_m),
+            home_y_m: self.home.map_or(f64::NAN, |h| h.y_m),
             samples_collected: self.tally.collected(),
+        }
+    }
+}
+
+/// The node's snapshot file and what it holds.
+struct Snapshots {
+    path: Option<PathBuf>,
+    written_at: Instant,
+    /// What the last snapshot held: frames mapped, samples collected, whether home was known.
+    written: (u64, u32, bool),
+}
+
+impl Snapshots {
+    fn new(state_dir: &str) -> Self {
+        let path = (!state_dir.is_empty()).then(|| snapshot::path_in(state_dir.as_ref()));
+        Snapshots { path, written_at: Instant::now(), written: (0, 0, false) }
+    }
+
+    /// Carries `mapping` on from the snapshot, if there is one; a snapshot that cannot be read is
+    /// logged and left alone (the next write replaces it).
+    fn restore(&mut self, mapping: &mut Mapping) {
+        let Some(path) = &self.path else { return };
+        match snapshot::read(path) {
+            Ok(Some(memory)) => {
+                mapping.restore(memory);
+                let (navigable, obstacle) = mapping.map.cell_counts();
+                tracing::info!(
+                    "restored the map from {}: {navigable} navigable and {obstacle} obstacle cells, home {:?}, {} samples collected",
+                    path.display(),
+                    mapping.home.map(|h| (h.x_m, h.y_m)),
+                    mapping.tally.collected()
+                );
+            }
+            Ok(None) => tracing::info!("no snapshot at {} yet: starting with an empty map", path.display()),
+            Err(e) => tracing::warn!("cannot restore the map: {e:#}; starting with an empty map"),
+        }
+        self.written = Self::held(mapping);
+    }
+
+    fn held(mapping: &Mapping) -> (u64, u32, bool) {
+        (mapping.frames, mapping.tally.collected(), mapping.home.is_some())
+    }
+
+    /// Writes the snapshot if it is due: the map changed and `every` has passed.
+    fn write_if_due(&mut self, mapping: &Mapping, every: Duration) {
+        if self.written_at.elapsed() >= every {
+            self.write(mapping);
+        }
+    }
+
+    /// Writes the snapshot if the map changed since the last one.
+    fn write(&mut self, mapping: &Mapping) {
+        let Some(path) = &self.path else { return };
+        let now = Self::held(mapping);
+        if now == self.written {
+            return;
+        }
+        self.written_at = Instant::now();
+        match snapshot::write(path, &mapping.memory()) {
+            Ok(()) => self.written = now,
+            Err(e) => tracing::warn!("cannot write the snapshot {}: {e}", path.display()),
         }
     }
 }
@@ -209,6 +283,8 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let (mut node, params) = runtime.node::<MappingParams>("mapping")?;
     let span = node.span();
     let mut mapping = Mapping::new(params.get())?;
+    let mut snapshots = Snapshots::new(&mapping.params.state_dir);
+    snapshots.restore(&mut mapping);
     let mut outputs = Outputs {
         map: node.publisher(&topics::MAP)?,
         image: node.publisher(&topics::MAP_IMAGE)?,
@@ -235,6 +311,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
                 mapping.add_scan(&scan);
                 if mapping.publication_due() {
                     outputs.publish(&mut mapping);
+                    snapshots.write_if_due(&mapping, Duration::from_secs_f64(mapping.params.snapshot_every_ms / 1000.0));
                 }
             }
             Some(t) = telemetry.next() => mapping.on_telemetry(&t),
@@ -248,6 +325,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         }
     }
     outputs.publish(&mut mapping);
+    snapshots.write(&mapping);
     tracing::info!(
         "mapping: {} frames mapped, {} skipped while tilted, rejected {}",
         mapping.frames,

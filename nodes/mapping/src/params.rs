@@ -32,6 +32,13 @@ rover_node::node_params! {
         publish_every_scans: i64 [1, 100000] = 25,
         /// Also publish scans not yet published after this long, ms (when the scans stop).
         publish_max_delay_ms: f64 [10.0, 60000.0] = 500.0,
+        /// Folder of the node's snapshot (`mapping.snapshot`: evidence, home, collected count),
+        /// read at start so that a restarted node carries on where the last one stopped, and
+        /// written while the map changes and at shutdown; empty: none. The launchers give each
+        /// launch a folder of its own.
+        state_dir: String = "",
+        /// Write the snapshot at most this often, ms.
+        snapshot_every_ms: f64 [100.0, 600000.0] = 1000.0,
     }
 }
 
