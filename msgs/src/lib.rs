@@ -12,6 +12,7 @@
 //! from telemetry).
 
 pub mod body;
+pub mod frames;
 pub mod idl;
 pub mod map_grid;
 pub mod tally;

@@ -2,6 +2,7 @@
 //! one drive command per frame and the state machine's mode out.
 
 use futures::StreamExt;
+use rover_msgs::frames::MissionFrames;
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::map_grid::SIDE_CELLS;
 use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, Telemetry, TerrainScan};
@@ -15,7 +16,7 @@ use crate::checked_observation;
 use crate::drive::Drive;
 use crate::grid::Grid;
 use crate::local::FreeSpaceRays;
-use crate::machine::{Machine, Memory};
+use crate::machine::{Machine, Memory, Observation};
 use crate::params::DecisionParams;
 
 /// How many unmatched telemetry messages or scans are kept while waiting for a partner.
@@ -29,6 +30,7 @@ struct Decision {
     drive: Publisher<DriveCommand>,
     mode: Publisher<DecisionState>,
     first_frame: Option<u64>,
+    mission_frames: MissionFrames,
     resumed: bool,
     frames: u64,
     rejections: Rejections,
@@ -40,7 +42,7 @@ impl Decision {
             Some(observation) => {
                 self.first_frame.get_or_insert(telemetry.frame);
                 self.frames += 1;
-                self.machine.step(&observation)
+                self.machine.step(&Observation { frame: self.mission_frames.of(telemetry.frame), ..observation })
             }
             None => Drive::stop(DecisionParams::default().brake),
         };
@@ -132,6 +134,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         drive: node.publisher(&topics::DRIVE_CMD)?,
         mode: node.publisher(&topics::MODE)?,
         first_frame: None,
+        mission_frames: MissionFrames::default(),
         resumed: false,
         frames: 0,
         rejections: Rejections::default(),

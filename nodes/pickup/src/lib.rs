@@ -5,6 +5,7 @@
 
 pub mod node;
 
+use rover_msgs::frames::MissionFrames;
 use rover_msgs::tally::SampleTally;
 
 rover_node::node_params! {
@@ -37,6 +38,7 @@ pub struct ArmInput {
 /// The pickup state: the last request, the arm, the count.
 #[derive(Debug, Clone, Default)]
 pub struct Pickup {
+    mission_frames: MissionFrames,
     requested_frame: Option<u64>,
     arm_busy: bool,
     tally: SampleTally,
@@ -56,11 +58,12 @@ impl Pickup {
             return false;
         }
         self.arm_busy = false;
+        let frame = self.mission_frames.of(input.frame);
         let retry_frames = (params.retry_s / params.frame_period_s).ceil() as u64;
-        let waiting = self.requested_frame.is_some_and(|frame| input.frame < frame + retry_frames);
+        let waiting = self.requested_frame.is_some_and(|requested| frame < requested + retry_frames);
         let ready = input.near_sample && input.speed_mps.abs() <= params.stopped_mps && input.samples_remaining > 0;
         if ready && !waiting {
-            self.requested_frame = Some(input.frame);
+            self.requested_frame = Some(frame);
             self.requests += 1;
             return true;
         }
@@ -113,5 +116,18 @@ mod tests {
         assert!(!pickup.on_telemetry(&input(149, 0.0, true, false, 6), &params));
         assert!(pickup.on_telemetry(&input(150, 0.0, true, false, 6), &params), "asks again after retry_s");
         assert!(!pickup.on_telemetry(&input(400, 0.0, true, false, 0), &params), "nothing left to pick up");
+    }
+
+    #[test]
+    fn a_new_bridge_numbering_frames_from_one_does_not_block_the_retry() {
+        let params = PickupParams::default();
+        let mut pickup = Pickup::default();
+        assert!(pickup.on_telemetry(&input(5000, 0.0, true, false, 6), &params));
+        assert!(!pickup.on_telemetry(&input(1, 0.0, true, false, 6), &params), "the new bridge's first frame");
+        assert!(!pickup.on_telemetry(&input(48, 0.0, true, false, 6), &params));
+        assert!(
+            pickup.on_telemetry(&input(50, 0.0, true, false, 6), &params),
+            "asks again after retry_s, not at frame 5050"
+        );
     }
 }

@@ -1,0 +1,37 @@
+//! Frame numbers of one mission. The bridge numbers its lock-step frames from 1, and a restarted
+//! bridge starts again from 1; a node that times things in frames counts on across such restarts.
+
+/// Turns the bridge's frame numbers into mission frame numbers that never go back.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct MissionFrames {
+    /// The last bridge frame and the mission frame it became.
+    last: Option<(u64, u64)>,
+}
+
+impl MissionFrames {
+    /// The mission frame of bridge frame `frame`: while the bridge's numbers go up, they go up
+    /// alike; when they go back (a new bridge), the mission goes on from one past its last frame.
+    pub fn of(&mut self, frame: u64) -> u64 {
+        let mission = match self.last {
+            None => frame,
+            Some((bridge, mission)) if frame >= bridge => mission.saturating_add(frame - bridge),
+            Some((_, mission)) => mission.saturating_add(1),
+        };
+        self.last = Some((frame, mission));
+        mission
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_count_on_across_a_new_bridge() {
+        let mut frames = MissionFrames::default();
+        assert_eq!([5, 6, 6, 9].map(|f| frames.of(f)), [5, 6, 6, 9], "the bridge's own numbers while they go up");
+        assert_eq!([1, 2, 4].map(|f| frames.of(f)), [10, 11, 13], "a new bridge's frames follow the last one");
+        assert_eq!(frames.of(u64::MAX), u64::MAX);
+        assert_eq!(frames.of(0), u64::MAX, "saturates");
+    }
+}
