@@ -11,8 +11,8 @@ rover_node::node_params! {
         approach_speed_mps: f64 [0.1, 3.0] = 0.5,
         /// Throttle per m/s of speed error.
         throttle_gain: f64 [0.0, 10.0] = 0.8,
-        /// Brake value for stops.
-        brake: f64 [0.0, 100.0] = 10.0,
+        /// Brake value for stops (at least 1: a stop always brakes).
+        brake: f64 [1.0, 100.0] = 10.0,
         /// Steering degrees per degree of bearing to the chosen direction.
         steer_gain: f64 [0.0, 10.0] = 1.0,
         /// A direction is taken only with this much free ground ahead, metres.
