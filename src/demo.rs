@@ -38,6 +38,9 @@ pub struct DemoArgs {
     /// the samples and the scores), the JSON report (report.json) and the node logs.
     #[arg(long, default_value = "rover-demo", value_name = "DIR")]
     pub out: PathBuf,
+    /// End the mission when a node dies, instead of starting the node again.
+    #[arg(long)]
+    pub no_respawn: bool,
 }
 
 /// The JSON report of a demo run.
@@ -55,6 +58,7 @@ pub async fn run_demo(args: &DemoArgs, runtime: &Runtime, ros_args: &[String]) -
     let samples = world.samples.len();
     let mut config = GraphConfig::of_current_exe(free_port()?, args.out.join("logs"))?;
     config.ros_args = ros_args.to_vec();
+    config.respawn = !args.no_respawn;
     eprintln!(
         "rover demo: {} (seed {}), {samples} samples; node logs in {}; Ctrl-C stops",
         args.world.describe(),

@@ -11,6 +11,7 @@ use rover_node::Runtime;
 use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 
+use crate::chaos::Chaos;
 use crate::graph::{GraphConfig, free_port, log_dir};
 use crate::graph_mission::run_graph_mission;
 use crate::mission::{NodeSettings, Progress, run_in_process};
@@ -41,6 +42,16 @@ pub struct EvalArgs {
     /// Write each run's picture (the final map, path, samples and scores) as PNG into this folder.
     #[arg(long, value_name = "DIR")]
     pub maps: Option<PathBuf>,
+    /// Kill a random node (SIGKILL) every CHAOS_PERIOD_S simulated seconds; the graph starts it
+    /// again and the mission must go on.
+    #[arg(long, conflicts_with_all = ["in_process", "no_respawn"])]
+    pub chaos: bool,
+    /// Simulated seconds between two kills of --chaos.
+    #[arg(long, default_value_t = 60.0, value_name = "SECONDS", requires = "chaos")]
+    pub chaos_period_s: f64,
+    /// End a mission when a node dies, instead of starting the node again.
+    #[arg(long, conflicts_with = "in_process")]
+    pub no_respawn: bool,
 }
 
 /// Parses `A..B` (inclusive) or a single seed.
@@ -162,16 +173,25 @@ pub async fn run_graph_eval(args: &EvalArgs, runtime: &Runtime, ros_args: &[Stri
         let samples = world.samples.len();
         let mut config = GraphConfig::of_current_exe(free_port()?, log_dir("eval").join(format!("seed{seed}")))?;
         config.ros_args = ros_args.to_vec();
+        config.respawn = !args.no_respawn;
         let sim_config = SimConfig { max_sim_seconds: Some(args.max_sim_seconds), ..SimConfig::default() };
         let started = Instant::now();
         let mut next_line_s = PROGRESS_EVERY_SIM_S;
-        let outcome = run_graph_mission(runtime, config, world, sim_config, |p, _| {
+        let mut chaos = args.chaos.then(|| Chaos::every(args.chaos_period_s, args.max_sim_seconds, seed));
+        let mut kills = Vec::new();
+        let outcome = run_graph_mission(runtime, config, world, sim_config, |p, graph| {
+            if let Some(chaos) = chaos.as_mut() {
+                kills.extend(chaos.act(p.sim_seconds, graph).into_iter().map(|node| node.name()));
+            }
             if p.sim_seconds >= next_line_s {
                 print_progress(seed, p);
                 next_line_s += PROGRESS_EVERY_SIM_S;
             }
         })
         .await?;
+        if args.chaos {
+            eprintln!("seed {seed}: chaos killed {} nodes: {}", kills.len(), kills.join(", "));
+        }
         if runtime.shutdown().is_requested() {
             anyhow::bail!("interrupted during seed {seed}");
         }

@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 use rover_decision::machine::Mode;
 use rover_mapping::score::{LocatedSamples, occupancy_scores};
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
+use rover_msgs::frames::MissionFrames;
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{DecisionState, Telemetry};
 use rover_msgs::nav_msgs::OccupancyGrid;
@@ -21,11 +22,12 @@ use tokio::sync::Notify;
 use crate::graph::{Graph, GraphConfig};
 use crate::mission::Progress;
 use crate::mission_map::{MissionMap, sample_marks};
-use crate::nodes::Node;
 use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
 
 /// How often the progress callback runs, wall clock.
 const PROGRESS_PERIOD: Duration = Duration::from_millis(500);
+/// How often dead nodes are looked for (and, with respawn, started again), wall clock.
+const SUPERVISION_PERIOD: Duration = Duration::from_millis(100);
 /// Without a new telemetry frame for this long the graph counts as stalled and the run ends.
 const STALL_LIMIT: Duration = Duration::from_secs(60);
 /// The key of the bridge's `/diagnostics` value that counts late drive commands.
@@ -59,6 +61,7 @@ struct Evaluator {
     located: LocatedSamples,
     progress: Progress,
     last_frame_at: Instant,
+    frames: MissionFrames,
     clock: ModeClock,
     /// The map, path and start so far; the samples are filled in at the end.
     mission_map: MissionMap,
@@ -87,6 +90,7 @@ impl Evaluator {
             located: LocatedSamples::new(samples),
             progress,
             last_frame_at: Instant::now(),
+            frames: MissionFrames::default(),
             clock: ModeClock::default(),
             mission_map,
         }
@@ -122,8 +126,9 @@ impl Evaluator {
     }
 
     fn on_telemetry(&mut self, telemetry: &Telemetry, step_s: f64) {
-        self.progress.sim_seconds = telemetry.frame as f64 * step_s;
-        self.clock.on_frame(telemetry.frame, activity_of(&self.progress.mode, telemetry), step_s);
+        let frame = self.frames.of(telemetry.frame);
+        self.progress.sim_seconds = frame as f64 * step_s;
+        self.clock.on_frame(frame, activity_of(&self.progress.mode, telemetry), step_s);
         self.progress.collected = self.samples.saturating_sub(telemetry.samples_remaining as usize);
         self.mission_map.path.record(telemetry.x_m, telemetry.y_m);
         self.last_frame_at = Instant::now();
@@ -157,6 +162,7 @@ pub async fn run_graph_mission(
         }
     };
     let mut ticks = tokio::time::interval(PROGRESS_PERIOD);
+    let mut supervision = tokio::time::interval(SUPERVISION_PERIOD);
     let mut client = Box::pin(run_client(&mut simulator, &client_config, stop));
     let failure = loop {
         tokio::select! {
@@ -164,7 +170,9 @@ pub async fn run_graph_mission(
             _ = ticks.tick() => {
                 let progress = evaluator.lock().expect("evaluator lock").snapshot();
                 on_progress(&progress, &mut graph);
-                if let Some(problem) = graph_problem(&mut graph, &evaluator) {
+            }
+            _ = supervision.tick() => {
+                if let Some(problem) = supervise(&mut graph, &evaluator) {
                     break Some(problem);
                 }
             }
@@ -186,19 +194,21 @@ pub async fn run_graph_mission(
     Ok(GraphOutcome { report, progress: evaluator.snapshot(), mission_map, unclean_nodes })
 }
 
-/// Why the run cannot go on: the bridge is gone, or no frame arrived for too long.
-fn graph_problem(graph: &mut Graph, evaluator: &Mutex<Evaluator>) -> Option<String> {
-    if let Some((_, status)) = graph.exited().into_iter().find(|(name, _)| name == Node::Bridge.name()) {
-        return Some(format!("the bridge exited ({status}); see {}", graph.config().log_dir.display()));
+/// Starts dead nodes again (with respawn); returns why the run cannot go on: a node exited
+/// (without respawn) or keeps dying, or no frame arrived for too long.
+fn supervise(graph: &mut Graph, evaluator: &Mutex<Evaluator>) -> Option<String> {
+    let logs = graph.config().log_dir.display().to_string();
+    if graph.config().respawn {
+        graph.respawn_dead();
+        if let Some(name) = graph.given_up().first() {
+            return Some(format!("node {name} keeps dying soon after each start; see {logs}"));
+        }
+    } else if let Some((name, status)) = graph.exited().into_iter().next() {
+        return Some(format!("node {name} exited ({status}); see {logs}"));
     }
     let silent = evaluator.lock().expect("evaluator lock").last_frame_at.elapsed();
-    (silent > STALL_LIMIT).then(|| {
-        format!(
-            "no telemetry for {:.0} s: the graph stalled; see the logs in {}",
-            silent.as_secs_f64(),
-            graph.config().log_dir.display()
-        )
-    })
+    (silent > STALL_LIMIT)
+        .then(|| format!("no telemetry for {:.0} s: the graph stalled; see the logs in {}", silent.as_secs_f64(), logs))
 }
 
 /// A subscription handler that applies `update` to the shared evaluator.

@@ -1,6 +1,7 @@
 //! The `rover` application: the subcommands that combine the libraries of the graph (replaying
 //! recorded datasets, the demo, the evaluation).
 
+pub mod chaos;
 pub mod dataset;
 pub mod demo;
 pub mod eval;

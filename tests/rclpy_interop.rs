@@ -119,6 +119,7 @@ fn start_graph(mode: Mode, domain: &Domain) -> Graph {
         port: domain.port(),
         ros_args: ros_args.iter().map(|a| a.to_string()).collect(),
         log_dir: std::env::temp_dir().join(format!("rover-interop-{mode:?}-{}", std::process::id())),
+        respawn: false,
     };
     match mode {
         Mode::MultiProcess => Graph::start(config),
