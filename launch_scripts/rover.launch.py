@@ -2,12 +2,15 @@
 
     ros2 launch launch_scripts/rover.launch.py [namespace:=/rover1] [params_file:=FILE]
         [rover:=PATH] [port:=4567] [sim:=true] [seed:=0] [log_level:=debug]
+        [respawn:=false] [state_dir:=DIR]
 
 Every node that `rover nodes` lists runs
 `rover NODE --ros-args --params-file PARAMS -r __ns:=NAMESPACE [--log-level LEVEL]`; the bridge
 also gets `-p port:=PORT`. With sim:=true the headless simulator (`rover sim --seed SEED
 --port PORT`) drives the graph; without it the bridge waits for the Unity simulator. The DDS
 domain is the environment's ROS_DOMAIN_ID, the log filter RUST_LOG unless log_level is given.
+A node that dies is started again after RESPAWN_DELAY_S (respawn:=false: it stays dead), and the
+mapping node carries on from its snapshot in state_dir (default: a new temporary folder per launch).
 Uses only the `launch` package (no launch_ros): `rover` is not in an ament package index unless
 the repository was built with colcon, so it is started by path.
 """
@@ -15,12 +18,14 @@ the repository was built with colcon, so it is started by path.
 import os
 import shutil
 import subprocess
+import tempfile
 
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, ExecuteProcess, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+RESPAWN_DELAY_S = 0.5
 
 
 def default_rover():
@@ -72,10 +77,14 @@ def arguments():
                               description="seed of the headless simulator's world"),
         DeclareLaunchArgument('log_level', default_value='',
                               description='log level of every node (default: RUST_LOG, else info)'),
+        DeclareLaunchArgument('respawn', default_value='true', choices=['true', 'false'],
+                              description='start a node that dies again'),
+        DeclareLaunchArgument('state_dir', default_value='',
+                              description="folder of the mapping node's snapshot (default: a new temporary one)"),
     ]
 
 
-def node_command(name, value):
+def node_command(name, value, state_dir):
     """The command line of node `name`; `value` reads a launch argument."""
     cmd = [value('rover'), name, '--ros-args', '--params-file', value('params_file'),
            '-r', '__ns:=' + value('namespace')]
@@ -83,6 +92,8 @@ def node_command(name, value):
         cmd += ['--log-level', value('log_level')]
     if name == 'bridge':
         cmd += ['-p', 'port:=' + value('port')]
+    if name == 'mapping':
+        cmd += ['-p', 'state_dir:=' + state_dir]
     return cmd
 
 
@@ -96,11 +107,16 @@ def processes(context):
     def value(name):
         return LaunchConfiguration(name).perform(context)
 
-    commands = [(name, node_command(name, value)) for name in node_names(value('rover'))]
+    state_dir = value('state_dir') or tempfile.mkdtemp(prefix='rover-state-')
+    respawn = value('respawn') == 'true'
+    actions = [ExecuteProcess(cmd=node_command(name, value, state_dir), name=name, output='screen',
+                              sigterm_timeout='5', sigkill_timeout='5',
+                              respawn=respawn, respawn_delay=RESPAWN_DELAY_S)
+               for name in node_names(value('rover'))]
     if value('sim') == 'true':
-        commands.append(('sim', simulator_command(value)))
-    return [ExecuteProcess(cmd=cmd, name=name, output='screen', sigterm_timeout='5', sigkill_timeout='5')
-            for name, cmd in commands]
+        actions.append(ExecuteProcess(cmd=simulator_command(value), name='sim', output='screen',
+                                      sigterm_timeout='5', sigkill_timeout='5'))
+    return actions
 
 
 def generate_launch_description():

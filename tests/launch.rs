@@ -1,7 +1,8 @@
 //! The launchers of `launch_scripts/`: `rover-graph` (no ROS needed) and `rover.launch.py` (run by
 //! the real `ros2 launch`, from the wheels of `../shared/ros2-python`), each starting the real graph
 //! with the headless simulator, checked from a DDS subscriber in the test, and stopped with SIGINT,
-//! after which none of their processes is left.
+//! after which none of their processes is left. Both start a killed node again; the mapping node
+//! then carries on from its snapshot.
 
 mod support;
 
@@ -128,15 +129,19 @@ fn command_line(pid: u32) -> String {
         .unwrap_or_default()
 }
 
-fn rover_graph(domain: &Domain, namespace: &str, log_dir: &Path, sim: bool) -> Command {
+/// `rover-graph` on the test's domain with the launcher options `options` (e.g. `--sim 4`).
+fn rover_graph(domain: &Domain, namespace: &str, log_dir: &Path, options: &[&str]) -> Command {
     let mut command = Command::new(launch_scripts().join("rover-graph"));
     command.arg("--rover").arg(rover()).arg("--log-dir").arg(log_dir);
     command.args(["--domain", &domain.id.to_string(), "--port", &domain.port().to_string(), "--namespace", namespace]);
-    if sim {
-        command.args(["--sim", "4"]);
-    }
-    command.args(["--", "-p", "bridge:diagnostics_period_ms:=250.0"]);
+    command.args(options);
+    command.args(["--", "-p", "bridge:diagnostics_period_ms:=250.0", "-p", "mapping:snapshot_every_ms:=200.0"]);
     command
+}
+
+/// The pid of the running process `name` of `started`, the last one started under that name.
+fn pid_of(started: &[(String, u32, PathBuf)], name: &str) -> u32 {
+    started.iter().rev().find(|(n, _, _)| n == name).unwrap_or_else(|| panic!("{name} was started")).1
 }
 
 #[test]
@@ -147,7 +152,7 @@ fn rover_graph_runs_the_graph_with_the_simulator_and_stops_every_process_on_sigi
     let domain = Domain::reserve();
     let watcher = Watcher::start(&domain, "/plain");
     let log_dir = std::env::temp_dir().join(format!("rover-graph-test-{}", std::process::id()));
-    let mut launcher = Launcher::start(&mut rover_graph(&domain, "/plain", &log_dir, true), "rover-graph");
+    let mut launcher = Launcher::start(&mut rover_graph(&domain, "/plain", &log_dir, &["--sim", "4"]), "rover-graph");
     assert!(watcher.graph_runs(), "no frames on /plain/rover/telemetry; launcher output:\n{}", launcher.output());
 
     let output = launcher.output();
@@ -162,6 +167,10 @@ fn rover_graph_runs_the_graph_with_the_simulator_and_stops_every_process_on_sigi
         if name != "sim" {
             assert!(command.contains(&format!("--params-file {}", params_file.display())), "{name}: {command}");
             assert!(command.contains("-r __ns:=/plain -p bridge:diagnostics_period_ms:=250.0"), "{name}: {command}");
+        }
+        if name == "mapping" {
+            let state_dir = log_dir.join("state");
+            assert!(command.contains(&format!("-p state_dir:={}", state_dir.display())), "{name}: {command}");
         }
     }
 
@@ -178,14 +187,57 @@ fn rover_graph_runs_the_graph_with_the_simulator_and_stops_every_process_on_sigi
 }
 
 #[test]
-fn rover_graph_stops_every_node_when_one_exits() {
+fn rover_graph_starts_a_killed_node_again_and_mapping_carries_on_from_its_snapshot() {
+    support::assert_isolated();
+    let tokio = tokio::runtime::Runtime::new().expect("a tokio runtime");
+    let _entered = tokio.enter();
+    let domain = Domain::reserve();
+    let watcher = Watcher::start(&domain, "/respawn");
+    let log_dir = std::env::temp_dir().join(format!("rover-graph-respawn-test-{}", std::process::id()));
+    let command = &mut rover_graph(&domain, "/respawn", &log_dir, &["--sim", "2"]);
+    let mut launcher = Launcher::start(command, "rover-graph-respawn");
+    assert!(watcher.graph_runs(), "no frames on /respawn/rover/telemetry; launcher output:\n{}", launcher.output());
+    let snapshot = log_dir.join("state").join("mapping.snapshot");
+    assert!(eventually(Duration::from_secs(10), || snapshot.exists()), "no snapshot at {}", snapshot.display());
+    let mapping = pid_of(&started_processes(&launcher.output()), "mapping");
+    send_signal(mapping, Signal::SIGKILL);
+
+    let restarted = eventually(Duration::from_secs(10), || {
+        started_processes(&launcher.output()).iter().filter(|(name, _, _)| name == "mapping").count() == 2
+    });
+    let output = launcher.output();
+    assert!(restarted, "mapping was not started again:\n{output}");
+    assert!(output.contains("rover-graph: mapping exited with status -9; starting it again in 0.25 s"), "{output}");
+    let mapping_log = log_dir.join("mapping.log");
+    let restored = eventually(Duration::from_secs(10), || {
+        std::fs::read_to_string(&mapping_log).is_ok_and(|log| log.contains("restored the map from"))
+    });
+    let log = std::fs::read_to_string(&mapping_log).unwrap_or_default();
+    assert!(restored, "the new mapping node did not restore the snapshot:\n{log}");
+    assert!(log.contains("---- mapping started again ----"), "the log goes on in the same file:\n{log}");
+    let frames_before = watcher.telemetry.all().len();
+    assert!(
+        eventually(Duration::from_secs(10), || watcher.telemetry.all().len() > frames_before + 30),
+        "frames flow after the restart"
+    );
+
+    let status = launcher.interrupt();
+    let output = launcher.output();
+    assert_eq!(status.and_then(|s| s.code()), Some(0), "rover-graph's exit on SIGINT: {status:?}; output:\n{output}");
+    for (name, pid, _) in started_processes(&output).iter().filter(|(_, pid, _)| *pid != mapping) {
+        assert!(!is_running(*pid), "{name} (pid {pid}) still runs");
+    }
+}
+
+#[test]
+fn rover_graph_without_respawn_stops_every_node_when_one_exits() {
     support::assert_isolated();
     let domain = Domain::reserve();
     let log_dir = std::env::temp_dir().join(format!("rover-graph-crash-test-{}", std::process::id()));
-    let mut launcher = Launcher::start(&mut rover_graph(&domain, "/crash", &log_dir, false), "rover-graph-crash");
+    let mut launcher =
+        Launcher::start(&mut rover_graph(&domain, "/crash", &log_dir, &["--no-respawn"]), "rover-graph-crash");
     assert!(eventually(Duration::from_secs(10), || started_processes(&launcher.output()).len() == Node::ALL.len()));
-    let started = started_processes(&launcher.output());
-    let mapping = started.iter().find(|(name, _, _)| name == "mapping").expect("mapping was started").1;
+    let mapping = pid_of(&started_processes(&launcher.output()), "mapping");
     std::thread::sleep(Duration::from_secs(1));
     send_signal(mapping, Signal::SIGKILL);
 
@@ -194,7 +246,7 @@ fn rover_graph_stops_every_node_when_one_exits() {
     assert!(exited, "rover-graph kept running after mapping died:\n{output}");
     assert_eq!(launcher.child.wait().ok().and_then(|s| s.code()), Some(1), "{output}");
     assert!(output.contains("rover-graph: mapping exited with status -9; stopping the others"), "{output}");
-    for (name, pid, _) in started.iter().filter(|(name, _, _)| name != "mapping") {
+    for (name, pid, _) in started_processes(&output).iter().filter(|(name, _, _)| name != "mapping") {
         assert!(output.contains(&format!("rover-graph: {name:<10} exited: 0")), "{name}:\n{output}");
         assert!(!is_running(*pid), "{name} (pid {pid}) still runs");
     }
@@ -213,9 +265,17 @@ fn rover_graph_help_names_its_options() {
     let output = Command::new(launch_scripts().join("rover-graph")).arg("--help").output().expect("run rover-graph");
     let help = String::from_utf8_lossy(&output.stdout);
     assert!(output.status.success(), "{help}");
-    for option in
-        ["--rover", "--params-file", "--namespace", "--domain", "--port", "--sim SEED", "--log-dir", "-- ROS_ARG"]
-    {
+    for option in [
+        "--rover",
+        "--params-file",
+        "--namespace",
+        "--domain",
+        "--port",
+        "--sim SEED",
+        "--log-dir",
+        "--no-respawn",
+        "-- ROS_ARG",
+    ] {
         assert!(help.contains(option), "--help does not mention {option}:\n{help}");
     }
 }
@@ -265,6 +325,13 @@ fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint
     let launched = launched_processes(&launcher.output());
     let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
     assert_eq!(names, processes(), "{}", launcher.output());
+    let mapping = launched.iter().find(|(name, _)| name == "mapping").expect("mapping was launched").1;
+    send_signal(mapping, Signal::SIGKILL);
+    let respawned =
+        eventually(Duration::from_secs(15), || launched_processes(&launcher.output()).len() == launched.len() + 1);
+    assert!(respawned, "ros2 launch did not start the killed mapping node again:\n{}", launcher.output());
+    let launched = launched_processes(&launcher.output());
+    assert_eq!(launched.last().map(|(name, _)| name.as_str()), Some("mapping"), "{}", launcher.output());
 
     let interrupted = std::time::Instant::now();
     let status = launcher.interrupt();
@@ -278,7 +345,7 @@ fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint
         launched.len(),
         interrupted.elapsed().as_secs_f64()
     );
-    for (name, pid) in &launched {
+    for (name, pid) in launched.iter().filter(|(_, pid)| *pid != mapping) {
         let finished = format!("[{name}-");
         let clean =
             output.lines().any(|line| line.contains(&finished) && line.contains("process has finished cleanly"));
