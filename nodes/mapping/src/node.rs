@@ -1,7 +1,6 @@
 //! The mapping node (`rover mapping`): terrain scans in; the map, its image, statistics and the
 //! located rocks out.
 
-use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use futures::StreamExt;
@@ -12,6 +11,7 @@ use rover_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
 use rover_msgs::sensor_msgs::Image;
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tally::SampleTally;
+use rover_node::snapshot::SnapshotFile;
 use rover_node::{Publisher, Rejections, Runtime, messages, topics};
 use tracing::Instrument as _;
 
@@ -151,37 +151,29 @@ impl Mapping {
     }
 }
 
-/// The node's snapshot file and what it holds.
+/// The node's snapshot file and what the last snapshot held: frames mapped, samples collected,
+/// whether home was known.
 struct Snapshots {
-    path: Option<PathBuf>,
-    written_at: Instant,
-    /// What the last snapshot held: frames mapped, samples collected, whether home was known.
+    file: SnapshotFile,
     written: (u64, u32, bool),
 }
 
 impl Snapshots {
     fn new(state_dir: &str) -> Self {
-        let path = (!state_dir.is_empty()).then(|| snapshot::path_in(state_dir.as_ref()));
-        Snapshots { path, written_at: Instant::now(), written: (0, 0, false) }
+        Snapshots { file: SnapshotFile::new(state_dir, snapshot::FILE_NAME), written: (0, 0, false) }
     }
 
-    /// Carries `mapping` on from the snapshot, if there is one; a snapshot that cannot be read is
-    /// logged and left alone (the next write replaces it).
+    /// Carries `mapping` on from the snapshot, if there is one.
     fn restore(&mut self, mapping: &mut Mapping) {
-        let Some(path) = &self.path else { return };
-        match snapshot::read(path) {
-            Ok(Some(memory)) => {
-                mapping.restore(memory);
-                let (navigable, obstacle) = mapping.map.cell_counts();
-                tracing::info!(
-                    "restored the map from {}: {navigable} navigable and {obstacle} obstacle cells, home {:?}, {} samples collected",
-                    path.display(),
-                    mapping.home.map(|h| (h.x_m, h.y_m)),
-                    mapping.tally.collected()
-                );
-            }
-            Ok(None) => tracing::info!("no snapshot at {} yet: starting with an empty map", path.display()),
-            Err(e) => tracing::warn!("cannot restore the map: {e:#}; starting with an empty map"),
+        if let Some(memory) = self.file.load(snapshot::decode) {
+            mapping.restore(memory);
+            let (navigable, obstacle) = mapping.map.cell_counts();
+            tracing::info!(
+                "restored the map from {}: {navigable} navigable and {obstacle} obstacle cells, home {:?}, {} samples collected",
+                self.file.path().map_or_else(String::new, |p| p.display().to_string()),
+                mapping.home.map(|h| (h.x_m, h.y_m)),
+                mapping.tally.collected()
+            );
         }
         self.written = Self::held(mapping);
     }
@@ -190,24 +182,19 @@ impl Snapshots {
         (mapping.frames, mapping.tally.collected(), mapping.home.is_some())
     }
 
-    /// Writes the snapshot if it is due: the map changed and `every` has passed.
+    /// Writes the snapshot if the map changed and `every` has passed since the last one.
     fn write_if_due(&mut self, mapping: &Mapping, every: Duration) {
-        if self.written_at.elapsed() >= every {
+        if self.file.due(every) {
             self.write(mapping);
         }
     }
 
     /// Writes the snapshot if the map changed since the last one.
     fn write(&mut self, mapping: &Mapping) {
-        let Some(path) = &self.path else { return };
         let now = Self::held(mapping);
-        if now == self.written {
-            return;
-        }
-        self.written_at = Instant::now();
-        match snapshot::write(path, &mapping.memory()) {
-            Ok(()) => self.written = now,
-            Err(e) => tracing::warn!("cannot write the snapshot {}: {e}", path.display()),
+        if now != self.written {
+            self.file.save(&snapshot::encode(&mapping.memory()));
+            self.written = now;
         }
     }
 }

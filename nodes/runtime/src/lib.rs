@@ -14,6 +14,7 @@ pub mod qos;
 pub mod rejections;
 pub mod ros_args;
 pub mod shutdown;
+pub mod snapshot;
 pub mod topics;
 
 pub use node::{Params, RosNode, Runtime, domain_id_from_env, messages, resolve_params, spawn_subscriber};
