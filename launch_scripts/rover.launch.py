@@ -10,7 +10,8 @@ also gets `-p port:=PORT`. With sim:=true the headless simulator (`rover sim --s
 --port PORT`) drives the graph; without it the bridge waits for the Unity simulator. The DDS
 domain is the environment's ROS_DOMAIN_ID, the log filter RUST_LOG unless log_level is given.
 A node that dies is started again after RESPAWN_DELAY_S (respawn:=false: it stays dead), and the
-mapping node carries on from its snapshot in state_dir (default: a new temporary folder per launch).
+mapping and decision nodes carry on from their snapshots in state_dir (default: a new temporary
+folder per launch).
 Uses only the `launch` package (no launch_ros): `rover` is not in an ament package index unless
 the repository was built with colcon, so it is started by path.
 """
@@ -80,7 +81,7 @@ def arguments():
         DeclareLaunchArgument('respawn', default_value='true', choices=['true', 'false'],
                               description='start a node that dies again'),
         DeclareLaunchArgument('state_dir', default_value='',
-                              description="folder of the mapping node's snapshot (default: a new temporary one)"),
+                              description="folder of the mapping and decision snapshots (default: a new temporary one)"),
     ]
 
 
@@ -92,7 +93,7 @@ def node_command(name, value, state_dir):
         cmd += ['--log-level', value('log_level')]
     if name == 'bridge':
         cmd += ['-p', 'port:=' + value('port')]
-    if name == 'mapping':
+    if name in ('mapping', 'decision'):
         cmd += ['-p', 'state_dir:=' + state_dir]
     return cmd
 

@@ -38,8 +38,8 @@ impl GraphConfig {
         Ok(GraphConfig { rover, domain_id: None, port, ros_args: Vec::new(), log_dir, respawn: true })
     }
 
-    /// The folder where the nodes keep what a restarted node carries on from (the mapping
-    /// node's snapshot): one per graph, so a new graph starts afresh.
+    /// The folder where the nodes keep what a restarted node carries on from (the mapping and
+    /// decision nodes' snapshots): one per graph, so a new graph starts afresh.
     pub fn state_dir(&self) -> PathBuf {
         self.log_dir.join("state")
     }
@@ -87,7 +87,9 @@ impl NodeProcess {
         command.arg(name).arg("--ros-args").args(&config.ros_args);
         // Aimed at one node each, so they also reach the nodes of `rover all`; the others ignore them.
         command.args(["-p", &format!("bridge:port:={}", config.port)]);
-        command.args(["-p", &format!("mapping:state_dir:={}", config.state_dir().display())]);
+        for node in ["mapping", "decision"] {
+            command.args(["-p", &format!("{node}:state_dir:={}", config.state_dir().display())]);
+        }
         if let Some(id) = config.domain_id {
             command.env("ROS_DOMAIN_ID", id.to_string());
         }

@@ -101,6 +101,7 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
     }
     assert!(log("mapping").contains("restored the map from"), "mapping restored its snapshot:\n{}", log("mapping"));
     assert!(log("decision").contains("resuming a mission"), "the new decision node resumed:\n{}", log("decision"));
+    assert!(log("decision").contains("recalled the exploration from"), "the new decision node read its snapshot");
     let home = check_map_stats(&map_stats.all()).unwrap_or_else(|problem| panic!("{problem}"));
     println!("home ({:.2}, {:.2}) throughout", home.0, home.1);
     for kill in chaos.kills() {

@@ -168,7 +168,7 @@ fn rover_graph_runs_the_graph_with_the_simulator_and_stops_every_process_on_sigi
             assert!(command.contains(&format!("--params-file {}", params_file.display())), "{name}: {command}");
             assert!(command.contains("-r __ns:=/plain -p bridge:diagnostics_period_ms:=250.0"), "{name}: {command}");
         }
-        if name == "mapping" {
+        if name == "mapping" || name == "decision" {
             let state_dir = log_dir.join("state");
             assert!(command.contains(&format!("-p state_dir:={}", state_dir.display())), "{name}: {command}");
         }

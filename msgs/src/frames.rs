@@ -2,13 +2,24 @@
 //! bridge starts again from 1; a node that times things in frames counts on across such restarts.
 
 /// Turns the bridge's frame numbers into mission frame numbers that never go back.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct MissionFrames {
     /// The last bridge frame and the mission frame it became.
     last: Option<(u64, u64)>,
 }
 
 impl MissionFrames {
+    /// Carries on from `last`, the last (bridge frame, mission frame) of an earlier count (e.g. a
+    /// restarted node's snapshot).
+    pub fn resumed(last: Option<(u64, u64)>) -> Self {
+        MissionFrames { last }
+    }
+
+    /// The last (bridge frame, mission frame), once a frame was counted.
+    pub fn last(&self) -> Option<(u64, u64)> {
+        self.last
+    }
+
     /// The mission frame of bridge frame `frame`: while the bridge's numbers go up, they go up
     /// alike; when they go back (a new bridge), the mission goes on from one past its last frame.
     pub fn of(&mut self, frame: u64) -> u64 {

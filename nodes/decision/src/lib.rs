@@ -10,6 +10,7 @@ pub mod machine;
 pub mod node;
 pub mod params;
 pub mod plan;
+pub mod snapshot;
 
 use rover_msgs::msg::{Telemetry, TerrainScan};
 use rover_node::{Rejections, topics};

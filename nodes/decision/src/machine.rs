@@ -9,7 +9,7 @@ use crate::drive::{Drive, Steering, speed_to_stop_in};
 use crate::grid::Grid;
 use crate::local::FreeSpace;
 use crate::params::DecisionParams;
-use crate::plan::{Explorer, Position, Route, staging_cell};
+use crate::plan::{Explorer, ExplorerMemory, Position, Route, staging_cell};
 
 /// A rock is given up after this many approaches that ended stuck.
 const APPROACHES_PER_ROCK: usize = 2;
@@ -166,6 +166,30 @@ pub struct Memory {
     pub samples_collected: u32,
 }
 
+/// What a restarted machine takes over from the earlier machine's snapshot: what the exploration
+/// learnt, the rocks it gave up on, and whether it was already on its way home (or there).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recollection {
+    /// The explorer's memory.
+    pub explorer: ExplorerMemory,
+    /// Rocks picked up or given up on, world metres.
+    pub ignored_rocks: Vec<(f64, f64)>,
+    /// The mode, reduced to where the mission stands: exploring (or on the way to a sample),
+    /// returning home, or done.
+    pub stage: Stage,
+}
+
+/// Where a mission stands, as a snapshot keeps it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// Exploring and collecting samples.
+    Exploring,
+    /// On the way home.
+    ReturningHome,
+    /// Home: the mission is over.
+    Done,
+}
+
 #[derive(Debug, Clone)]
 enum State {
     Explore,
@@ -266,6 +290,32 @@ impl Machine {
         self.status.samples_collected = memory.samples_collected;
         self.status.reason = "resumed".to_string();
         self.changed = true;
+    }
+
+    /// What a restarted machine needs from this one (see [`Machine::recall`]).
+    pub fn recollection(&self) -> Recollection {
+        let stage = match self.state {
+            State::ReturnHome(_) | State::Recover { then_home: true, .. } => Stage::ReturningHome,
+            State::Done => Stage::Done,
+            _ => Stage::Exploring,
+        };
+        Recollection { explorer: self.explorer.memory(), ignored_rocks: self.ignored_rocks.clone(), stage }
+    }
+
+    /// Carries on from an earlier machine's recollection.
+    pub fn recall(&mut self, recollection: Recollection) {
+        self.explorer = Explorer::with_memory(recollection.explorer);
+        self.ignored_rocks = recollection.ignored_rocks;
+        match recollection.stage {
+            Stage::Exploring => {}
+            Stage::ReturningHome => self.enter(State::ReturnHome(None), "resumed on the way home"),
+            Stage::Done => self.enter(State::Done, "resumed at home"),
+        }
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &DecisionParams {
+        &self.params
     }
 
     /// Replaces the parameters (a parameter was set at run time).
@@ -725,6 +775,23 @@ mod tests {
             assert!(drive.throttle > 0.0, "frame {frame}: {drive:?}");
         }
         assert_eq!(machine.status().mode, Mode::Explore);
+    }
+
+    #[test]
+    fn a_recalled_machine_keeps_what_the_exploration_learnt_and_the_way_home() {
+        let params = DecisionParams::default();
+        let mut first = Machine::new(params.clone());
+        first.set_map(corridor());
+        for frame in 1..50 {
+            first.step(&observation(frame, 100.5 + frame as f64 * 0.1, 100.5));
+        }
+        let learnt = first.recollection();
+        assert!(learnt.explorer.inspected.iter().any(|&cell| cell), "the camera saw cells up close");
+        let mut second = Machine::new(params);
+        second.recall(learnt.clone());
+        assert_eq!(second.recollection(), learnt);
+        second.recall(Recollection { stage: Stage::ReturningHome, ..learnt });
+        assert_eq!(second.status().mode, Mode::ReturnHome);
     }
 
     #[test]

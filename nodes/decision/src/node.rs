@@ -9,6 +9,7 @@ use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, Telemetry, TerrainS
 use rover_msgs::nav_msgs::OccupancyGrid;
 use rover_msgs::std_msgs::Header;
 use rover_node::pairing::Pairer;
+use rover_node::snapshot::SnapshotFile;
 use rover_node::{Publisher, Rejections, Runtime, messages, topics};
 use tracing::Instrument as _;
 
@@ -18,6 +19,7 @@ use crate::grid::Grid;
 use crate::local::FreeSpaceRays;
 use crate::machine::{Machine, Memory, Observation};
 use crate::params::DecisionParams;
+use crate::snapshot::{self, Snapshot};
 
 /// How many unmatched telemetry messages or scans are kept while waiting for a partner.
 const PAIRING_BACKLOG: usize = 16;
@@ -104,6 +106,29 @@ impl Decision {
         }
     }
 
+    /// Carries on from the snapshot of an earlier decision node, if there is one.
+    fn recall(&mut self, file: &SnapshotFile) {
+        if let Some(snapshot) = file.load(snapshot::decode) {
+            tracing::info!(
+                "recalled the exploration from {}: {} cells inspected, {} rocks given up, {:?}",
+                file.path().map_or_else(String::new, |p| p.display().to_string()),
+                snapshot.recollection.explorer.inspected.iter().filter(|&&c| c).count(),
+                snapshot.recollection.ignored_rocks.len(),
+                snapshot.recollection.stage
+            );
+            self.machine.recall(snapshot.recollection);
+            self.mission_frames = snapshot.mission_frames;
+        }
+    }
+
+    /// Writes the snapshot when `force`d or when it is due.
+    fn save(&self, file: &mut SnapshotFile, every_ms: f64, force: bool) {
+        if force || file.due(std::time::Duration::from_secs_f64(every_ms / 1000.0)) {
+            let snapshot = Snapshot { recollection: self.machine.recollection(), mission_frames: self.mission_frames };
+            file.save(&snapshot::encode(&snapshot));
+        }
+    }
+
     /// Takes over home and collected samples from the mapping node when its mission started
     /// before this node's first frame: the mission was already under way (this node was restarted).
     fn resume_from(&mut self, stats: &MapStats) {
@@ -150,6 +175,8 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let mut rocks = std::pin::pin!(messages(&rocks_subscription));
     let mut stats = std::pin::pin!(messages(&stats_subscription));
     let mut pairs: Pairer<u64, Telemetry, TerrainScan> = Pairer::new(PAIRING_BACKLOG);
+    let mut snapshot_file = SnapshotFile::new(&decision.machine.params().state_dir, snapshot::FILE_NAME);
+    decision.recall(&snapshot_file);
     let mut changes = params.watch();
     let shutdown = runtime.shutdown();
     async {
@@ -169,8 +196,10 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             };
             if let Some((telemetry, scan)) = pair {
                 decision.decide(&telemetry, &scan);
+                decision.save(&mut snapshot_file, decision.machine.params().snapshot_every_ms, false);
             }
         }
+        decision.save(&mut snapshot_file, 0.0, true);
         tracing::info!(
             "decision: {} frames decided, {} unpaired, rejected {}, final mode {}",
             decision.frames,

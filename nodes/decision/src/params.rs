@@ -82,6 +82,13 @@ rover_node::node_params! {
         return_speed_fraction: f64 [0.1, 1.0] = 0.6,
         /// Simulated time per frame, seconds (converts the times above to frames).
         frame_period_s: f64 [0.001, 1.0] = 0.04,
+        /// Folder of the node's snapshot (`decision.snapshot`: what the exploration learnt, the
+        /// rocks given up on, the stage of the mission, its time), read at start so that a
+        /// restarted node carries on, and written while it runs; empty: none. The launchers give
+        /// each launch a folder of its own.
+        state_dir: String = "",
+        /// Write the snapshot at most this often, ms.
+        snapshot_every_ms: f64 [100.0, 600000.0] = 1000.0,
     }
 }
 

@@ -189,7 +189,34 @@ impl Default for Explorer {
     }
 }
 
+/// What the explorer has learnt about the world, for a restarted node to take over (see
+/// [`crate::snapshot`]). One entry per map cell in each vector.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExplorerMemory {
+    /// Cells seen up close by the camera.
+    pub inspected: Vec<bool>,
+    /// Cells around targets that were reached or given up.
+    pub explored: Vec<bool>,
+    /// Whether plans already go past obstacle cells.
+    pub past_obstacles: bool,
+}
+
 impl Explorer {
+    /// What the explorer has learnt so far.
+    pub fn memory(&self) -> ExplorerMemory {
+        ExplorerMemory {
+            inspected: self.inspected.clone(),
+            explored: self.explored.clone(),
+            past_obstacles: self.past_obstacles,
+        }
+    }
+
+    /// An explorer that carries on from `memory`, without a target.
+    pub fn with_memory(memory: ExplorerMemory) -> Self {
+        let ExplorerMemory { inspected, explored, past_obstacles } = memory;
+        Explorer { inspected, explored, past_obstacles, ..Explorer::default() }
+    }
+
     /// The current target's centre, if any.
     pub fn target(&self) -> Option<(f64, f64)> {
         self.target.as_ref().map(|t| cell_centre_m(t.cell))
