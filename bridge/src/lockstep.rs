@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use rover_msgs::geometry_msgs::Twist;
 use rover_msgs::validate::Validate as _;
-use rover_node::rejections::worth_logging;
+use rover_node::rejections::{clipped, worth_logging};
 use tokio::sync::oneshot;
 
 use crate::reply::{CommandSource, DriveValues, LastCommand, Reply, ReplyPolicy};
@@ -174,8 +174,13 @@ impl<S: FrameSink> LockStep<S> {
     }
 
     fn reject(&self, config: &LockStepConfig, kind: &str, problem: &str) -> Reply {
-        tracing::warn!("rejected telemetry frame: {problem}; answering with a brake");
-        self.stats.problem(kind);
+        let count = self.stats.problem(kind);
+        if worth_logging(count) {
+            tracing::warn!(
+                "rejected telemetry frame: {}; answering with a brake ({count} such so far)",
+                clipped(problem)
+            );
+        }
         Reply::Data(DriveValues::brake(config.policy.brake), CommandSource::RejectedFrame)
     }
 
@@ -241,8 +246,10 @@ impl<S: FrameSink> LockStep<S> {
         let values = match DriveValues::checked(throttle, brake, steering_deg) {
             Ok(values) => values,
             Err(problem) => {
-                tracing::warn!(frame, "rejected a drive command: {problem}");
-                self.stats.bad_command();
+                let count = self.stats.bad_command();
+                if worth_logging(count) {
+                    tracing::warn!(frame, "rejected a drive command: {problem} ({count} such so far)");
+                }
                 return;
             }
         };

@@ -94,9 +94,9 @@ impl BridgeStats {
         *count
     }
 
-    /// Counts a drive command that was rejected (NaN...).
-    pub fn bad_command(&self) {
-        self.bad_commands.fetch_add(1, Ordering::Relaxed);
+    /// Counts a drive command that was rejected (NaN...); returns the count so far.
+    pub fn bad_command(&self) -> u64 {
+        self.bad_commands.fetch_add(1, Ordering::Relaxed) + 1
     }
 
     /// Counts one reply and records how long the frame took from arrival to reply.

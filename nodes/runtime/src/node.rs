@@ -182,17 +182,33 @@ impl Drop for RosNode {
     }
 }
 
-/// The messages of a subscription as a stream; messages that fail to deserialise are logged and skipped.
+/// The messages of a subscription as a stream; messages that fail to deserialise are counted,
+/// logged (the 1st, 2nd, 4th...) and skipped.
 pub fn messages<M: RosMessage>(subscription: &Subscription<M>) -> impl futures::Stream<Item = M> + '_ {
-    subscription.async_stream().filter_map(|received| async move {
-        match received {
+    let malformed = std::sync::atomic::AtomicU64::new(0);
+    subscription.async_stream().filter_map(move |received| {
+        let message = match received {
             Ok((message, _info)) => Some(message),
             Err(e) => {
-                tracing::warn!("dropped a malformed {} message: {e:?}", M::type_name());
+                log_malformed::<M>(&malformed, &e);
                 None
             }
-        }
+        };
+        async move { message }
     })
+}
+
+/// Counts a message that failed to deserialise and logs the 1st, 2nd, 4th... of a subscription.
+fn log_malformed<M: RosMessage>(malformed: &std::sync::atomic::AtomicU64, error: &dyn std::fmt::Debug) {
+    let count = malformed.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+    if crate::rejections::worth_logging(count) {
+        let problem = format!("{error:?}");
+        tracing::warn!(
+            "dropped a malformed {} message: {} ({count} such so far)",
+            M::type_name(),
+            crate::rejections::clipped(&problem)
+        );
+    }
 }
 
 /// Spawns a task that calls `handler` for every message of `subscription` until the stream ends.
@@ -209,12 +225,11 @@ where
     tokio::spawn(tracing::Instrument::instrument(
         async move {
             let mut stream = std::pin::pin!(subscription.async_stream());
+            let malformed = std::sync::atomic::AtomicU64::new(0);
             while let Some(received) = stream.next().await {
                 match received {
                     Ok((message, _info)) => handler(message),
-                    Err(e) => {
-                        tracing::warn!("dropped a malformed {} message: {e:?}", M::type_name())
-                    }
+                    Err(e) => log_malformed::<M>(&malformed, &e),
                 }
             }
         },

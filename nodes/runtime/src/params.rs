@@ -162,9 +162,10 @@ pub fn type_description(default: &ParameterValue) -> &'static str {
     }
 }
 
-/// Formats a value for messages and `--help`, e.g. `4567`, `"127.0.0.1"`, `[1.0, 2.0]`.
+/// Formats a value for messages and `--help`, e.g. `4567`, `"127.0.0.1"`, `[1.0, 2.0]`; a long one
+/// is clipped (see [`crate::rejections::clipped`]).
 pub fn describe_value(value: &ParameterValue) -> String {
-    match value {
+    let described = match value {
         ParameterValue::NotSet => "nothing".to_string(),
         ParameterValue::Boolean(b) => b.to_string(),
         ParameterValue::Integer(i) => i.to_string(),
@@ -175,7 +176,8 @@ pub fn describe_value(value: &ParameterValue) -> String {
         ParameterValue::IntegerArray(v) => format!("{v:?}"),
         ParameterValue::DoubleArray(v) => format!("{v:?}"),
         ParameterValue::StringArray(v) => format!("{v:?}"),
-    }
+    };
+    crate::rejections::clipped(&described).into_owned()
 }
 
 /// Where a parameter value comes from, for error messages.

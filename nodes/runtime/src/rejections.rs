@@ -1,6 +1,8 @@
 //! Inputs a node cannot use: counted by kind (usually the topic) and logged as warnings, the 1st,
-//! 2nd, 4th, 8th... of each kind, so that a stream of bad messages cannot flood the log.
+//! 2nd, 4th, 8th... of each kind, each quoting at most [`MAX_QUOTED_CHARS`] of the input, so that a
+//! stream of bad messages cannot flood the log (or `/rosout`).
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::fmt;
 
@@ -30,7 +32,7 @@ impl Rejections {
         let count = self.counts.entry(kind).or_default();
         *count += 1;
         if worth_logging(*count) {
-            tracing::warn!("{problem} ({count} such so far)");
+            tracing::warn!("{} ({count} such so far)", clipped(&problem.to_string()));
         }
     }
 
@@ -56,9 +58,30 @@ pub fn worth_logging(count: u64) -> bool {
     count.is_power_of_two()
 }
 
+/// Longest piece of outside input that a log line quotes, characters.
+pub const MAX_QUOTED_CHARS: usize = 200;
+
+/// `text` cut to [`MAX_QUOTED_CHARS`] characters, saying how many bytes were left out: a log line
+/// that quotes outside input stays short.
+pub fn clipped(text: &str) -> Cow<'_, str> {
+    match text.char_indices().nth(MAX_QUOTED_CHARS) {
+        None => Cow::Borrowed(text),
+        Some((end, _)) => Cow::Owned(format!("{}... ({} more bytes)", &text[..end], text.len() - end)),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn long_quotes_are_clipped_on_a_character_boundary() {
+        assert_eq!(clipped("short"), "short");
+        let long = "é".repeat(1 << 20);
+        let clip = clipped(&long);
+        assert_eq!(clip.chars().filter(|&c| c == 'é').count(), MAX_QUOTED_CHARS);
+        assert!(clip.ends_with(&format!("... ({} more bytes)", 2 * ((1 << 20) - MAX_QUOTED_CHARS))), "{clip}");
+    }
     use rover_msgs::msg::TerrainScan;
 
     #[test]
