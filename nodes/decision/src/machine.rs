@@ -413,6 +413,9 @@ impl Machine {
             State::Done => Mode::Done,
         };
         tracing::info!("mode {} -> {}: {reason}", self.status.mode.name(), mode.name());
+        if mode == Mode::Explore && matches!(self.state, State::Approach(_) | State::Pickup { .. }) {
+            self.explorer.resume_after_detour(self.frame);
+        }
         self.state = state;
         self.status.mode = mode;
         self.status.reason = reason.to_string();

@@ -252,6 +252,15 @@ impl Explorer {
         grid.cell(cell) != Cell::Free && !self.inspected[cell]
     }
 
+    /// Starts the current target's clock again after a detour (to a sample): the time away does
+    /// not count against it, nor against the look at it, which starts again once it is reached.
+    pub fn resume_after_detour(&mut self, frame: u64) {
+        if let Some(target) = self.target.as_mut() {
+            target.chosen_frame = frame;
+        }
+        self.look = None;
+    }
+
     /// Notes a recovery on the way to the current target; abandons it after a few.
     pub fn note_recovery(&mut self) {
         if let Some(target) = self.target.as_mut() {
@@ -461,6 +470,21 @@ mod tests {
             "{first:?} then {second:?}"
         );
         assert!(explorer.forget_explored());
+    }
+
+    #[test]
+    fn a_detour_does_not_count_against_the_target() {
+        let grid = half_explored();
+        let params = DecisionParams::default();
+        let mut explorer = explorer_after_inspecting_the_walls(&params);
+        explorer.waypoint(&grid, 1, &at(25.5, 51.5), 0, &params);
+        let target = explorer.target();
+        let back = params.frames(params.target_timeout_s) + 10;
+        explorer.resume_after_detour(back);
+        explorer.waypoint(&grid, 1, &at(26.5, 51.5), back + 1, &params);
+        assert_eq!(explorer.target(), target, "still the target after a detour longer than its timeout");
+        explorer.waypoint(&grid, 1, &at(26.5, 51.5), 2 * back, &params);
+        assert_ne!(explorer.target(), target, "it times out on its own clock");
     }
 
     #[test]
