@@ -36,6 +36,7 @@ const RING_WIDTH_PX: f64 = 3.0;
 
 const GROUND_MAPPED: [u8; 3] = [40, 110, 230];
 const GROUND_NOT_MAPPED: [u8; 3] = [85, 85, 85];
+const GROUND_MAPPED_AS_OBSTACLE: [u8; 3] = [190, 150, 110];
 const WRONGLY_MAPPED_AS_GROUND: [u8; 3] = [230, 60, 200];
 const OBSTACLE_MAPPED: [u8; 3] = [120, 30, 30];
 const NOT_GROUND: [u8; 3] = [20, 20, 20];
@@ -46,9 +47,10 @@ const SAMPLE_MISSED: [u8; 3] = [255, 110, 0];
 const TEXT: [u8; 3] = [255, 255, 255];
 
 /// The colours of the picture with what they mean, in the legend's order.
-const KEY: [([u8; 3], &str); 8] = [
+const KEY: [([u8; 3], &str); 9] = [
     (GROUND_MAPPED, "GROUND MAPPED"),
-    (GROUND_NOT_MAPPED, "GROUND NOT MAPPED"),
+    (GROUND_NOT_MAPPED, "GROUND NOT SEEN"),
+    (GROUND_MAPPED_AS_OBSTACLE, "GROUND MAPPED AS OBSTACLE"),
     (WRONGLY_MAPPED_AS_GROUND, "WRONGLY MAPPED AS GROUND"),
     (OBSTACLE_MAPPED, "OBSTACLE MAPPED"),
     (PATH, "PATH DRIVEN"),
@@ -161,15 +163,18 @@ fn pixel_of(point_m: (f64, f64)) -> (f64, f64) {
 }
 
 /// The colour of a map cell holding `occupancy` where the ground truth says `ground`: true ground
-/// is mapped (as ground) or not, as the mapped % counts it; elsewhere ground on the map is an
-/// error, as the fidelity % counts it, and obstacles are right.
+/// is mapped (as ground) or not, as the mapped % counts it, and when not, mapped as an obstacle or
+/// never seen; elsewhere ground on the map is an error, as the fidelity % counts it, and obstacles
+/// are right.
 fn cell_colour(occupancy: Option<i8>, ground: bool) -> [u8; 3] {
     let mapped_as_ground = occupancy == Some(0);
+    let mapped_as_obstacle = occupancy.is_some_and(|value| value > 0);
     match (ground, mapped_as_ground) {
         (true, true) => GROUND_MAPPED,
+        (true, false) if mapped_as_obstacle => GROUND_MAPPED_AS_OBSTACLE,
         (true, false) => GROUND_NOT_MAPPED,
         (false, true) => WRONGLY_MAPPED_AS_GROUND,
-        (false, false) if occupancy.is_some_and(|value| value > 0) => OBSTACLE_MAPPED,
+        (false, false) if mapped_as_obstacle => OBSTACLE_MAPPED,
         (false, false) => NOT_GROUND,
     }
 }
@@ -267,7 +272,7 @@ mod tests {
     fn draws_the_map_at_four_pixels_a_cell_and_the_legend_beside_it() {
         let image = draw_mission(&mission(), &result());
         assert_eq!(image.height, 800);
-        assert!(image.width > 800 + text_width_px("WRONGLY MAPPED AS GROUND", TEXT_SCALE), "{}", image.width);
+        assert!(image.width > 800 + text_width_px("GROUND MAPPED AS OBSTACLE", TEXT_SCALE), "{}", image.width);
         let (x, y) = (10 * PX_PER_CELL + 1, (SIDE_CELLS - 11) * PX_PER_CELL + 1);
         assert_eq!(image.pixel(x, y), GROUND_MAPPED, "cell (10, 10), north up");
         assert_eq!(image.pixel(0, 0), GROUND_NOT_MAPPED);
@@ -288,7 +293,7 @@ mod tests {
     #[test]
     fn each_cell_is_coloured_as_the_scores_count_it() {
         assert_eq!(cell_colour(Some(0), true), GROUND_MAPPED);
-        assert_eq!(cell_colour(Some(100), true), GROUND_NOT_MAPPED);
+        assert_eq!(cell_colour(Some(100), true), GROUND_MAPPED_AS_OBSTACLE);
         assert_eq!(cell_colour(Some(-1), true), GROUND_NOT_MAPPED);
         assert_eq!(cell_colour(Some(0), false), WRONGLY_MAPPED_AS_GROUND);
         assert_eq!(cell_colour(Some(100), false), OBSTACLE_MAPPED);
