@@ -1,10 +1,12 @@
 //! World mapping of the rover: terrain scans projected into a 200 m x 200 m evidence grid
 //! ([`map`]) with pitch and roll corrected through the camera model ([`projection`]), the exact
-//! Udacity scores ([`score`]), the map inset image ([`image`]), the located rocks ([`rocks`]) and
-//! the snapshot that a restarted node carries on from ([`snapshot`]).
+//! Udacity scores ([`score`]), the map inset image ([`image`]), the located rocks ([`rocks`]), the
+//! snapshot that a restarted node carries on from ([`snapshot`]) and what the node does with each
+//! message ([`mission`]), which the in-process mission runs too.
 
 pub mod image;
 pub mod map;
+pub mod mission;
 pub mod node;
 pub mod params;
 pub mod projection;

@@ -1,0 +1,313 @@
+//! What the mapping node does with each message, as a plain type that the node and the in-process
+//! mission both run: scans ordered by stamp then frame, home taken from the first telemetry, the
+//! samples picked up counted and their rocks forgotten, the statistics of `rover/map_stats`, and
+//! the memory a snapshot keeps.
+
+use rover_msgs::geometry_msgs::PoseArray;
+use rover_msgs::msg::{MapStats, Telemetry, TerrainScan};
+use rover_msgs::std_msgs::Header;
+use rover_msgs::tally::SampleTally;
+use rover_node::{Rejections, topics};
+
+use crate::map::{ScanGrid, Update, WorldMap};
+use crate::params::MappingParams;
+use crate::projection::Pose;
+use crate::score::samples_located;
+use crate::snapshot::{Home, Memory};
+
+/// Where a scan stands in time: its stamp (seconds, nanoseconds), then its frame. Scans come in
+/// this order; a restarted bridge numbers frames from 1 again, but its stamps go on.
+type ScanOrder = (i32, u32, u64);
+
+/// The mapping node's state: the map, home, the samples collected and what it rejected.
+#[derive(Debug, Clone)]
+pub struct MappingCore {
+    map: WorldMap,
+    params: MappingParams,
+    ground_truth: Option<Vec<bool>>,
+    samples_truth: Option<Vec<(f64, f64)>>,
+    tally: SampleTally,
+    home: Option<Home>,
+    last_scan: Option<ScanOrder>,
+    rejections: Rejections,
+    frames_mapped: u64,
+    tilted_frames: u64,
+    unpublished_scans: u64,
+}
+
+impl MappingCore {
+    /// An empty map with `params`, scored against `ground_truth` (navigable per cell) if given.
+    pub fn new(params: MappingParams, ground_truth: Option<Vec<bool>>) -> Self {
+        MappingCore {
+            map: WorldMap::new(params.map_config()),
+            params,
+            ground_truth,
+            samples_truth: None,
+            tally: SampleTally::default(),
+            home: None,
+            last_scan: None,
+            rejections: Rejections::default(),
+            frames_mapped: 0,
+            tilted_frames: 0,
+            unpublished_scans: 0,
+        }
+    }
+
+    /// Maps one terrain scan, unless it fails its checks or comes before the last scan taken.
+    pub fn add_scan(&mut self, scan: &TerrainScan) {
+        self.unpublished_scans += 1;
+        if self.rejections.accept(topics::TERRAIN.name, scan) && self.in_order(scan) {
+            self.map_scan(scan);
+        }
+    }
+
+    /// Whether `scan` comes after the last scan taken (by stamp, then frame); it becomes the last.
+    fn in_order(&mut self, scan: &TerrainScan) -> bool {
+        let order = (scan.header.stamp.sec, scan.header.stamp.nanosec, scan.frame);
+        if let Some(last) = self.last_scan.filter(|&last| order <= last) {
+            let problem = format_args!("skipped a terrain scan: frame {} arrived after frame {}", scan.frame, last.2);
+            self.rejections.reject("out_of_order", &problem);
+            return false;
+        }
+        self.last_scan = Some(order);
+        true
+    }
+
+    fn map_scan(&mut self, scan: &TerrainScan) {
+        match self.map.update(&ScanGrid::of(scan), Pose::of_scan(scan)) {
+            Update::Used(_) => self.frames_mapped += 1,
+            Update::SkippedTilt => self.tilted_frames += 1,
+            Update::Malformed => {
+                let problem =
+                    format_args!("skipped a terrain scan: {} cells for {}x{}", scan.cells.len(), scan.rows, scan.cols);
+                self.rejections.reject("malformed", &problem);
+            }
+        }
+    }
+
+    /// Follows one telemetry frame: the first one is home; a drop of `samples_remaining` is a
+    /// sample picked up, whose rock evidence in front of the arm is forgotten.
+    pub fn on_telemetry(&mut self, telemetry: &Telemetry) {
+        if !self.rejections.accept(topics::TELEMETRY.name, telemetry) {
+            return;
+        }
+        self.home.get_or_insert(Home { frame: telemetry.frame, x_m: telemetry.x_m, y_m: telemetry.y_m });
+        if self.tally.update(telemetry.samples_remaining) > 0 {
+            self.map.forget_picked_rock(telemetry.x_m, telemetry.y_m, telemetry.yaw_rad as f64);
+        }
+    }
+
+    /// Keeps the first true sample positions received (for scoring the located rocks).
+    pub fn set_samples_truth(&mut self, samples: &PoseArray) {
+        if self.rejections.accept(topics::SAMPLE_TRUTH.name, samples) {
+            self.samples_truth
+                .get_or_insert_with(|| samples.poses.iter().map(|p| (p.position.x, p.position.y)).collect());
+        }
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &MappingParams {
+        &self.params
+    }
+
+    /// Replaces the parameters; the map keeps its evidence and decides by the new ones at once.
+    pub fn set_params(&mut self, params: MappingParams) {
+        self.map.set_config(params.map_config());
+        self.params = params;
+    }
+
+    /// Whether enough scans came in since the last publication to publish again.
+    pub fn publication_due(&self) -> bool {
+        self.unpublished_scans >= self.params.publish_every_scans as u64
+    }
+
+    /// Whether any scan came in since the last publication.
+    pub fn has_unpublished_scans(&self) -> bool {
+        self.unpublished_scans > 0
+    }
+
+    /// Notes that the map was just published: scans count towards the next publication.
+    pub fn mark_published(&mut self) {
+        self.unpublished_scans = 0;
+    }
+
+    /// The map.
+    pub fn map(&self) -> &WorldMap {
+        &self.map
+    }
+
+    /// The ground truth the map is scored against, if any.
+    pub fn ground_truth(&self) -> Option<&[bool]> {
+        self.ground_truth.as_deref()
+    }
+
+    /// Where the rover started, once a telemetry frame came in.
+    pub fn home(&self) -> Option<Home> {
+        self.home
+    }
+
+    /// Samples picked up in the mission.
+    pub fn samples_collected(&self) -> u32 {
+        self.tally.collected()
+    }
+
+    /// Scans that added to the map.
+    pub fn frames_mapped(&self) -> u64 {
+        self.frames_mapped
+    }
+
+    /// Scans skipped because the body was tilted.
+    pub fn tilted_frames(&self) -> u64 {
+        self.tilted_frames
+    }
+
+    /// The inputs rejected so far, by kind.
+    pub fn rejections(&self) -> &Rejections {
+        &self.rejections
+    }
+
+    /// The located rocks, world metres.
+    pub fn rocks(&self) -> Vec<(f64, f64)> {
+        self.map.rocks(self.params.rock_merge_m)
+    }
+
+    /// What a snapshot keeps.
+    pub fn memory(&self) -> Memory {
+        Memory { evidence: self.map.gathered(), home: self.home, tally: self.tally }
+    }
+
+    /// Carries on from `memory`, an earlier node's snapshot.
+    pub fn restore(&mut self, memory: Memory) {
+        self.map = WorldMap::with_evidence(self.params.map_config(), memory.evidence);
+        self.home = memory.home;
+        self.tally = memory.tally;
+    }
+
+    /// The statistics of `rover/map_stats`, stamped with `header`; the scores are NaN without a
+    /// ground truth.
+    pub fn stats(&self, header: Header) -> MapStats {
+        let (navigable_cells, obstacle_cells) = self.map.cell_counts();
+        let scores = self.ground_truth.as_deref().map(|truth| self.map.scores(truth));
+        MapStats {
+            header,
+            navigable_cells: navigable_cells as u32,
+            obstacle_cells: obstacle_cells as u32,
+            mapped_pct: scores.map_or(f32::NAN, |s| s.mapped_pct as f32),
+            fidelity_pct: scores.map_or(f32::NAN, |s| s.fidelity_pct as f32),
+            rocks_located: self.rocks_located() as u32,
+            home_frame: self.home.map_or(0, |h| h.frame),
+            home_x_m: self.home.map_or(f64::NAN, |h| h.x_m),
+            home_y_m: self.home.map_or(f64::NAN, |h| h.y_m),
+            samples_collected: self.tally.collected(),
+        }
+    }
+
+    /// True samples with a rock on the map, once they are known; the rocks on the map until then.
+    fn rocks_located(&self) -> usize {
+        match &self.samples_truth {
+            Some(samples) => samples_located(&self.map.rock_cells(), samples),
+            None => self.rocks().len(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use rover_msgs::builtin_interfaces::Time;
+
+    use super::*;
+
+    /// A scan of frame `frame` stamped `sec`, taken at (x, y) facing +x, that sees rock on a 2 m
+    /// square from 0.5 m ahead of the rover.
+    fn rock_scan(frame: u64, sec: i32, (x_m, y_m): (f64, f64)) -> TerrainScan {
+        let (rows, cols) = (4, 4);
+        TerrainScan {
+            header: Header { stamp: Time { sec, nanosec: 0 }, frame_id: String::new() },
+            frame,
+            x_m,
+            y_m,
+            resolution_m: 0.5,
+            origin_x_m: 0.5,
+            origin_y_m: -1.0,
+            rows,
+            cols,
+            cells: vec![TerrainScan::ROCK; (rows * cols) as usize],
+            ..TerrainScan::default()
+        }
+    }
+
+    /// Telemetry of frame `frame` at (x, y) facing +x with `samples_remaining` on the ground.
+    fn telemetry(frame: u64, (x_m, y_m): (f64, f64), samples_remaining: u8) -> Telemetry {
+        Telemetry { frame, x_m, y_m, samples_remaining, ..Telemetry::default() }
+    }
+
+    fn core() -> MappingCore {
+        MappingCore::new(MappingParams::default(), None)
+    }
+
+    #[test]
+    fn scans_out_of_order_are_skipped_and_counted() {
+        let mut mapping = core();
+        mapping.add_scan(&rock_scan(10, 5, (100.0, 100.0)));
+        mapping.add_scan(&rock_scan(9, 5, (100.0, 100.0)));
+        mapping.add_scan(&rock_scan(10, 5, (100.0, 100.0)));
+        mapping.add_scan(&rock_scan(11, 4, (100.0, 100.0)));
+        assert_eq!(mapping.frames_mapped(), 1);
+        assert_eq!(mapping.rejections().count("out_of_order"), 3);
+    }
+
+    #[test]
+    fn a_new_bridge_numbering_frames_from_one_again_is_mapped() {
+        let mut mapping = core();
+        mapping.add_scan(&rock_scan(5000, 200, (100.0, 100.0)));
+        mapping.add_scan(&rock_scan(1, 201, (100.0, 100.0)));
+        mapping.add_scan(&rock_scan(2, 201, (100.0, 100.0)));
+        assert_eq!(mapping.frames_mapped(), 3);
+        assert_eq!(mapping.rejections().count("out_of_order"), 0);
+    }
+
+    #[test]
+    fn home_is_the_first_telemetry() {
+        let mut mapping = core();
+        assert_eq!(mapping.stats(Header::default()).home_frame, 0, "no home before any telemetry");
+        mapping.on_telemetry(&telemetry(3, (99.0, 85.0), 6));
+        mapping.on_telemetry(&telemetry(4, (120.0, 90.0), 6));
+        assert_eq!(mapping.home(), Some(Home { frame: 3, x_m: 99.0, y_m: 85.0 }));
+        let stats = mapping.stats(Header::default());
+        assert_eq!((stats.home_frame, stats.home_x_m, stats.home_y_m), (3, 99.0, 85.0));
+    }
+
+    #[test]
+    fn a_pickup_counts_a_sample_and_forgets_the_rock_in_front_of_the_arm() {
+        let (picked, other) = ((100.0, 100.0), (150.0, 150.0));
+        let mut mapping = core();
+        for (frame, position) in [(1, picked), (2, picked), (3, other), (4, other)] {
+            mapping.add_scan(&rock_scan(frame, frame as i32, position));
+        }
+        assert_eq!(mapping.rocks().len(), 2);
+        mapping.on_telemetry(&telemetry(5, picked, 6));
+        assert_eq!((mapping.samples_collected(), mapping.rocks().len()), (0, 2), "the first frame sets the count");
+        mapping.on_telemetry(&telemetry(6, picked, 5));
+        assert_eq!(mapping.samples_collected(), 1);
+        let rocks = mapping.rocks();
+        assert_eq!(rocks.len(), 1, "{rocks:?}");
+        assert!((rocks[0].0 - other.0).hypot(rocks[0].1 - other.1) < 3.0, "the other rock stays: {rocks:?}");
+        assert_eq!(mapping.stats(Header::default()).samples_collected, 1);
+    }
+
+    #[test]
+    fn a_restored_memory_carries_the_map_home_and_count_on() {
+        let mut mapping = core();
+        mapping.on_telemetry(&telemetry(1, (100.0, 100.0), 6));
+        mapping.add_scan(&rock_scan(1, 1, (100.0, 100.0)));
+        mapping.add_scan(&rock_scan(2, 2, (140.0, 100.0)));
+        mapping.on_telemetry(&telemetry(2, (140.0, 100.0), 5));
+        let mut restarted = core();
+        restarted.restore(mapping.memory());
+        assert_eq!(restarted.memory(), mapping.memory());
+        assert_eq!(restarted.home(), Some(Home { frame: 1, x_m: 100.0, y_m: 100.0 }));
+        assert_eq!(restarted.map().occupancy(), mapping.map().occupancy());
+        restarted.on_telemetry(&telemetry(3, (140.0, 100.0), 4));
+        assert_eq!(restarted.samples_collected(), 2, "a pickup since the snapshot still counts");
+    }
+}
