@@ -6,7 +6,9 @@
 pub mod node;
 
 use rover_msgs::frames::MissionFrames;
+use rover_msgs::msg::Telemetry;
 use rover_msgs::tally::SampleTally;
+use rover_node::{Rejections, topics};
 
 rover_node::node_params! {
     /// Parameters of the pickup node.
@@ -33,6 +35,19 @@ pub struct ArmInput {
     pub picking_up: bool,
     /// Samples still on the ground.
     pub samples_remaining: u8,
+}
+
+/// What the pickup logic needs from one telemetry message, if the message passes its checks (a
+/// NaN speed would never count as stopped); one that does not is counted and logged in
+/// `rejections`.
+pub fn checked_arm_input(telemetry: &Telemetry, rejections: &mut Rejections) -> Option<ArmInput> {
+    rejections.accept(topics::TELEMETRY.name, telemetry).then_some(ArmInput {
+        frame: telemetry.frame,
+        speed_mps: telemetry.speed_mps as f64,
+        near_sample: telemetry.near_sample,
+        picking_up: telemetry.picking_up,
+        samples_remaining: telemetry.samples_remaining,
+    })
 }
 
 /// The pickup state: the last request, the arm, the count.
@@ -116,6 +131,16 @@ mod tests {
         assert!(!pickup.on_telemetry(&input(149, 0.0, true, false, 6), &params));
         assert!(pickup.on_telemetry(&input(150, 0.0, true, false, 6), &params), "asks again after retry_s");
         assert!(!pickup.on_telemetry(&input(400, 0.0, true, false, 0), &params), "nothing left to pick up");
+    }
+
+    #[test]
+    fn telemetry_with_a_nan_speed_gives_no_input_and_is_counted() {
+        let mut rejections = Rejections::default();
+        let stopped = Telemetry { frame: 7, near_sample: true, samples_remaining: 6, ..Telemetry::default() };
+        assert_eq!(checked_arm_input(&stopped, &mut rejections), Some(input(7, 0.0, true, false, 6)));
+        let nan = Telemetry { speed_mps: f32::NAN, ..stopped };
+        assert_eq!(checked_arm_input(&nan, &mut rejections), None);
+        assert_eq!(rejections.count(topics::TELEMETRY.name), 1);
     }
 
     #[test]

@@ -1,12 +1,12 @@
 //! The pickup node (`rover pickup`): telemetry in, pickup requests out.
 
 use futures::StreamExt;
-use rover_msgs::msg::{PickupRequest, Telemetry};
+use rover_msgs::msg::PickupRequest;
 use rover_msgs::std_msgs::Header;
 use rover_node::{Rejections, Runtime, messages, topics};
 use tracing::Instrument as _;
 
-use crate::{ArmInput, Pickup, PickupParams};
+use crate::{Pickup, PickupParams, checked_arm_input};
 
 /// Runs the pickup node until shutdown.
 pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
@@ -25,7 +25,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             tokio::select! {
                 () = shutdown.wait() => break,
                 Some(t) = telemetry.next() => {
-                    if rejections.accept(topics::TELEMETRY.name, &t) && pickup.on_telemetry(&arm_input(&t), &settings) {
+                    if let Some(input) = checked_arm_input(&t, &mut rejections) && pickup.on_telemetry(&input, &settings) {
                         tracing::info!(frame = t.frame, "sample within reach and rover stopped: requesting a pickup");
                         let request = PickupRequest { header: Header { frame_id: "base_link".to_string(), ..t.header }, frame: t.frame };
                         if let Err(e) = requests.publish(request) {
@@ -45,14 +45,4 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     .instrument(span)
     .await;
     Ok(())
-}
-
-fn arm_input(telemetry: &Telemetry) -> ArmInput {
-    ArmInput {
-        frame: telemetry.frame,
-        speed_mps: telemetry.speed_mps as f64,
-        near_sample: telemetry.near_sample,
-        picking_up: telemetry.picking_up,
-        samples_remaining: telemetry.samples_remaining,
-    }
 }
