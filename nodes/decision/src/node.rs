@@ -154,7 +154,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let span = node.span();
     let settings = params.get();
     let mut decision = Decision {
-        rays: FreeSpaceRays::for_decision(settings.lane_half_width_m),
+        rays: settings.free_space_rays(),
         machine: Machine::new(settings),
         drive: node.publisher(&topics::DRIVE_CMD)?,
         mode: node.publisher(&topics::MODE)?,

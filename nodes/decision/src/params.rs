@@ -1,5 +1,7 @@
 //! The decision node's parameters: every threshold of the state machine.
 
+use crate::local::FreeSpaceRays;
+
 rover_node::node_params! {
     /// Parameters of the decision node.
     pub struct DecisionParams {
@@ -96,5 +98,10 @@ impl DecisionParams {
     /// Frames in `seconds`.
     pub fn frames(&self, seconds: f64) -> u64 {
         (seconds / self.frame_period_s).round().max(1.0) as u64
+    }
+
+    /// The free-space rays the decision steers by, in lanes of `lane_half_width_m`.
+    pub fn free_space_rays(&self) -> FreeSpaceRays {
+        FreeSpaceRays::for_decision(self.lane_half_width_m)
     }
 }
