@@ -46,7 +46,7 @@ impl Decision {
                 self.frames += 1;
                 self.machine.step(&Observation { frame: self.mission_frames.of(telemetry.frame), ..observation })
             }
-            None => Drive::stop(DecisionParams::default().brake),
+            None => Drive::stop(self.machine.params().brake),
         };
         let command = DriveCommand {
             header: Header { frame_id: "base_link".to_string(), ..telemetry.header.clone() },
