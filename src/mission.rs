@@ -1,25 +1,23 @@
 //! A whole mission in one thread, without DDS or sockets: the simulator, the bridge's telemetry
-//! parsing, perception, mapping, decision and pickup called in the order the graph runs them. It
-//! is the fast loop for developing the decision logic and for tests of it; `rover eval` runs the
-//! same mission with every node in its own process.
+//! parsing, and the library code the perception, mapping, decision and pickup nodes run, called in
+//! the order the graph runs them. It is the fast loop for developing the decision logic and for
+//! tests of it; `rover eval` runs the same mission with every node in its own process.
 
 use std::time::Instant;
 
 use rover_bridge::convert::telemetry_message;
 use rover_bridge::telemetry::{SimTelemetry, parse_telemetry};
 use rover_decision::grid::Grid;
-use rover_decision::local::FreeSpaceRays;
 use rover_decision::machine::{Machine, Mode};
 use rover_decision::params::DecisionParams;
-use rover_mapping::map::{ScanGrid, WorldMap};
+use rover_mapping::map::WorldMap;
+use rover_mapping::mission::MappingCore;
 use rover_mapping::params::MappingParams;
-use rover_mapping::projection::Pose;
 use rover_mapping::score::LocatedSamples;
 use rover_msgs::std_msgs::Header;
-use rover_msgs::tally::SampleTally;
-use rover_node::{RosArgs, resolve_params};
+use rover_node::{Rejections, RosArgs, resolve_params};
 use rover_perception::node::PerceptionParams;
-use rover_pickup::{ArmInput, Pickup, PickupParams};
+use rover_pickup::{Pickup, PickupParams, checked_arm_input};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
 use rover_sim::wire::command::Command;
 use rover_sim::world::World;
@@ -103,11 +101,11 @@ pub fn run_in_process(
     let config = SimConfig { step_s: settings.decision.frame_period_s, ..SimConfig::default() };
     let mut sim = Simulator::new(world, config);
     let (mut perception, geometry) = settings.perception.pipeline()?;
-    let mut map = WorldMap::new(settings.mapping.map_config());
+    let mut mapping = MappingCore::new(settings.mapping.clone(), None);
     let mut machine = Machine::new(settings.decision.clone());
-    let mut rays = FreeSpaceRays::for_decision(settings.decision.lane_half_width_m);
+    let mut rays = settings.decision.free_space_rays();
     let mut pickup = Pickup::default();
-    let mut tally = SampleTally::default();
+    let mut pickup_rejections = Rejections::default();
     let mut located = LocatedSamples::new(samples);
     let mut clock = ModeClock::default();
     let mut path = DrivenPath::default();
@@ -132,24 +130,18 @@ pub fn run_in_process(
         clock.on_frame(frame, activity_of(machine.status().mode.name(), &message), config.step_s);
         let classes = perception.process_jpeg(&telemetry.image_jpeg)?;
         let scan = geometry.terrain_scan(classes, &message, Header::default());
-        map.update(&ScanGrid::of(&scan), Pose::of_scan(&scan));
-        if tally.update(message.samples_remaining) > 0 {
-            map.forget_picked_rock(message.x_m, message.y_m, message.yaw_rad as f64);
-        }
-        if frame % settings.mapping.publish_every_scans as u64 == 0 {
-            located.update(&map.rock_cells());
-            machine.set_map(Grid::from_occupancy(&map.occupancy()).expect("the map has the cells of map_grid"));
-            machine.set_rocks(map.rocks(settings.mapping.rock_merge_m));
+        mapping.add_scan(&scan);
+        mapping.on_telemetry(&message);
+        if mapping.publication_due() {
+            mapping.mark_published();
+            located.update(&mapping.map().rock_cells());
+            let grid = Grid::from_occupancy(&mapping.map().occupancy()).expect("the map has the cells of map_grid");
+            machine.set_map(grid);
+            machine.set_rocks(mapping.rocks());
         }
         let drive = machine.step(&rover_decision::observation(&message, &scan, &mut rays));
-        let arm = ArmInput {
-            frame,
-            speed_mps: message.speed_mps as f64,
-            near_sample: message.near_sample,
-            picking_up: message.picking_up,
-            samples_remaining: message.samples_remaining,
-        };
-        let command = if pickup.on_telemetry(&arm, &settings.pickup) {
+        let arm = checked_arm_input(&message, &mut pickup_rejections);
+        let command = if arm.is_some_and(|arm| pickup.on_telemetry(&arm, &settings.pickup)) {
             Command::Pickup
         } else {
             Command::Drive { steering_deg: drive.steering_deg, throttle: drive.throttle, brake: drive.brake }
@@ -157,17 +149,17 @@ pub fn run_in_process(
         sim.step(command);
         let mode = machine.status().mode;
         if frame % progress_every_frames.max(1) == 0 {
-            on_progress(&snapshot(&sim, &map, &located, mode, &clock));
+            on_progress(&snapshot(&sim, mapping.map(), &located, mode, &clock));
         }
         if mode == Mode::Done || sim.report().sim_seconds >= max_sim_seconds {
             break;
         }
     }
     tracing::debug!("mission took {:.1} s", started.elapsed().as_secs_f64());
-    let progress = snapshot(&sim, &map, &located, machine.status().mode, &clock);
+    let progress = snapshot(&sim, mapping.map(), &located, machine.status().mode, &clock);
     let start = sim.world().start;
     let mission_map = MissionMap {
-        occupancy: map.occupancy(),
+        occupancy: mapping.map().occupancy(),
         ground_truth: truth,
         path,
         home_m: (start.x_m, start.y_m),
