@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use rover_decision::machine::Mode;
-use rover_node::Runtime;
+use rover_node::{Runtime, Shutdown};
 use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 
@@ -147,13 +147,20 @@ impl EvalArgs {
     }
 }
 
-/// Runs every seed in-process and returns the results.
-pub fn run_in_process_eval(args: &EvalArgs, settings: &NodeSettings) -> anyhow::Result<Vec<RunResult>> {
+/// Runs every seed in-process and returns the results; a `shutdown` request (Ctrl-C) ends the run
+/// with an error naming the seed.
+pub fn run_in_process_eval(
+    args: &EvalArgs,
+    settings: &NodeSettings,
+    shutdown: &Shutdown,
+) -> anyhow::Result<Vec<RunResult>> {
     let mut results = Vec::new();
     for seed in args.seeds.clone() {
         let world = args.world(seed)?;
         let samples = world.samples.len();
-        let outcome = run_in_process(world, settings, args.max_sim_seconds, 2500, |p| print_progress(seed, p))?;
+        let outcome =
+            run_in_process(world, settings, args.max_sim_seconds, 2500, shutdown, |p| print_progress(seed, p))
+                .with_context(|| format!("seed {seed}"))?;
         let report = &outcome.report;
         let result = RunResult::of(seed, samples, report, &outcome.progress, report.wall_seconds);
         if let Some(dir) = &args.maps {

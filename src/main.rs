@@ -126,7 +126,7 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
         Command::Eval(args) => {
             let settings = rover::mission::NodeSettings::resolve(&ros_args)?;
             let results = if args.in_process {
-                rover::eval::run_in_process_eval(&args, &settings)?
+                rover::eval::run_in_process_eval(&args, &settings, &shutdown)?
             } else {
                 rover::eval::run_graph_eval(&args, dds(participant, ros_args, shutdown)?, &raw_ros_args()).await?
             };

@@ -15,7 +15,7 @@ use rover_mapping::mission::MappingCore;
 use rover_mapping::params::MappingParams;
 use rover_mapping::score::LocatedSamples;
 use rover_msgs::std_msgs::Header;
-use rover_node::{Rejections, RosArgs, resolve_params};
+use rover_node::{Rejections, RosArgs, Shutdown, resolve_params};
 use rover_perception::node::PerceptionParams;
 use rover_pickup::{Pickup, PickupParams, checked_arm_input};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
@@ -87,12 +87,14 @@ pub struct MissionOutcome {
 }
 
 /// Runs one mission in `world` until the decision is done or `max_sim_seconds` pass; `on_progress`
-/// gets a snapshot every `progress_every_frames` frames.
+/// gets a snapshot every `progress_every_frames` frames. A `shutdown` request (Ctrl-C) ends it
+/// with an error at the next frame.
 pub fn run_in_process(
     world: World,
     settings: &NodeSettings,
     max_sim_seconds: f64,
     progress_every_frames: u64,
+    shutdown: &Shutdown,
     mut on_progress: impl FnMut(&Progress),
 ) -> anyhow::Result<MissionOutcome> {
     let truth = world.ground_truth().to_vec();
@@ -124,6 +126,9 @@ pub fn run_in_process(
     };
     let started = Instant::now();
     for frame in 1.. {
+        if shutdown.is_requested() {
+            anyhow::bail!("interrupted at {:.1} sim s", sim.report().sim_seconds);
+        }
         let telemetry = read_telemetry(&mut sim)?;
         let message = telemetry_message(&telemetry, frame, Header::default());
         path.record(message.x_m, message.y_m);
