@@ -43,6 +43,11 @@ impl GraphConfig {
     pub fn state_dir(&self) -> PathBuf {
         self.log_dir.join("state")
     }
+
+    /// The log file of node `name`.
+    pub fn log_file(&self, name: &str) -> PathBuf {
+        self.log_dir.join(format!("{name}.log"))
+    }
 }
 
 /// One node process (or, through [`NodeProcess::spawn`], any child process, as the tests start);
@@ -79,7 +84,7 @@ impl NodeProcess {
     fn log_path(config: &GraphConfig, name: &str) -> anyhow::Result<PathBuf> {
         std::fs::create_dir_all(&config.log_dir)
             .with_context(|| format!("cannot create the log folder {}", config.log_dir.display()))?;
-        Ok(config.log_dir.join(format!("{name}.log")))
+        Ok(config.log_file(name))
     }
 
     fn command(config: &GraphConfig, name: &str) -> Command {
@@ -318,7 +323,7 @@ impl Graph {
     pub fn respawn_dead(&mut self) -> Vec<String> {
         for (name, status) in self.exited() {
             self.kill(&name);
-            let log = self.config.log_dir.join(format!("{name}.log"));
+            let log = self.config.log_file(&name);
             match self.back_off(&name).and_then(BackOff::died) {
                 Some(delay) => tracing::warn!(
                     "node {name} exited ({status}); starting it again in {:.2} s (see {})",

@@ -121,12 +121,17 @@ impl Decision {
         }
     }
 
-    /// Writes the snapshot when `force`d or when it is due.
-    fn save(&self, file: &mut SnapshotFile, every_ms: f64, force: bool) {
-        if force || file.due(std::time::Duration::from_secs_f64(every_ms / 1000.0)) {
-            let snapshot = Snapshot { recollection: self.machine.recollection(), mission_frames: self.mission_frames };
-            file.save(&snapshot::encode(&snapshot));
+    /// Writes the snapshot if `snapshot_every_ms` has passed since the last one.
+    fn save_if_due(&self, file: &mut SnapshotFile) {
+        if file.due(std::time::Duration::from_secs_f64(self.machine.params().snapshot_every_ms / 1000.0)) {
+            self.save(file);
         }
+    }
+
+    /// Writes the snapshot.
+    fn save(&self, file: &mut SnapshotFile) {
+        let snapshot = Snapshot { recollection: self.machine.recollection(), mission_frames: self.mission_frames };
+        file.save(&snapshot::encode(&snapshot));
     }
 
     /// Takes over home and collected samples from the mapping node when its mission started
@@ -196,10 +201,10 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             };
             if let Some((telemetry, scan)) = pair {
                 decision.decide(&telemetry, &scan);
-                decision.save(&mut snapshot_file, decision.machine.params().snapshot_every_ms, false);
+                decision.save_if_due(&mut snapshot_file);
             }
         }
-        decision.save(&mut snapshot_file, 0.0, true);
+        decision.save(&mut snapshot_file);
         tracing::info!(
             "decision: {} frames decided, {} unpaired, rejected {}, final mode {}",
             decision.frames,

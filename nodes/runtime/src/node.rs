@@ -185,12 +185,12 @@ impl Drop for RosNode {
 /// The messages of a subscription as a stream; messages that fail to deserialise are counted,
 /// logged (the 1st, 2nd, 4th...) and skipped.
 pub fn messages<M: RosMessage>(subscription: &Subscription<M>) -> impl futures::Stream<Item = M> + '_ {
-    let malformed = std::sync::atomic::AtomicU64::new(0);
+    let mut malformed = 0;
     subscription.async_stream().filter_map(move |received| {
         let message = match received {
             Ok((message, _info)) => Some(message),
             Err(e) => {
-                log_malformed::<M>(&malformed, &e);
+                log_malformed::<M>(&mut malformed, &e);
                 None
             }
         };
@@ -198,9 +198,11 @@ pub fn messages<M: RosMessage>(subscription: &Subscription<M>) -> impl futures::
     })
 }
 
-/// Counts a message that failed to deserialise and logs the 1st, 2nd, 4th... of a subscription.
-fn log_malformed<M: RosMessage>(malformed: &std::sync::atomic::AtomicU64, error: &dyn std::fmt::Debug) {
-    let count = malformed.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+/// Counts a message that failed to deserialise in `malformed` and logs the 1st, 2nd, 4th... of a
+/// subscription.
+fn log_malformed<M: RosMessage>(malformed: &mut u64, error: &dyn std::fmt::Debug) {
+    *malformed += 1;
+    let count = *malformed;
     if crate::rejections::worth_logging(count) {
         let problem = format!("{error:?}");
         tracing::warn!(
@@ -225,11 +227,11 @@ where
     tokio::spawn(tracing::Instrument::instrument(
         async move {
             let mut stream = std::pin::pin!(subscription.async_stream());
-            let malformed = std::sync::atomic::AtomicU64::new(0);
+            let mut malformed = 0;
             while let Some(received) = stream.next().await {
                 match received {
                     Ok((message, _info)) => handler(message),
-                    Err(e) => log_malformed::<M>(&malformed, &e),
+                    Err(e) => log_malformed::<M>(&mut malformed, &e),
                 }
             }
         },

@@ -73,6 +73,7 @@ pub fn clipped(text: &str) -> Cow<'_, str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rover_msgs::msg::TerrainScan;
 
     #[test]
     fn long_quotes_are_clipped_on_a_character_boundary() {
@@ -82,7 +83,6 @@ mod tests {
         assert_eq!(clip.chars().filter(|&c| c == 'é').count(), MAX_QUOTED_CHARS);
         assert!(clip.ends_with(&format!("... ({} more bytes)", 2 * ((1 << 20) - MAX_QUOTED_CHARS))), "{clip}");
     }
-    use rover_msgs::msg::TerrainScan;
 
     #[test]
     fn invalid_messages_are_counted_by_topic() {
