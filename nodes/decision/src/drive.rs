@@ -6,8 +6,11 @@ use crate::params::DecisionParams;
 
 /// The simulator's steering limit, degrees.
 pub const MAX_STEER_DEG: f64 = 15.0;
-/// Below this speed the rover counts as stopped and may turn in place, m/s.
-const STOPPED_MPS: f64 = 0.2;
+/// Below this speed the rover counts as stopped, m/s.
+pub const STOPPED_MPS: f64 = 0.05;
+/// Below this speed a turn in place toward a new bearing may start, m/s (the rest of the speed is
+/// braked off by the turn).
+const TURN_IN_PLACE_BELOW_MPS: f64 = 0.2;
 /// Throttle that holds 1 m/s against rolling resistance.
 const THROTTLE_PER_MPS: f64 = 0.15;
 /// Speed kept when free ground ahead runs short, m/s.
@@ -74,7 +77,7 @@ impl Steering {
         }
         if let Some(left) = self.turning {
             if bearing_deg.abs() > params.turn_done_deg {
-                return if speed_mps.abs() > STOPPED_MPS {
+                return if speed_mps.abs() > TURN_IN_PLACE_BELOW_MPS {
                     Drive::stop(params.brake)
                 } else {
                     Drive::turn_in_place(left)
@@ -134,7 +137,7 @@ impl Steering {
             None if bearing_rad.to_degrees().abs() <= CREEP_BEARING_FACTOR * params.turn_done_deg => {
                 self.toward(bearing_rad, params.approach_speed_mps, speed_mps, params)
             }
-            None if speed_mps.abs() > STOPPED_MPS => Drive::stop(params.brake),
+            None if speed_mps.abs() > TURN_IN_PLACE_BELOW_MPS => Drive::stop(params.brake),
             None => Drive::turn_in_place(bearing_rad > 0.0),
         }
     }

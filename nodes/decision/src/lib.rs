@@ -4,20 +4,26 @@
 //! Plain types and no DDS here; [`node`] wires the machine to the topics.
 
 pub mod drive;
+pub mod explore;
 pub mod grid;
 pub mod local;
 pub mod machine;
 pub mod node;
 pub mod params;
-pub mod plan;
+pub mod pose;
+pub mod route;
+pub mod samples;
 pub mod snapshot;
+pub mod stuck;
+#[cfg(test)]
+mod test_maps;
 
 use rover_msgs::msg::{Telemetry, TerrainScan};
 use rover_node::{Rejections, topics};
 
 use crate::local::FreeSpaceRays;
 use crate::machine::{Observation, Sighting};
-use crate::plan::Position;
+use crate::pose::Position;
 
 /// The observation of one frame: the telemetry and the terrain scan of its camera image, both of
 /// which must have passed their checks (see [`checked_observation`]).

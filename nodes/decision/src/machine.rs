@@ -1,18 +1,20 @@
 //! The decision state machine: explore, approach a sample, wait for the pickup, recover, return
 //! home, done. One [`Machine::step`] per frame turns an observation into a drive command.
 
-use rover_msgs::body::{ARM_REACH_M, SAMPLE_SPREAD_M};
+use rover_msgs::body::ARM_REACH_M;
 use rover_msgs::map_grid::{cell_centre_m, cell_of_point};
 use rover_msgs::tally::SampleTally;
 
-use crate::drive::{Drive, Steering, speed_to_stop_in};
+use crate::drive::{Drive, STOPPED_MPS, Steering, speed_to_stop_in};
+use crate::explore::{Explorer, ExplorerMemory};
 use crate::grid::Grid;
 use crate::local::FreeSpace;
 use crate::params::DecisionParams;
-use crate::plan::{Explorer, ExplorerMemory, Position, Route, staging_cell};
+use crate::pose::Position;
+use crate::route::{Route, staging_cell};
+use crate::samples::SampleMemory;
+use crate::stuck::{ProgressWatch, StuckMarks};
 
-/// A rock is given up after this many approaches that ended stuck.
-const APPROACHES_PER_ROCK: usize = 2;
 /// Farther than this the rover drives to a sample along the map and around obstacles; closer, it
 /// drives straight at it (samples lie by the walls, where little ground counts as free).
 const ROUTE_APPROACH_M: f64 = 4.0;
@@ -30,53 +32,12 @@ const CHECK_BEARING_DEG: f64 = 20.0;
 /// ...that the camera does not see for this long, seconds, is not there (an echo of a sample
 /// seen from afar, or one picked up already).
 const UNSEEN_S: f64 = 1.0;
-/// Below this speed the rover counts as stopped, m/s.
-const STOPPED_MPS: f64 = 0.05;
 /// Moving less than this while driving counts toward being stuck, metres...
 const STUCK_PROGRESS_M: f64 = 0.3;
 /// ...when the rover has come to a stop, m/s (a slow approach is not stuck).
 const STUCK_SPEED_MPS: f64 = 0.1;
 /// Moving less than this, whatever the rover is told, counts toward being stalled, metres.
 const STALL_PROGRESS_M: f64 = 1.0;
-/// Getting stuck again this close to an earlier stuck spot...
-const STUCK_AGAIN_M: f64 = 2.0;
-/// ...within this time, seconds, makes the cell ahead of the rover an obstacle for planning...
-const STUCK_AGAIN_S: f64 = 90.0;
-/// ...for this long, seconds (the map says free what the rover cannot drive through).
-const STUCK_MARK_S: f64 = 120.0;
-/// The marked cell is the one this far ahead of the rover's position: its front, metres.
-const STUCK_MARK_AHEAD_M: f64 = 0.9;
-
-/// Whether rocks located at `a` and `b` are taken to be one.
-fn same_rock(a: (f64, f64), b: (f64, f64)) -> bool {
-    (a.0 - b.0).hypot(a.1 - b.1) < SAMPLE_SPREAD_M
-}
-
-/// Watches the rover's progress: how long it has stayed within some distance of one spot.
-#[derive(Debug, Clone, Copy, Default)]
-struct ProgressWatch {
-    anchor: Option<(u64, f64, f64)>,
-}
-
-impl ProgressWatch {
-    /// Frames the rover at `obs` has stayed within `radius_m` of where this watch last anchored.
-    fn frames_within(&mut self, obs: &Observation, radius_m: f64) -> u64 {
-        let (x, y) = (obs.position.x_m, obs.position.y_m);
-        match self.anchor {
-            Some((since, ax, ay)) if (x - ax).hypot(y - ay) <= radius_m => obs.frame.saturating_sub(since),
-            _ => {
-                self.anchor = Some((obs.frame, x, y));
-                0
-            }
-        }
-    }
-
-    /// Forgets the anchor: the next frame starts a new watch.
-    fn reset(&mut self) {
-        self.anchor = None;
-    }
-}
-
 /// The modes of the state machine, as published on `rover/mode`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Mode {
@@ -219,14 +180,6 @@ struct Chase {
     unseen_since: Option<u64>,
 }
 
-/// An approach to a sample that ended without it.
-#[derive(Debug, Clone, Copy)]
-struct FailedApproach {
-    sample: (f64, f64),
-    frame: u64,
-    from: (f64, f64),
-}
-
 /// The decision state machine.
 #[derive(Debug, Clone)]
 pub struct Machine {
@@ -234,18 +187,15 @@ pub struct Machine {
     state: State,
     status: Status,
     changed: bool,
-    map: Grid,
-    grid: Grid,
+    received_map: Grid,
+    planning_map: Grid,
     map_version: u64,
-    rocks: Vec<(f64, f64)>,
-    ignored_rocks: Vec<(f64, f64)>,
-    failed_approaches: Vec<FailedApproach>,
+    samples: SampleMemory,
     explorer: Explorer,
     steering: Steering,
     stuck_watch: ProgressWatch,
     stall_watch: ProgressWatch,
-    stuck_spots: Vec<(u64, (f64, f64))>,
-    stuck_marks: Vec<(usize, u64)>,
+    stuck_marks: StuckMarks,
     last_drive: Drive,
     frame: u64,
     tally: SampleTally,
@@ -265,18 +215,15 @@ impl Machine {
                 home: None,
             },
             changed: true,
-            map: Grid::unknown(),
-            grid: Grid::unknown(),
+            received_map: Grid::unknown(),
+            planning_map: Grid::unknown(),
             map_version: 0,
-            rocks: Vec::new(),
-            ignored_rocks: Vec::new(),
-            failed_approaches: Vec::new(),
+            samples: SampleMemory::default(),
             explorer: Explorer::default(),
             steering: Steering::default(),
             stuck_watch: ProgressWatch::default(),
             stall_watch: ProgressWatch::default(),
-            stuck_spots: Vec::new(),
-            stuck_marks: Vec::new(),
+            stuck_marks: StuckMarks::default(),
             last_drive: Drive::stop(0.0),
             frame: 0,
             tally: SampleTally::default(),
@@ -299,13 +246,13 @@ impl Machine {
             State::Done => Stage::Done,
             _ => Stage::Exploring,
         };
-        Recollection { explorer: self.explorer.memory(), ignored_rocks: self.ignored_rocks.clone(), stage }
+        Recollection { explorer: self.explorer.memory(), ignored_rocks: self.samples.ignored().to_vec(), stage }
     }
 
     /// Carries on from an earlier machine's recollection.
     pub fn recall(&mut self, recollection: Recollection) {
         self.explorer = Explorer::with_memory(recollection.explorer);
-        self.ignored_rocks = recollection.ignored_rocks;
+        self.samples.set_ignored(recollection.ignored_rocks);
         match recollection.stage {
             Stage::Exploring => {}
             Stage::ReturningHome => self.enter(State::ReturnHome(None), "resumed on the way home"),
@@ -330,33 +277,28 @@ impl Machine {
         if map.counts().0 == 0 {
             return;
         }
-        let frame = self.frame;
-        self.stuck_marks.retain(|&(_, until_frame)| frame < until_frame);
-        self.map = map;
+        self.stuck_marks.expire(self.frame);
+        self.received_map = map;
         self.apply_stuck_marks();
     }
 
     fn apply_stuck_marks(&mut self) {
-        self.grid = self.map.clone();
-        for &(cell, _) in &self.stuck_marks {
-            self.grid.block(cell);
-        }
+        self.planning_map = self.stuck_marks.applied_to(&self.received_map);
         self.map_version += 1;
     }
 
     /// Forgets the cells marked where the rover got stuck; returns whether there were any.
     fn forget_stuck_marks(&mut self) -> bool {
-        if self.stuck_marks.is_empty() {
+        if !self.stuck_marks.forget() {
             return false;
         }
-        self.stuck_marks.clear();
         self.apply_stuck_marks();
         true
     }
 
     /// Takes the located rocks, world positions.
     pub fn set_rocks(&mut self, rocks: Vec<(f64, f64)>) {
-        self.rocks = rocks;
+        self.samples.set_located(rocks);
     }
 
     /// The reported state.
@@ -464,28 +406,23 @@ impl Machine {
             self.stuck_watch.reset();
             return false;
         }
-        self.stuck_watch.frames_within(obs, STUCK_PROGRESS_M) >= self.params.frames(self.params.stuck_s)
+        self.stuck_watch.frames_within(&obs.position, obs.frame, STUCK_PROGRESS_M)
+            >= self.params.frames(self.params.stuck_s)
             && obs.speed_mps.abs() < STUCK_SPEED_MPS
     }
 
     /// Whether the rover has stayed in one spot for long, turning or not (a goal that the camera
     /// and the map disagree about can keep it turning back and forth).
     fn stalled(&mut self, obs: &Observation) -> bool {
-        self.stall_watch.frames_within(obs, STALL_PROGRESS_M) >= self.params.frames(self.params.stall_s)
+        self.stall_watch.frames_within(&obs.position, obs.frame, STALL_PROGRESS_M)
+            >= self.params.frames(self.params.stall_s)
     }
 
     /// Remembers where the rover got stuck; at a spot where it got stuck lately, the cell ahead
     /// becomes an obstacle for planning for a while, so that the next plan leads around it.
     fn mark_if_stuck_again(&mut self, obs: &Observation) {
-        let here = (obs.position.x_m, obs.position.y_m);
-        let memory = self.params.frames(STUCK_AGAIN_S);
-        self.stuck_spots.retain(|&(frame, _)| obs.frame < frame + memory);
-        let again = self.stuck_spots.iter().any(|&(_, at)| obs.position.distance_to(at) < STUCK_AGAIN_M);
-        self.stuck_spots.push((obs.frame, here));
-        let ahead = obs.position.point_at(0.0, STUCK_MARK_AHEAD_M);
-        if let Some(cell) = cell_of_point(ahead.0, ahead.1).filter(|_| again) {
+        if let Some(cell) = self.stuck_marks.note_stuck(&obs.position, obs.frame, &self.params) {
             tracing::debug!(cell = ?cell_centre_m(cell), "stuck again here: the cell ahead is an obstacle for a while");
-            self.stuck_marks.push((cell, obs.frame + self.params.frames(STUCK_MARK_S)));
             self.apply_stuck_marks();
         }
     }
@@ -511,7 +448,7 @@ impl Machine {
             return self.approach(obs, chase);
         }
         let p = &self.params.clone();
-        match self.explorer.waypoint(&self.grid, self.map_version, &obs.position, obs.frame, p) {
+        match self.explorer.waypoint(&self.planning_map, self.map_version, &obs.position, obs.frame, p) {
             Some(waypoint) => {
                 let bearing = obs.position.bearing_to(waypoint);
                 tracing::trace!(bearing_deg = bearing.to_degrees(), free_ahead = obs.free.toward(0.0), best = ?obs.free.best_toward(bearing as f32, p.clearance_m as f32), "explore");
@@ -544,7 +481,7 @@ impl Machine {
                     self.approach(obs, chase)
                 }
                 None => {
-                    tracing::debug!(rocks = ?self.rocks, given_up = ?self.ignored_rocks, "no frontier left");
+                    tracing::debug!(rocks = ?self.samples.located(), given_up = ?self.samples.ignored(), "no frontier left");
                     self.enter(State::ReturnHome(None), "no frontier left");
                     self.return_home(obs, None)
                 }
@@ -562,11 +499,11 @@ impl Machine {
             at,
             give_up_frame: obs.frame + p.frames(p.sample_timeout_s + way_m / p.max_speed_mps),
             route: None,
-            staging: Some(self.failed_from(at))
+            staging: Some(self.samples.failed_from(at))
                 .filter(|failed| !failed.is_empty())
                 .and_then(|failed| {
                     let area = (STAGING_RADIUS_CELLS, STAGING_AWAY_M);
-                    staging_cell(&self.grid, at, &obs.position, area, &failed, p)
+                    staging_cell(&self.planning_map, at, &obs.position, area, &failed, p)
                 })
                 .map(cell_centre_m),
             unseen_since: None,
@@ -577,7 +514,8 @@ impl Machine {
             .map(|s| (obs.position.point_at(s.bearing_rad, s.distance_m), s.distance_m))
             .filter(|&(at, _)| !self.is_ignored(at));
         seen.or_else(|| {
-            self.rocks
+            self.samples
+                .located()
                 .iter()
                 .copied()
                 .filter(|&at| !self.is_ignored(at))
@@ -589,21 +527,12 @@ impl Machine {
     }
 
     fn note_failed_approach(&mut self, sample: (f64, f64), obs: &Observation) {
-        let from = (obs.position.x_m, obs.position.y_m);
-        self.failed_approaches.push(FailedApproach { sample, frame: obs.frame, from });
-    }
-
-    /// Where the rover was when approaches to the rock at `at` failed.
-    fn failed_from(&self, at: (f64, f64)) -> Vec<(f64, f64)> {
-        self.failed_approaches.iter().filter(|f| same_rock(f.sample, at)).map(|f| f.from).collect()
+        self.samples.note_failed_approach(sample, obs.frame, (obs.position.x_m, obs.position.y_m));
     }
 
     /// Whether the rock at `at` is collected, given up, or failed too often lately.
     fn is_ignored(&self, at: (f64, f64)) -> bool {
-        let recent = |frame: u64| frame + self.params.frames(self.params.sample_retry_s) > self.frame;
-        self.ignored_rocks.iter().any(|&p| same_rock(p, at))
-            || self.failed_approaches.iter().filter(|f| same_rock(f.sample, at) && recent(f.frame)).count()
-                >= APPROACHES_PER_ROCK
+        self.samples.is_ignored(at, self.frame, self.params.frames(self.params.sample_retry_s))
     }
 
     fn time_to_go_home(&self, obs: &Observation) -> Option<&'static str> {
@@ -630,7 +559,7 @@ impl Machine {
         let in_view = (CHECK_RANGE_M.0..=CHECK_RANGE_M.1).contains(&distance_m)
             && bearing.abs() <= CHECK_BEARING_DEG.to_radians()
             && cell_of_point(chase.at.0, chase.at.1)
-                .is_some_and(|cell| self.grid.line_of_sight((obs.position.x_m, obs.position.y_m), cell, 0));
+                .is_some_and(|cell| self.planning_map.line_of_sight((obs.position.x_m, obs.position.y_m), cell, 0));
         chase.unseen_since = (in_view && obs.rock.is_none()).then(|| chase.unseen_since.unwrap_or(obs.frame));
         if chase.unseen_since.is_some_and(|since| obs.frame >= since + p.frames(UNSEEN_S)) {
             self.note_failed_approach(chase.at, obs);
@@ -667,7 +596,11 @@ impl Machine {
             chase.route = Route::to(goal);
         }
         let route = chase.route.as_mut()?;
-        Some(route.waypoint(&self.grid, self.map_version, &obs.position, obs.frame, &self.params).unwrap_or(goal))
+        Some(
+            route
+                .waypoint(&self.planning_map, self.map_version, &obs.position, obs.frame, &self.params)
+                .unwrap_or(goal),
+        )
     }
 
     fn pickup(&mut self, obs: &Observation, since_frame: u64, arm_seen: bool) -> Drive {
@@ -676,12 +609,12 @@ impl Machine {
         if obs.picking_up {
             self.state = State::Pickup { since_frame, arm_seen: true };
         } else if arm_seen {
-            self.ignored_rocks.push(obs.position.point_at(0.0, ARM_REACH_M));
+            self.samples.ignore(obs.position.point_at(0.0, ARM_REACH_M));
             self.enter(State::Explore, "sample collected");
         } else if !obs.near_sample && obs.speed_mps.abs() < STOPPED_MPS {
             self.enter(State::Explore, "sample out of reach");
         } else if waited >= p.frames(p.pickup_wait_s) {
-            self.ignored_rocks.push(obs.position.point_at(0.0, ARM_REACH_M));
+            self.samples.ignore(obs.position.point_at(0.0, ARM_REACH_M));
             self.enter(State::Explore, "no pickup came");
         }
         Drive::stop(p.brake)
@@ -695,6 +628,7 @@ impl Machine {
             return Drive { throttle: -p.recover_throttle, brake: 0.0, steering_deg: 0.0 };
         }
         if elapsed < back + p.frames(p.recover_turn_s) {
+            // Backing up ends in a full stop before the turn.
             return if obs.speed_mps.abs() > STOPPED_MPS {
                 Drive::stop(p.brake)
             } else {
@@ -721,7 +655,7 @@ impl Machine {
         let mut route = route.or_else(|| Route::to(home));
         let waypoint = route
             .as_mut()
-            .and_then(|r| r.waypoint(&self.grid, self.map_version, &obs.position, obs.frame, &p))
+            .and_then(|r| r.waypoint(&self.planning_map, self.map_version, &obs.position, obs.frame, &p))
             .unwrap_or(home);
         let bearing = obs.position.bearing_to(waypoint);
         let cruise = p.max_speed_mps.min(distance_m.max(p.approach_speed_mps));
@@ -737,6 +671,8 @@ mod tests {
     use rover_msgs::map_grid::{CELLS, cell_at};
 
     use crate::grid::Cell;
+    use crate::samples::APPROACHES_PER_ROCK;
+    use crate::stuck::STUCK_MARK_S;
 
     fn open_ahead() -> FreeSpace {
         FreeSpace { directions_rad: vec![-0.3, 0.0, 0.3], free_m: vec![6.0, 6.0, 6.0] }
@@ -899,20 +835,20 @@ mod tests {
         machine.set_map(corridor());
         let ahead = cell_of_point(101.4, 100.5).unwrap();
         machine.mark_if_stuck_again(&observation(10, 100.5, 100.5));
-        assert_eq!(machine.grid.cell(ahead), Cell::Free, "stuck once: nothing marked");
+        assert_eq!(machine.planning_map.cell(ahead), Cell::Free, "stuck once: nothing marked");
         machine.mark_if_stuck_again(&observation(200, 100.7, 100.4));
-        assert_eq!(machine.grid.cell(ahead), Cell::Blocked, "stuck again here: the cell ahead is an obstacle");
-        assert_eq!(machine.map.cell(ahead), Cell::Free, "the map itself is kept");
+        assert_eq!(machine.planning_map.cell(ahead), Cell::Blocked, "stuck again here: the cell ahead is an obstacle");
+        assert_eq!(machine.received_map.cell(ahead), Cell::Free, "the map itself is kept");
         machine.set_map(corridor());
-        assert_eq!(machine.grid.cell(ahead), Cell::Blocked, "and stays marked in the next map");
-        assert!(machine.forget_stuck_marks() && machine.grid.cell(ahead) == Cell::Free);
+        assert_eq!(machine.planning_map.cell(ahead), Cell::Blocked, "and stays marked in the next map");
+        assert!(machine.forget_stuck_marks() && machine.planning_map.cell(ahead) == Cell::Free);
         machine.mark_if_stuck_again(&observation(300, 100.5, 100.5));
         machine.frame = 300 + params.frames(STUCK_MARK_S) - 1;
         machine.set_map(corridor());
-        assert_eq!(machine.grid.cell(ahead), Cell::Blocked, "marked again");
+        assert_eq!(machine.planning_map.cell(ahead), Cell::Blocked, "marked again");
         machine.frame += 1;
         machine.set_map(corridor());
-        assert_eq!(machine.grid.cell(ahead), Cell::Free, "until the mark expires");
+        assert_eq!(machine.planning_map.cell(ahead), Cell::Free, "until the mark expires");
     }
 
     /// A machine that started its mission at (100.5, 100.5) in [`corridor`], and the frame of its

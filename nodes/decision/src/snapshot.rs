@@ -9,8 +9,8 @@ use rover_msgs::map_grid::CELLS;
 use rover_msgs::validate::MAX_POSITION_M;
 use rover_node::snapshot::{Fields, SnapshotError, Writer};
 
+use crate::explore::ExplorerMemory;
 use crate::machine::{Recollection, Stage};
-use crate::plan::ExplorerMemory;
 
 /// The first bytes of a snapshot: the format and its version.
 const MAGIC: &[u8; 8] = b"RVRDEC01";

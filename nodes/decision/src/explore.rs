@@ -1,10 +1,12 @@
-//! Planning on the map: routes to a goal cell, frontier exploration, and the lookahead point of a
-//! path that the rover steers toward.
+//! Frontier exploration: which cells the camera has seen up close, which frontier to head for
+//! next, and when to give a target up.
 
 use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_at, cell_centre_m, cell_of_point};
 
 use crate::grid::{Cell, CostMap, Costs, Grid};
 use crate::params::DecisionParams;
+use crate::pose::Position;
+use crate::route::{GOAL_SLACK_CELLS, lookahead, path_costs, replan_due};
 
 /// A frontier needs enough unknown cells within this many cells.
 const FRONTIER_RADIUS_CELLS: usize = 2;
@@ -15,132 +17,8 @@ const EXPLORED_RADIUS_CELLS: usize = 3;
 const OBSTACLE_CROSSING_COST: f32 = 50.0;
 /// Recoveries on the way to one target before it is abandoned.
 const RECOVERIES_PER_TARGET: u32 = 2;
-/// A goal on an obstacle cell is reached through the cheapest reachable cell this close, cells.
-const GOAL_SLACK_CELLS: usize = 3;
 /// Longest look at the unexplored cells of a reached target, seconds (a half turn takes 4 s).
 const LOOK_S: f64 = 5.0;
-
-/// Where the rover is, in the world frame.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Position {
-    /// Metres.
-    pub x_m: f64,
-    /// Metres.
-    pub y_m: f64,
-    /// Heading, radians counter-clockwise from +x.
-    pub yaw_rad: f64,
-}
-
-impl Position {
-    /// Distance to (x, y), metres.
-    pub fn distance_to(&self, (x_m, y_m): (f64, f64)) -> f64 {
-        (x_m - self.x_m).hypot(y_m - self.y_m)
-    }
-
-    /// Bearing of (x, y) relative to the heading, radians in (-pi, pi], positive left.
-    pub fn bearing_to(&self, (x_m, y_m): (f64, f64)) -> f64 {
-        wrap_rad((y_m - self.y_m).atan2(x_m - self.x_m) - self.yaw_rad)
-    }
-
-    /// The world point `distance_m` away at `bearing_rad` from the heading.
-    pub fn point_at(&self, bearing_rad: f64, distance_m: f64) -> (f64, f64) {
-        let (s, c) = (self.yaw_rad + bearing_rad).sin_cos();
-        (self.x_m + distance_m * c, self.y_m + distance_m * s)
-    }
-}
-
-/// An angle wrapped to (-pi, pi].
-pub fn wrap_rad(angle_rad: f64) -> f64 {
-    let wrapped = angle_rad.rem_euclid(std::f64::consts::TAU);
-    if wrapped > std::f64::consts::PI { wrapped - std::f64::consts::TAU } else { wrapped }
-}
-
-/// The path costs of `params`.
-pub fn path_costs(params: &DecisionParams) -> Costs {
-    Costs {
-        unknown: params.unknown_cost as f32,
-        near_wall: params.near_wall_cost as f32,
-        cross_unknown: true,
-        obstacle: None,
-    }
-}
-
-/// The point of `path` the rover steers toward: the first cell at least `lookahead_m` away, after
-/// the cell nearest to the rover; the last cell when all are nearer.
-pub fn lookahead(path: &[usize], at: &Position, lookahead_m: f64) -> Option<(f64, f64)> {
-    let distance = |&cell: &usize| at.distance_to(cell_centre_m(cell));
-    let nearest = (0..path.len()).min_by(|&a, &b| distance(&path[a]).total_cmp(&distance(&path[b])))?;
-    let ahead = &path[nearest..];
-    ahead.iter().find(|cell| distance(cell) >= lookahead_m).or(ahead.last()).map(|&cell| cell_centre_m(cell))
-}
-
-/// A free cell beside `goal` (within `radius_cells`) with a clear line of sight to it on the
-/// map (past the wall cells right around it), at least `away_m` from every point of
-/// `avoid`, the cheapest to reach from `at`: where to start a straight final approach to a
-/// sample by a wall after one from `avoid` failed.
-pub fn staging_cell(
-    grid: &Grid,
-    goal: (f64, f64),
-    at: &Position,
-    (radius_cells, away_m): (usize, f64),
-    avoid: &[(f64, f64)],
-    params: &DecisionParams,
-) -> Option<usize> {
-    let (start, goal) = (cell_of_point(at.x_m, at.y_m)?, cell_of_point(goal.0, goal.1)?);
-    let costs = grid.costs_from(start, &path_costs(params));
-    let far_from_failures = |cell: usize| {
-        let (x, y) = cell_centre_m(cell);
-        avoid.iter().all(|p| (p.0 - x).hypot(p.1 - y) >= away_m)
-    };
-    Grid::cells_around(goal, radius_cells)
-        .filter(|&cell| cell != goal && grid.cell(cell) == Cell::Free && costs.distance[cell].is_finite())
-        .filter(|&cell| far_from_failures(cell) && grid.line_of_sight(cell_centre_m(cell), goal, 1))
-        .min_by(|&a, &b| costs.distance[a].total_cmp(&costs.distance[b]))
-}
-
-/// A path to one goal, replanned every few frames.
-#[derive(Debug, Clone)]
-pub struct Route {
-    goal: usize,
-    path: Vec<usize>,
-    planned: Option<(u64, u64)>,
-}
-
-impl Route {
-    /// A route to the cell containing `goal`, or `None` when that is off the map.
-    pub fn to(goal: (f64, f64)) -> Option<Self> {
-        Some(Route { goal: cell_of_point(goal.0, goal.1)?, path: Vec::new(), planned: None })
-    }
-
-    /// The point to steer toward on the way from `at`, replanning when the route is older than
-    /// `replan_frames` or the map changed; the goal itself once the path's end is within the
-    /// lookahead (a path that ends next to a goal on an obstacle cell would otherwise leave the
-    /// rover circling its own cell); `None` when the goal cannot be reached on the map.
-    pub fn waypoint(
-        &mut self,
-        grid: &Grid,
-        map_version: u64,
-        at: &Position,
-        frame: u64,
-        params: &DecisionParams,
-    ) -> Option<(f64, f64)> {
-        let start = cell_of_point(at.x_m, at.y_m)?;
-        if replan_due(self.planned, frame, map_version, params) {
-            let costs = grid.costs_from(start, &path_costs(params));
-            self.path = costs
-                .reachable_near(self.goal, GOAL_SLACK_CELLS)
-                .and_then(|cell| costs.path_to(cell))
-                .unwrap_or_default();
-            self.planned = Some((frame, map_version));
-        }
-        let point = lookahead(&self.path, at, params.lookahead_m)?;
-        Some(if at.distance_to(point) < params.lookahead_m { cell_centre_m(self.goal) } else { point })
-    }
-}
-
-fn replan_due(planned: Option<(u64, u64)>, frame: u64, map_version: u64, params: &DecisionParams) -> bool {
-    planned.is_none_or(|(at_frame, version)| version != map_version || frame >= at_frame + params.replan_frames as u64)
-}
 
 /// Frontier exploration. A cell is explored once it is free on the map or has been in close view
 /// of the camera: obstacle cells seen only from afar may be floor hidden behind the projection
@@ -388,34 +266,10 @@ impl Explorer {
 
 #[cfg(test)]
 mod tests {
+    use rover_msgs::map_grid::{CELLS, cell_at};
+
     use super::*;
-
-    /// A map with a known corridor along y = 50..54 from x = 20 to 60, unknown beyond x = 60.
-    fn half_explored() -> Grid {
-        let mut data = vec![100i8; CELLS];
-        for y in 50..54 {
-            for x in 20..90 {
-                data[cell_at(x, y)] = if x < 60 { 0 } else { -1 };
-            }
-        }
-        Grid::from_occupancy(&data).unwrap()
-    }
-
-    fn at(x_m: f64, y_m: f64) -> Position {
-        Position { x_m, y_m, yaw_rad: 0.0 }
-    }
-
-    #[test]
-    fn angles_and_bearings() {
-        assert!((wrap_rad(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
-        let p = Position { x_m: 1.0, y_m: 1.0, yaw_rad: std::f64::consts::FRAC_PI_2 };
-        assert!(
-            (p.bearing_to((0.0, 1.0)) - std::f64::consts::FRAC_PI_2).abs() < 1e-12,
-            "west is left when facing north"
-        );
-        let (x, y) = p.point_at(0.0, 2.0);
-        assert!((x - 1.0).abs() < 1e-12 && (y - 3.0).abs() < 1e-12);
-    }
+    use crate::test_maps::{at, half_explored};
 
     /// An explorer that has looked at both walls of the known corridor from close by.
     fn explorer_after_inspecting_the_walls(params: &DecisionParams) -> Explorer {
@@ -488,24 +342,6 @@ mod tests {
     }
 
     #[test]
-    fn a_staging_cell_sees_the_goal_past_the_wall_corner() {
-        let mut data = vec![0i8; CELLS];
-        let wall = (79..=83).flat_map(|x| (104..=110).map(move |y| (x, y)));
-        for (x, y) in wall.chain([(84, 109), (84, 110), (84, 111), (83, 111)]) {
-            data[cell_at(x, y)] = 100;
-        }
-        let grid = Grid::from_occupancy(&data).unwrap();
-        let params = DecisionParams::default();
-        let rover = Position { x_m: 82.5, y_m: 111.5, yaw_rad: 0.0 };
-        let goal = cell_of_point(84.5, 109.5).unwrap();
-        assert!(!grid.line_of_sight((82.5, 111.5), goal, 1), "the corner is in the way");
-        let cell = staging_cell(&grid, (84.5, 109.5), &rover, (2, 1.5), &[(82.5, 111.5)], &params).unwrap();
-        let centre = cell_centre_m(cell);
-        assert!(grid.cell(cell) == Cell::Free && centre.0 > 84.0, "beside the goal, past the corner: {centre:?}");
-        assert!(grid.line_of_sight(centre, goal, 1));
-    }
-
-    #[test]
     fn past_obstacles_a_walled_off_frontier_becomes_a_target() {
         let mut data = vec![100i8; CELLS];
         for y in 50..54 {
@@ -528,24 +364,5 @@ mod tests {
         assert!(explorer.look_past_obstacles() && !explorer.look_past_obstacles());
         explorer.waypoint(&grid, 2, &rover, 1, &params);
         assert!(explorer.target().is_some_and(|t| t.0 > 26.0), "{:?}", explorer.target());
-    }
-
-    #[test]
-    fn routes_follow_the_map() {
-        let grid = half_explored();
-        let params = DecisionParams::default();
-        let mut route = Route::to((55.5, 52.5)).unwrap();
-        let waypoint = route.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params).unwrap();
-        assert!(waypoint.0 > 21.5 && (50.0..54.0).contains(&waypoint.1));
-        let mut nowhere = Route::to((5.5, 5.5)).unwrap();
-        assert_eq!(nowhere.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params), None);
-        assert!(Route::to((-1.0, 0.0)).is_none());
-        let mut into_the_wall = Route::to((40.5, 55.5)).unwrap();
-        let waypoint = into_the_wall.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params).unwrap();
-        assert!(waypoint.0 > 21.5 && (50.0..54.0).contains(&waypoint.1), "a sample by the wall: {waypoint:?}");
-        let near_the_end = into_the_wall.waypoint(&grid, 1, &at(39.5, 52.5), 100, &params);
-        assert_eq!(near_the_end, Some((40.5, 55.5)), "the goal itself once the path's end is in reach");
-        let mut deep_in_the_wall = Route::to((40.5, 58.5)).unwrap();
-        assert_eq!(deep_in_the_wall.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params), None);
     }
 }

@@ -1,0 +1,101 @@
+//! What the rover remembers of samples: the rocks located on the map, those picked up or given up
+//! on, and the approaches that failed, with where they started.
+
+use rover_msgs::body::SAMPLE_SPREAD_M;
+
+/// A rock is given up after this many approaches that ended stuck.
+pub(crate) const APPROACHES_PER_ROCK: usize = 2;
+
+/// Whether rocks located at `a` and `b` are taken to be one.
+pub fn same_rock(a: (f64, f64), b: (f64, f64)) -> bool {
+    (a.0 - b.0).hypot(a.1 - b.1) < SAMPLE_SPREAD_M
+}
+
+/// An approach to a sample that ended without it.
+#[derive(Debug, Clone, Copy)]
+struct FailedApproach {
+    sample: (f64, f64),
+    frame: u64,
+    from: (f64, f64),
+}
+
+/// The samples the rover knows of, world metres.
+#[derive(Debug, Clone, Default)]
+pub struct SampleMemory {
+    located: Vec<(f64, f64)>,
+    ignored: Vec<(f64, f64)>,
+    failed: Vec<FailedApproach>,
+}
+
+impl SampleMemory {
+    /// Takes the rocks the map holds now.
+    pub fn set_located(&mut self, rocks: Vec<(f64, f64)>) {
+        self.located = rocks;
+    }
+
+    /// The rocks the map holds.
+    pub fn located(&self) -> &[(f64, f64)] {
+        &self.located
+    }
+
+    /// Rocks picked up or given up on.
+    pub fn ignored(&self) -> &[(f64, f64)] {
+        &self.ignored
+    }
+
+    /// Takes over the rocks an earlier machine picked up or gave up on.
+    pub fn set_ignored(&mut self, rocks: Vec<(f64, f64)>) {
+        self.ignored = rocks;
+    }
+
+    /// Stops chasing the rock at `at`: picked up, or not picked up when it should have been.
+    pub fn ignore(&mut self, at: (f64, f64)) {
+        self.ignored.push(at);
+    }
+
+    /// Notes an approach to `sample` that ended at `frame` with the rover at `from`.
+    pub fn note_failed_approach(&mut self, sample: (f64, f64), frame: u64, from: (f64, f64)) {
+        self.failed.push(FailedApproach { sample, frame, from });
+    }
+
+    /// Where the rover was when approaches to the rock at `at` failed.
+    pub fn failed_from(&self, at: (f64, f64)) -> Vec<(f64, f64)> {
+        self.failed.iter().filter(|f| same_rock(f.sample, at)).map(|f| f.from).collect()
+    }
+
+    /// Whether the rock at `at` is ignored, or failed [`APPROACHES_PER_ROCK`] times within the
+    /// last `retry_frames` before `frame`.
+    pub fn is_ignored(&self, at: (f64, f64), frame: u64, retry_frames: u64) -> bool {
+        let recent = |failed: u64| failed + retry_frames > frame;
+        self.ignored.iter().any(|&p| same_rock(p, at))
+            || self.failed.iter().filter(|f| same_rock(f.sample, at) && recent(f.frame)).count() >= APPROACHES_PER_ROCK
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_rock_is_ignored_after_two_recent_failures_and_tried_again_later() {
+        let mut memory = SampleMemory::default();
+        let rock = (50.0, 60.0);
+        let nearby = (50.0 + SAMPLE_SPREAD_M / 2.0, 60.0);
+        memory.note_failed_approach(rock, 100, (47.0, 60.0));
+        assert!(!memory.is_ignored(nearby, 110, 1000), "one failure");
+        memory.note_failed_approach(nearby, 200, (50.0, 57.0));
+        assert!(memory.is_ignored(rock, 210, 1000), "two failures of the same rock");
+        assert!(!memory.is_ignored(rock, 1101, 1000), "both long ago: try again");
+        assert_eq!(memory.failed_from(rock), vec![(47.0, 60.0), (50.0, 57.0)]);
+        assert!(memory.failed_from((80.0, 60.0)).is_empty());
+    }
+
+    #[test]
+    fn picked_up_rocks_stay_ignored() {
+        let mut memory = SampleMemory::default();
+        memory.set_located(vec![(10.0, 10.0), (30.0, 30.0)]);
+        memory.ignore((10.2, 10.0));
+        assert!(memory.is_ignored((10.0, 10.0), 1_000_000, 1) && !memory.is_ignored((30.0, 30.0), 0, 1));
+        assert_eq!((memory.located().len(), memory.ignored()), (2, &[(10.2, 10.0)][..]));
+    }
+}

@@ -1,0 +1,122 @@
+//! Getting stuck: watches of the rover's progress, and the cells ahead of spots where it got stuck
+//! twice, which planning takes as obstacles for a while (the map says free what the rover cannot
+//! drive through).
+
+use rover_msgs::map_grid::cell_of_point;
+
+use crate::grid::Grid;
+use crate::params::DecisionParams;
+use crate::pose::Position;
+
+/// Getting stuck again this close to an earlier stuck spot...
+const STUCK_AGAIN_M: f64 = 2.0;
+/// ...within this time, seconds, makes the cell ahead of the rover an obstacle for planning...
+const STUCK_AGAIN_S: f64 = 90.0;
+/// ...for this long, seconds.
+pub(crate) const STUCK_MARK_S: f64 = 120.0;
+/// The marked cell is the one this far ahead of the rover's position: its front, metres.
+const STUCK_MARK_AHEAD_M: f64 = 0.9;
+
+/// Watches the rover's progress: how long it has stayed within some distance of one spot.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ProgressWatch {
+    anchor: Option<(u64, f64, f64)>,
+}
+
+impl ProgressWatch {
+    /// Frames the rover `at` has stayed within `radius_m` of where this watch last anchored, as of
+    /// `frame`.
+    pub fn frames_within(&mut self, at: &Position, frame: u64, radius_m: f64) -> u64 {
+        match self.anchor {
+            Some((since, x_m, y_m)) if at.distance_to((x_m, y_m)) <= radius_m => frame.saturating_sub(since),
+            _ => {
+                self.anchor = Some((frame, at.x_m, at.y_m));
+                0
+            }
+        }
+    }
+
+    /// Forgets the anchor: the next frame starts a new watch.
+    pub fn reset(&mut self) {
+        self.anchor = None;
+    }
+}
+
+/// Where the rover got stuck lately, and the cells marked as obstacles for planning.
+#[derive(Debug, Clone, Default)]
+pub struct StuckMarks {
+    spots: Vec<(u64, (f64, f64))>,
+    marks: Vec<(usize, u64)>,
+}
+
+impl StuckMarks {
+    /// Notes that the rover `at` got stuck at `frame`. Stuck lately at this spot already, the cell
+    /// ahead of it is marked, and returned.
+    pub fn note_stuck(&mut self, at: &Position, frame: u64, params: &DecisionParams) -> Option<usize> {
+        let memory = params.frames(STUCK_AGAIN_S);
+        self.spots.retain(|&(since, _)| frame < since + memory);
+        let again = self.spots.iter().any(|&(_, spot)| at.distance_to(spot) < STUCK_AGAIN_M);
+        self.spots.push((frame, (at.x_m, at.y_m)));
+        let ahead = at.point_at(0.0, STUCK_MARK_AHEAD_M);
+        let cell = cell_of_point(ahead.0, ahead.1).filter(|_| again)?;
+        self.marks.push((cell, frame + params.frames(STUCK_MARK_S)));
+        Some(cell)
+    }
+
+    /// Drops the marks that have expired by `frame`.
+    pub fn expire(&mut self, frame: u64) {
+        self.marks.retain(|&(_, until_frame)| frame < until_frame);
+    }
+
+    /// `map` with the marked cells blocked.
+    pub fn applied_to(&self, map: &Grid) -> Grid {
+        let mut grid = map.clone();
+        for &(cell, _) in &self.marks {
+            grid.block(cell);
+        }
+        grid
+    }
+
+    /// Forgets every mark; returns whether there were any.
+    pub fn forget(&mut self) -> bool {
+        let any = !self.marks.is_empty();
+        self.marks.clear();
+        any
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::Cell;
+    use crate::test_maps::{at, half_explored};
+
+    #[test]
+    fn a_watch_counts_the_frames_spent_near_its_anchor() {
+        let mut watch = ProgressWatch::default();
+        assert_eq!(watch.frames_within(&at(10.0, 10.0), 5, 1.0), 0, "the first frame anchors");
+        assert_eq!(watch.frames_within(&at(10.5, 10.0), 30, 1.0), 25);
+        assert_eq!(watch.frames_within(&at(12.0, 10.0), 40, 1.0), 0, "moved away: anchored again");
+        watch.reset();
+        assert_eq!(watch.frames_within(&at(12.0, 10.0), 50, 1.0), 0);
+    }
+
+    #[test]
+    fn stuck_twice_at_one_spot_marks_the_cell_ahead_until_the_mark_expires() {
+        let params = DecisionParams::default();
+        let mut marks = StuckMarks::default();
+        assert_eq!(marks.note_stuck(&at(30.5, 51.5), 10, &params), None, "stuck once");
+        let far_later = 10 + params.frames(STUCK_AGAIN_S);
+        assert_eq!(marks.note_stuck(&at(30.7, 51.5), far_later, &params), None, "too long after");
+        let cell = marks.note_stuck(&at(30.5, 51.5), far_later + 1, &params).expect("stuck again");
+        assert_eq!(cell, cell_of_point(31.4, 51.5).unwrap(), "the cell ahead");
+        let map = half_explored();
+        assert_eq!((map.cell(cell), marks.applied_to(&map).cell(cell)), (Cell::Free, Cell::Blocked));
+        let until = far_later + 1 + params.frames(STUCK_MARK_S);
+        marks.expire(until - 1);
+        assert_eq!(marks.applied_to(&map).cell(cell), Cell::Blocked, "not yet expired");
+        marks.expire(until);
+        assert_eq!(marks.applied_to(&map).cell(cell), Cell::Free, "expired");
+        assert!(!marks.forget(), "nothing left to forget");
+    }
+}
