@@ -1,14 +1,9 @@
-//! The `package.xml` files that make the crates ROS 2 packages (format 3, `ament_cargo`, built by
-//! colcon-ros-cargo) agree with the Cargo manifests: same name, version and licence. The root
-//! package compiles the node crates from their paths, so it declares no build dependency on their
-//! packages (colcon would build each of them again, in a target folder of its own, first).
+//! The `package.xml` files: only packages that install something runnable or usable by ROS tools
+//! are ROS packages. The root `rover` (format 3, `ament_cargo`, built by colcon-ros-cargo) installs
+//! the executable and agrees with its Cargo manifest (name, version, licence); `rover_msgs` is the
+//! interface package. The library crates the executable compiles from their paths carry none.
 
-use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-
-/// The crates that are ROS packages: the root `rover` and the node crates.
-const ROS_CRATES: [&str; 7] =
-    ["rover", "rover_bridge", "rover_perception", "rover_mapping", "rover_decision", "rover_pickup", "rover_sim"];
 
 /// `cargo metadata` of the workspace, without dependencies.
 fn metadata() -> serde_json::Value {
@@ -43,29 +38,36 @@ fn package_xml(manifest_path: &str) -> (PathBuf, String) {
 }
 
 #[test]
-fn every_node_crate_is_an_ament_cargo_package_matching_its_manifest() {
+fn the_root_crate_is_an_ament_cargo_package_matching_its_manifest() {
     let metadata = metadata();
     let packages = metadata["packages"].as_array().expect("packages");
-    let mut ros_packages = BTreeSet::new();
-    for name in ROS_CRATES {
-        let package = packages.iter().find(|p| p["name"] == name).unwrap_or_else(|| panic!("crate {name}"));
-        let (path, xml) = package_xml(package["manifest_path"].as_str().expect("manifest_path"));
-        assert!(xml.contains("<package format=\"3\">"), "{}: not package format 3", path.display());
-        assert_eq!(single(&xml, "name", &path), name, "{}", path.display());
-        assert_eq!(single(&xml, "version", &path), package["version"].as_str().unwrap(), "{}", path.display());
-        assert_eq!(single(&xml, "license", &path), package["license"].as_str().unwrap(), "{}", path.display());
-        assert_eq!(single(&xml, "build_type", &path), "ament_cargo", "{}", path.display());
-        assert!(!single(&xml, "description", &path).is_empty(), "{}", path.display());
-        ros_packages.insert(name.to_string());
-    }
-
     let root = packages.iter().find(|p| p["name"] == "rover").expect("the rover crate");
-    let (path, xml) = package_xml(root["manifest_path"].as_str().unwrap());
-    let build_dependencies: Vec<String> = ["depend", "build_depend"]
-        .iter()
-        .flat_map(|tag| elements(&xml, tag))
-        .filter(|d| ros_packages.contains(d))
-        .collect();
-    assert!(build_dependencies.is_empty(), "{} declares {build_dependencies:?}", path.display());
+    let (path, xml) = package_xml(root["manifest_path"].as_str().expect("manifest_path"));
+    assert!(xml.contains("<package format=\"3\">"), "{}: not package format 3", path.display());
+    assert_eq!(single(&xml, "name", &path), "rover", "{}", path.display());
+    assert_eq!(single(&xml, "version", &path), root["version"].as_str().unwrap(), "{}", path.display());
+    assert_eq!(single(&xml, "license", &path), root["license"].as_str().unwrap(), "{}", path.display());
+    assert_eq!(single(&xml, "build_type", &path), "ament_cargo", "{}", path.display());
+    assert!(!single(&xml, "description", &path).is_empty(), "{}", path.display());
+    for tag in ["depend", "build_depend"] {
+        assert!(elements(&xml, tag).is_empty(), "{}: builds from Cargo paths alone, no <{tag}>", path.display());
+    }
     assert_eq!(elements(&xml, "exec_depend"), ["rover_msgs"], "{}: the interfaces it publishes", path.display());
+}
+
+#[test]
+fn library_crates_are_not_ros_packages() {
+    let metadata = metadata();
+    let packages = metadata["packages"].as_array().expect("packages");
+    let libraries_with_package_xml: Vec<String> = packages
+        .iter()
+        .filter(|p| p["name"] != "rover")
+        .map(|p| Path::new(p["manifest_path"].as_str().expect("manifest_path")).with_file_name("package.xml"))
+        .filter(|xml| xml.exists() && xml.parent() != Some(&Path::new(env!("CARGO_MANIFEST_DIR")).join("msgs")))
+        .map(|xml| xml.display().to_string())
+        .collect();
+    assert!(
+        libraries_with_package_xml.is_empty(),
+        "libraries that install nothing runnable: {libraries_with_package_xml:?}"
+    );
 }
