@@ -2,11 +2,12 @@
 
     ros2 launch launch_scripts/rover.launch.py [namespace:=/rover1] [params_file:=FILE]
         [rover:=PATH] [port:=4567] [sim:=true] [seed:=0] [log_level:=debug]
-        [respawn:=false] [state_dir:=DIR]
+        [respawn:=false] [state_dir:=DIR] [use_sim_time:=true]
 
 Every node that `rover nodes` lists runs
-`rover NODE --ros-args --params-file PARAMS -r __ns:=NAMESPACE [--log-level LEVEL]`; the bridge
-also gets `-p port:=PORT`. With sim:=true the headless simulator (`rover sim --seed SEED
+`rover NODE --ros-args --params-file PARAMS -r __ns:=NAMESPACE -p use_sim_time:=USE_SIM_TIME
+[--log-level LEVEL]`; the bridge also gets `-p port:=PORT`. With use_sim_time:=true every node
+stamps with the simulated time the bridge publishes on /clock. With sim:=true the headless simulator (`rover sim --seed SEED
 --port PORT`) drives the graph; without it the bridge waits for the Unity simulator. The DDS
 domain is the environment's ROS_DOMAIN_ID, the log filter RUST_LOG unless log_level is given.
 A node that dies is started again after RESPAWN_DELAY_S (respawn:=false: it stays dead), and the
@@ -82,13 +83,15 @@ def arguments():
                               description='start a node that dies again'),
         DeclareLaunchArgument('state_dir', default_value='',
                               description="folder of the mapping and decision snapshots (default: a new temporary one)"),
+        DeclareLaunchArgument('use_sim_time', default_value='false', choices=['true', 'false'],
+                              description="stamp every node's messages with the simulated time of /clock"),
     ]
 
 
 def node_command(name, value, state_dir):
     """The command line of node `name`; `value` reads a launch argument."""
     cmd = [value('rover'), name, '--ros-args', '--params-file', value('params_file'),
-           '-r', '__ns:=' + value('namespace')]
+           '-r', '__ns:=' + value('namespace'), '-p', 'use_sim_time:=' + value('use_sim_time')]
     if value('log_level'):
         cmd += ['--log-level', value('log_level')]
     if name == 'bridge':

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use futures::StreamExt;
 use rover_bridge::convert::telemetry_message;
 use rover_bridge::telemetry::SimTelemetry;
+use rover_msgs::frame_ids;
 use rover_msgs::msg::MapStats;
 use rover_msgs::sensor_msgs::CompressedImage;
 use rover_msgs::std_msgs::Header;
@@ -65,13 +66,13 @@ pub async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> any
     let (mut round_trips, mut lost, mut latest) = (Vec::new(), 0usize, None::<MapStats>);
     for (index, frame) in frames.iter().enumerate() {
         let number = index as u64 + 1;
-        let header = Header::now("odom");
+        let header = Header::now(frame_ids::ODOM);
         let jpeg = frame.jpeg()?;
         let message = telemetry_message(&sim_telemetry(frame, jpeg.clone()), number, header.clone());
         let started = Instant::now();
         camera
             .publish(CompressedImage {
-                header: Header { frame_id: "camera_optical_frame".into(), ..header },
+                header: Header { frame_id: frame_ids::CAMERA_OPTICAL.into(), ..header },
                 format: "jpeg".into(),
                 data: jpeg,
             })

@@ -1,8 +1,9 @@
 //! The official `ros2` command line against the graph (issue 17): in one loopback-only namespace,
 //! `ros2 daemon start` first, then the graph in separate processes with the headless simulator
 //! (`launch_scripts/rover-graph --sim 0`), then `ros2 node list`, `topic list -t`, `topic echo
-//! --once` (telemetry, the latched map and static transforms, odom), `topic hz`, `topic info -v`, `param list/get/set`
-//! and `interface show`, each checked on its output. The CLI comes from the wheels of
+//! --once` (telemetry, the latched map and static transforms, odom, `/clock`), `topic hz`, `topic info -v`,
+//! `param list/get/set` and `interface show`, each checked on its output. The graph runs with
+//! `use_sim_time:=true`, so its stamps must be the simulated time of `/clock`, not the wall clock. The CLI comes from the wheels of
 //! `../shared/ros2-python` that `tools/setup-ros` installs into `.venv`.
 
 mod support;
@@ -58,6 +59,19 @@ fn ros2_ok(domain: &Domain, args: &[&str]) -> String {
     output
 }
 
+/// Stamps below this many seconds are simulated time; the wall clock is past 1.7e9 s.
+const SIM_TIME_LIMIT_S: i64 = 1_000_000;
+
+/// The first `sec:` value of a `ros2 topic echo` output.
+fn first_sec(output: &str) -> Option<i64> {
+    output.lines().find_map(|line| line.trim().strip_prefix("sec: ")).and_then(|sec| sec.trim().parse().ok())
+}
+
+fn assert_sim_time(output: &str, what: &str) {
+    let sec = first_sec(output);
+    assert!(sec.is_some_and(|sec| sec < SIM_TIME_LIMIT_S), "{what}: not stamped in simulated time:\n{output}");
+}
+
 fn assert_contains(output: &str, expected: &[&str], what: &str) {
     for line in expected {
         assert!(output.contains(line), "{what}: no `{line}` in\n{output}");
@@ -100,7 +114,8 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
     let log_dir = log_dir.to_str().unwrap();
     // camera/image_raw is published only on request; the test wants every topic of the graph.
     let args = ["--rover", rover.to_str().unwrap(), "--sim", "0", "--domain", &domain_id, "--port", &port];
-    let args = [&args[..], &["--log-dir", log_dir, "--", "-p", "bridge:publish_raw_image:=true"]].concat();
+    let ros_args = ["-p", "bridge:publish_raw_image:=true", "-p", "use_sim_time:=true"];
+    let args = [&args[..], &["--log-dir", log_dir, "--"], &ros_args[..]].concat();
     let mut graph = start_process(&graph_script, &args, &domain, "ros2-cli-graph");
 
     // Through the daemon, which existed before any participant of the graph.
@@ -122,6 +137,10 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
         let map = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "--no-arr", "/map"]));
         let odom = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/odom"]));
         let tf_static = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/tf_static"]));
+        // ros2-client's node spinner also subscribes to /clock, as builtin_interfaces/msg/Time,
+        // so the type must be named (see README "Simulated time").
+        let clock = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/clock", "rosgraph_msgs/msg/Clock"]));
+        let sim_time = scope.spawn(|| ros2_ok(domain, &["param", "get", "/mapping", "use_sim_time"]));
         let hz = scope.spawn(|| ros2(domain, Duration::from_secs(8), &["topic", "hz", "/rover/telemetry"]).1);
         let info = scope.spawn(|| ros2_ok(domain, &["topic", "info", "-v", "/map"]));
         let interface = scope.spawn(|| ros2_ok(domain, &["interface", "show", "rover_msgs/msg/Telemetry"]));
@@ -139,17 +158,26 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
         for topic in TOPICS {
             assert!(topics.lines().any(|line| line.trim() == topic), "`ros2 topic list -t`: no `{topic}` in\n{topics}");
         }
+        let clock_line = topics.lines().find(|line| line.starts_with("/clock ["));
+        assert!(
+            clock_line.is_some_and(|line| line.contains("rosgraph_msgs/msg/Clock")),
+            "`ros2 topic list -t`: /clock is not a rosgraph_msgs/msg/Clock topic in\n{topics}"
+        );
+        let clock = clock.join().unwrap();
+        assert_contains(&clock, &["clock:", "nanosec: "], "/clock");
+        assert!(first_sec(&clock).is_some_and(|sec| sec > 0), "/clock is still at zero:\n{clock}");
+        assert_sim_time(&clock, "/clock");
+        assert_contains(&sim_time.join().unwrap(), &["Boolean value is: True"], "ros2 param get use_sim_time");
         let telemetry = telemetry.join().unwrap();
+        assert_sim_time(&telemetry, "telemetry");
         assert_contains(
             &telemetry,
             &["frame_id: odom", "frame: ", "x_m: ", "speed_mps: ", "samples_remaining: ", "---"],
             "telemetry",
         );
-        assert_contains(
-            &map.join().unwrap(),
-            &["frame_id: map", "resolution: ", "width: 200", "height: 200"],
-            "latched map",
-        );
+        let map = map.join().unwrap();
+        assert_sim_time(&map, "latched map");
+        assert_contains(&map, &["frame_id: map", "resolution: ", "width: 200", "height: 200"], "latched map");
         assert_contains(
             &odom.join().unwrap(),
             &["frame_id: odom", "child_frame_id: base_link", "position:", "orientation:"],

@@ -1,6 +1,7 @@
 //! Conversion of a parsed telemetry frame into the ROS messages the bridge publishes.
 
 use rover_msgs::body::CameraMount;
+use rover_msgs::frame_ids;
 use rover_msgs::geometry_msgs::{
     Point, Pose, PoseArray, PoseWithCovariance, Quaternion, Transform, TransformStamped, Twist, TwistWithCovariance,
     Vector3,
@@ -13,16 +14,6 @@ use rover_msgs::tf2_msgs::TFMessage;
 
 use crate::telemetry::SimTelemetry;
 
-/// Frame of the world map (the mapping node's `map`).
-pub const MAP_FRAME: &str = "map";
-/// Frame of the odometry origin (the same place as the map's: the simulator's world frame).
-pub const ODOM_FRAME: &str = "odom";
-/// Frame of the rover body, on the floor below its reported position.
-pub const BASE_FRAME: &str = "base_link";
-/// Frame of the camera body (REP 103: x forward, y left, z up).
-pub const CAMERA_LINK_FRAME: &str = "camera_link";
-/// Optical frame of the camera (REP 103: z forward, x right, y down).
-pub const CAMERA_FRAME: &str = "camera_optical_frame";
 /// Rotation of an optical frame in its camera body frame: roll -90 degrees, then yaw -90 degrees.
 const OPTICAL_IN_CAMERA_LINK: Quaternion = Quaternion { x: -0.5, y: 0.5, z: -0.5, w: 0.5 };
 
@@ -110,7 +101,7 @@ fn body_pose(t: &SimTelemetry) -> Pose {
 pub fn odometry_message(t: &SimTelemetry, header: Header) -> Odometry {
     Odometry {
         header,
-        child_frame_id: BASE_FRAME.to_string(),
+        child_frame_id: frame_ids::BASE_LINK.to_string(),
         pose: PoseWithCovariance { pose: body_pose(t), covariance: Default::default() },
         twist: TwistWithCovariance {
             twist: Twist { linear: Vector3 { x: t.speed_mps, y: 0.0, z: 0.0 }, angular: Vector3::default() },
@@ -125,7 +116,7 @@ pub fn transform_message(t: &SimTelemetry, header: Header) -> TFMessage {
     TFMessage {
         transforms: vec![TransformStamped {
             header,
-            child_frame_id: BASE_FRAME.to_string(),
+            child_frame_id: frame_ids::BASE_LINK.to_string(),
             transform: Transform {
                 translation: Vector3 { x: pose.position.x, y: pose.position.y, z: 0.0 },
                 rotation: pose.orientation,
@@ -145,14 +136,14 @@ pub fn static_transforms_message(mount: &CameraMount, header: &Header) -> TFMess
     };
     TFMessage {
         transforms: vec![
-            transform(MAP_FRAME, ODOM_FRAME, Vector3::default(), Quaternion::IDENTITY),
+            transform(frame_ids::MAP, frame_ids::ODOM, Vector3::default(), Quaternion::IDENTITY),
             transform(
-                BASE_FRAME,
-                CAMERA_LINK_FRAME,
+                frame_ids::BASE_LINK,
+                frame_ids::CAMERA_LINK,
                 Vector3 { x: mount.forward_m, y: 0.0, z: camera_height_m },
                 Quaternion::IDENTITY,
             ),
-            transform(CAMERA_LINK_FRAME, CAMERA_FRAME, Vector3::default(), OPTICAL_IN_CAMERA_LINK),
+            transform(frame_ids::CAMERA_LINK, frame_ids::CAMERA_OPTICAL, Vector3::default(), OPTICAL_IN_CAMERA_LINK),
         ],
     }
 }

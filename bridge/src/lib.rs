@@ -2,8 +2,9 @@
 //!
 //! [`telemetry`] parses the simulator's dialect, [`lockstep`] answers every frame exactly once,
 //! [`server`] speaks Socket.IO to the simulator, [`convert`] builds the ROS messages and
-//! [`node`] wires it all to the topics.
+//! [`clock`] counts simulated time and [`node`] wires it all to the topics.
 
+pub mod clock;
 pub mod convert;
 pub mod lockstep;
 pub mod node;

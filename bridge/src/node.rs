@@ -8,16 +8,19 @@ use anyhow::Context as _;
 use base64::Engine as _;
 use rover_imaging::RgbImage;
 use rover_msgs::body::CameraMount;
+use rover_msgs::frame_ids;
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::Telemetry;
 use rover_msgs::nav_msgs::Odometry;
+use rover_msgs::rosgraph_msgs::Clock;
 use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image};
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tf2_msgs::TFMessage;
 use rover_node::{Publisher, RosNode, Runtime, spawn_subscriber, topics};
 use tracing::Instrument as _;
 
-use crate::convert::{self, CAMERA_FRAME, MAP_FRAME, ODOM_FRAME, PinholeCamera};
+use crate::clock::SimClock;
+use crate::convert::{self, PinholeCamera};
 use crate::lockstep::{FrameSink, LockStep, LockStepConfig};
 use crate::reply::ReplyPolicy;
 use crate::server::{self, ServerConfig};
@@ -60,6 +63,9 @@ rover_node::node_params! {
         /// A new simulator connection replaces the one being served instead of being refused
         /// (read at start).
         replace_connected_simulator: bool = false,
+        /// Simulated time per telemetry frame, s: /clock advances by it each frame, as the
+        /// simulator sends no time (read at start; the headless simulator steps 0.04 s).
+        frame_period_s: f64 [0.001, 1.0] = 0.04,
     }
 }
 
@@ -98,6 +104,8 @@ struct DdsSink {
     camera_info: Publisher<CameraInfo>,
     odom: Publisher<Odometry>,
     tf: Publisher<TFMessage>,
+    clock_publisher: Publisher<Clock>,
+    clock: Arc<SimClock>,
     sample_truth: Publisher<PoseArray>,
     raw: Option<Publisher<Image>>,
     camera: PinholeCamera,
@@ -105,14 +113,15 @@ struct DdsSink {
 }
 
 impl DdsSink {
-    fn new(node: &mut RosNode, params: &BridgeParams) -> anyhow::Result<Self> {
+    fn new(node: &mut RosNode, params: &BridgeParams, clock: Arc<SimClock>) -> anyhow::Result<Self> {
         let camera = PinholeCamera {
             width: params.image_width as u32,
             height: params.image_height as u32,
             focal_px: (params.image_height as f64 / 2.0) / 35f64.to_radians().tan(),
         };
         let tf_static = node.publisher(&topics::TF_STATIC)?;
-        let static_transforms = convert::static_transforms_message(&CameraMount::UNITY, &Header::now(MAP_FRAME));
+        let static_transforms =
+            convert::static_transforms_message(&CameraMount::UNITY, &Header::at(frame_ids::MAP, clock.now()));
         log_publish("/tf_static", tf_static.publish(static_transforms));
         Ok(DdsSink {
             _tf_static: tf_static,
@@ -121,6 +130,8 @@ impl DdsSink {
             camera_info: node.publisher(&topics::CAMERA_INFO)?,
             odom: node.publisher(&topics::ODOM)?,
             tf: node.publisher(&topics::TF)?,
+            clock_publisher: node.publisher(&topics::CLOCK)?,
+            clock,
             sample_truth: node.publisher(&topics::SAMPLE_TRUTH)?,
             raw: if params.publish_raw_image { Some(node.publisher(&topics::CAMERA_RAW)?) } else { None },
             camera,
@@ -139,7 +150,8 @@ impl DdsSink {
         let mut last = self.last_samples.lock().unwrap_or_else(|e| e.into_inner());
         if last.as_ref() != Some(&telemetry.samples) {
             *last = Some(telemetry.samples.clone());
-            let message = convert::sample_truth_message(telemetry, Header { frame_id: "map".into(), ..header });
+            let message =
+                convert::sample_truth_message(telemetry, Header { frame_id: frame_ids::MAP.into(), ..header });
             log_publish("sim/sample_truth", self.sample_truth.publish(message));
         }
     }
@@ -147,8 +159,9 @@ impl DdsSink {
 
 impl FrameSink for DdsSink {
     fn publish_frame(&self, frame: u64, telemetry: &SimTelemetry) {
-        let odom_header = Header::now(ODOM_FRAME);
-        let camera_header = Header { frame_id: CAMERA_FRAME.to_string(), ..odom_header.clone() };
+        log_publish("/clock", self.clock_publisher.publish(self.clock.clock_message(frame)));
+        let odom_header = Header::at(frame_ids::ODOM, self.clock.stamp_frame(frame));
+        let camera_header = Header { frame_id: frame_ids::CAMERA_OPTICAL.to_string(), ..odom_header.clone() };
         log_publish(
             "rover/telemetry",
             self.telemetry.publish(convert::telemetry_message(telemetry, frame, odom_header.clone())),
@@ -208,7 +221,9 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let (mut node, params) = runtime.node::<BridgeParams>("bridge")?;
     let span = node.span();
     let initial = params.get();
-    let core = Arc::new(LockStep::new(initial.lockstep_config(), DdsSink::new(&mut node, &initial)?));
+    let clock = Arc::new(SimClock::new(initial.frame_period_s, node.uses_sim_time()));
+    let sink = DdsSink::new(&mut node, &initial, clock.clone())?;
+    let core = Arc::new(LockStep::new(initial.lockstep_config(), sink));
     subscribe_commands(&mut node, &core, &span)?;
     subscribe_insets(&mut node, &core, &span, initial.inset_jpeg_quality as u8)?;
     let diagnostics = node.publisher(&topics::DIAGNOSTICS)?;
@@ -220,7 +235,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             let mut ticks = tokio::time::interval(period);
             loop {
                 ticks.tick().await;
-                let message = diagnostics_core.stats().diagnostics(&name, Header::now(""));
+                let message = diagnostics_core.stats().diagnostics(&name, Header::at("", clock.now()));
                 log_publish("/diagnostics", diagnostics.publish(message));
             }
         }

@@ -8,10 +8,11 @@
 //! [`ros2_client::Message`], so it can be published and subscribed with `ros2-client`.
 //!
 //! Beside the messages, the facts the nodes share about what the messages carry: [`map_grid`]
-//! (the map's cells), [`body`] (the camera mount, the arm's reach) and [`tally`] (samples counted
-//! from telemetry).
+//! (the map's cells), [`body`] (the camera mount, the arm's reach), [`frame_ids`] (the coordinate
+//! frames) and [`tally`] (samples counted from telemetry).
 
 pub mod body;
+pub mod frame_ids;
 pub mod frames;
 pub mod idl;
 pub mod map_grid;
@@ -85,6 +86,12 @@ pub mod builtin_interfaces {
             let since_epoch = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
             Time { sec: since_epoch.as_secs() as i32, nanosec: since_epoch.subsec_nanos() }
         }
+
+        /// The time `nanos` nanoseconds after the epoch (negative values clamp to the epoch).
+        pub fn from_nanos(nanos: i64) -> Self {
+            let nanos = nanos.max(0);
+            Time { sec: (nanos / 1_000_000_000) as i32, nanosec: (nanos % 1_000_000_000) as u32 }
+        }
     }
 }
 
@@ -98,7 +105,12 @@ pub mod std_msgs {
     impl Header {
         /// A header stamped now in `frame_id`.
         pub fn now(frame_id: &str) -> Self {
-            Header { stamp: crate::builtin_interfaces::Time::now(), frame_id: frame_id.to_string() }
+            Header::at(frame_id, crate::builtin_interfaces::Time::now())
+        }
+
+        /// A header stamped `stamp` in `frame_id`.
+        pub fn at(frame_id: &str, stamp: crate::builtin_interfaces::Time) -> Self {
+            Header { stamp, frame_id: frame_id.to_string() }
         }
     }
 }
@@ -195,6 +207,12 @@ pub mod sensor_msgs {
 pub mod tf2_msgs {
     ros_message! { /// A batch of transforms for `/tf`.
     "tf2_msgs" / TFMessage { transforms: Vec<crate::geometry_msgs::TransformStamped> } }
+}
+
+/// `rosgraph_msgs` messages.
+pub mod rosgraph_msgs {
+    ros_message! { /// The simulated time, published on `/clock`.
+    "rosgraph_msgs" / Clock { clock: crate::builtin_interfaces::Time } }
 }
 
 /// `diagnostic_msgs` messages.

@@ -9,6 +9,7 @@ use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
 use rover_msgs::geometry_msgs::*;
 use rover_msgs::nav_msgs::{MapMetaData, OccupancyGrid, Odometry};
+use rover_msgs::rosgraph_msgs::Clock;
 use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image, RegionOfInterest};
 use rover_msgs::std_msgs::Header;
 
@@ -66,5 +67,6 @@ fn standard_messages_match_the_installed_definitions() {
     check::<KeyValue>(&mut checked);
     check::<DiagnosticStatus>(&mut checked);
     check::<DiagnosticArray>(&mut checked);
+    check::<Clock>(&mut checked);
     eprintln!("checked {} standard messages: {}", checked.len(), checked.join(", "));
 }

@@ -4,6 +4,7 @@
 //!
 //! Usage: `echo_node [--ros-args ...]` (node name `echo`).
 
+use rover_msgs::frame_ids;
 use rover_msgs::msg::DriveCommand;
 use rover_msgs::std_msgs::Header;
 use rover_node::{Runtime, Shutdown, logging, spawn_subscriber, split_ros_args, topics};
@@ -28,7 +29,7 @@ fn main() -> anyhow::Result<()> {
         let drive = node.publisher(&topics::DRIVE_CMD)?;
         spawn_subscriber(node.subscription(&topics::TELEMETRY)?, node.span(), move |telemetry| {
             let command = DriveCommand {
-                header: Header::now("base_link"),
+                header: Header::now(frame_ids::BASE_LINK),
                 frame: telemetry.frame,
                 throttle: (telemetry.x_m / 1000.0) as f32,
                 brake: telemetry.frame as f32,

@@ -2,6 +2,7 @@
 //! one drive command per frame and the state machine's mode out.
 
 use futures::StreamExt;
+use rover_msgs::frame_ids;
 use rover_msgs::frames::MissionFrames;
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::map_grid::SIDE_CELLS;
@@ -49,7 +50,7 @@ impl Decision {
             None => Drive::stop(self.machine.params().brake),
         };
         let command = DriveCommand {
-            header: Header { frame_id: "base_link".to_string(), ..telemetry.header.clone() },
+            header: Header { frame_id: frame_ids::BASE_LINK.to_string(), ..telemetry.header.clone() },
             frame: telemetry.frame,
             throttle: drive.throttle as f32,
             brake: drive.brake as f32,
@@ -68,7 +69,7 @@ impl Decision {
         let (target_x_m, target_y_m) = status.target.unwrap_or((f64::NAN, f64::NAN));
         let (home_x_m, home_y_m) = status.home.unwrap_or((f64::NAN, f64::NAN));
         let state = DecisionState {
-            header: Header { frame_id: "map".to_string(), ..telemetry.header.clone() },
+            header: Header { frame_id: frame_ids::MAP.to_string(), ..telemetry.header.clone() },
             frame: telemetry.frame,
             mode: status.mode.name().to_string(),
             target_x_m,

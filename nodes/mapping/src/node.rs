@@ -4,6 +4,7 @@
 use std::time::{Duration, Instant};
 
 use futures::StreamExt;
+use rover_msgs::frame_ids;
 use rover_msgs::geometry_msgs::{Point, Pose as PoseMsg, PoseArray, Quaternion};
 use rover_msgs::map_grid::SIDE_CELLS;
 use rover_msgs::msg::MapStats;
@@ -93,10 +94,10 @@ struct Outputs {
 }
 
 impl Outputs {
-    fn publish(&mut self, mapping: &mut MappingCore) {
+    /// Publishes the map, its image, statistics and rocks, stamped with `header`.
+    fn publish(&mut self, mapping: &mut MappingCore, header: Header) {
         mapping.mark_published();
         self.published_at = Instant::now();
-        let header = Header::now("map");
         let grid = OccupancyGrid {
             header: header.clone(),
             info: MapMetaData {
@@ -173,7 +174,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let mut truth = std::pin::pin!(messages(&truth_subscription));
     let mut changes = params.watch();
     let shutdown = runtime.shutdown();
-    outputs.publish(&mut mapping);
+    outputs.publish(&mut mapping, node.header(frame_ids::MAP));
     async {
     loop {
         let flush_at = outputs.published_at + Duration::from_secs_f64(mapping.params().publish_max_delay_ms / 1000.0);
@@ -182,17 +183,17 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             Some(scan) = scans.next() => {
                 mapping.add_scan(&scan);
                 if mapping.publication_due() {
-                    outputs.publish(&mut mapping);
+                    outputs.publish(&mut mapping, node.header(frame_ids::MAP));
                     snapshots.write_if_due(&mapping, Duration::from_secs_f64(mapping.params().snapshot_every_ms / 1000.0));
                 }
             }
             Some(t) = telemetry.next() => mapping.on_telemetry(&t),
             Some(samples) = truth.next() => mapping.set_samples_truth(&samples),
-            () = tokio::time::sleep_until(flush_at.into()), if mapping.has_unpublished_scans() => outputs.publish(&mut mapping),
+            () = tokio::time::sleep_until(flush_at.into()), if mapping.has_unpublished_scans() => outputs.publish(&mut mapping, node.header(frame_ids::MAP)),
             Ok(()) = changes.changed() => mapping.set_params(changes.borrow_and_update().clone()),
         }
     }
-    outputs.publish(&mut mapping);
+    outputs.publish(&mut mapping, node.header(frame_ids::MAP));
     snapshots.write(&mapping);
     tracing::info!(
         "mapping: {} frames mapped, {} skipped while tilted, rejected {}",

@@ -2,6 +2,7 @@
 //! y left), summaries for steering, and the classified bird's-eye image for the simulator inset.
 
 use rover_imaging::RgbImage;
+use rover_msgs::frame_ids;
 use rover_msgs::msg::{Telemetry, TerrainScan};
 use rover_msgs::std_msgs::Header;
 
@@ -98,7 +99,7 @@ impl ScanGeometry {
         self.fill(classes, &mut cells);
         let (rock_bearing_rad, rock_distance_m) = summary.rock.unwrap_or((0.0, 0.0));
         TerrainScan {
-            header: Header { frame_id: "base_link".to_string(), ..header },
+            header: Header { frame_id: frame_ids::BASE_LINK.to_string(), ..header },
             frame: telemetry.frame,
             x_m: telemetry.x_m,
             y_m: telemetry.y_m,

@@ -1,6 +1,7 @@
 //! The pickup node (`rover pickup`): telemetry in, pickup requests out.
 
 use futures::StreamExt;
+use rover_msgs::frame_ids;
 use rover_msgs::msg::PickupRequest;
 use rover_msgs::std_msgs::Header;
 use rover_node::{Rejections, Runtime, messages, topics};
@@ -27,7 +28,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
                 Some(t) = telemetry.next() => {
                     if let Some(input) = checked_arm_input(&t, &mut rejections) && pickup.on_telemetry(&input, &settings) {
                         tracing::info!(frame = t.frame, "sample within reach and rover stopped: requesting a pickup");
-                        let request = PickupRequest { header: Header { frame_id: "base_link".to_string(), ..t.header }, frame: t.frame };
+                        let request = PickupRequest { header: Header { frame_id: frame_ids::BASE_LINK.to_string(), ..t.header }, frame: t.frame };
                         if let Err(e) = requests.publish(request) {
                             tracing::warn!("cannot publish rover/pickup: {e:?}");
                         }

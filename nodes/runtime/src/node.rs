@@ -8,10 +8,12 @@ use futures::StreamExt;
 use ros2_client::dds::rustdds::DomainParticipant;
 use ros2_client::{Context, MessageTypeName, Name, NodeName, NodeOptions, Publisher, Subscription};
 use rover_msgs::RosMessage;
+use rover_msgs::builtin_interfaces::Time;
+use rover_msgs::std_msgs::Header;
 use tokio::sync::watch;
 
 use crate::names::NodeIdentity;
-use crate::params::{self, Assignment, NodeParams, ParamValues};
+use crate::params::{self, Assignment, NodeParams, ParamValues, USE_SIM_TIME};
 use crate::ros_args::RosArgs;
 use crate::shutdown::Shutdown;
 use crate::topics::Topic;
@@ -146,6 +148,22 @@ impl RosNode {
         tracing::info_span!("node", name = %self.identity.fully_qualified())
     }
 
+    /// The node's time: the simulated time of `/clock` when its `use_sim_time` parameter is true
+    /// (zero until the first `/clock` message), the wall clock otherwise.
+    pub fn now(&self) -> Time {
+        Time::from_nanos(self.node.time_now().to_nanos())
+    }
+
+    /// A header in `frame_id` stamped with [`RosNode::now`].
+    pub fn header(&self, frame_id: &str) -> Header {
+        Header::at(frame_id, self.now())
+    }
+
+    /// Whether the node's `use_sim_time` parameter is true.
+    pub fn uses_sim_time(&self) -> bool {
+        self.node.get_parameter(USE_SIM_TIME) == Some(ros2_client::ParameterValue::Boolean(true))
+    }
+
     /// The underlying `ros2-client` node.
     pub fn inner(&self) -> &ros2_client::Node {
         &self.node
@@ -267,7 +285,7 @@ impl<P: NodeParams> Params<P> {
         let state = Mutex::new(values);
         options = options
             .parameter_validator(Box::new(move |name, value| {
-                if name == "use_sim_time" {
+                if name == USE_SIM_TIME {
                     return Ok(());
                 }
                 let spec = validator_specs

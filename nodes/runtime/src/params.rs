@@ -104,7 +104,17 @@ pub enum ParamError {
 }
 
 /// Name of the parameter every ROS 2 node has.
-const USE_SIM_TIME: &str = "use_sim_time";
+pub const USE_SIM_TIME: &str = "use_sim_time";
+
+/// The parameter every ROS 2 node has: stamp with the simulated time of `/clock`.
+fn use_sim_time_spec() -> ParamSpec {
+    ParamSpec {
+        name: USE_SIM_TIME,
+        description: "Stamp messages with the simulated time of /clock instead of the wall clock.",
+        default: ParameterValue::Boolean(false),
+        range: None,
+    }
+}
 
 /// Checks `value` against `spec` and returns it with integers widened to doubles where needed.
 pub fn check_value(spec: &ParamSpec, value: &ParameterValue) -> Result<ParameterValue, String> {
@@ -194,16 +204,17 @@ pub struct Assignment {
 /// Resolves a node's parameter values: defaults, then files, then `-p` overrides.
 pub fn resolve_values(node: &str, specs: &[ParamSpec], assignments: &[Assignment]) -> Result<ParamValues, ParamError> {
     let mut values: ParamValues = specs.iter().map(|s| (s.name.to_string(), s.default.clone())).collect();
+    let use_sim_time = use_sim_time_spec();
     for assignment in assignments {
-        if assignment.name == USE_SIM_TIME {
-            continue;
-        }
-        let spec = specs.iter().find(|s| s.name == assignment.name).ok_or_else(|| ParamError::Unknown {
-            node: node.to_string(),
-            name: assignment.name.clone(),
-            source_name: assignment.source_name.clone(),
-            known: specs.iter().map(|s| s.name).collect::<Vec<_>>().join(", "),
-        })?;
+        let spec =
+            std::iter::once(&use_sim_time).chain(specs).find(|s| s.name == assignment.name).ok_or_else(|| {
+                ParamError::Unknown {
+                    node: node.to_string(),
+                    name: assignment.name.clone(),
+                    source_name: assignment.source_name.clone(),
+                    known: specs.iter().map(|s| s.name).collect::<Vec<_>>().join(", "),
+                }
+            })?;
         let value = check_value(spec, &assignment.value).map_err(|reason| ParamError::Invalid {
             node: node.to_string(),
             name: assignment.name.clone(),
@@ -438,6 +449,17 @@ mod tests {
         assert_eq!(params.host, "127.0.0.1");
         assert_eq!(params.points, vec![1.0, 2.0]);
         assert_eq!(TestParams::default().port, 4567);
+    }
+
+    #[test]
+    fn use_sim_time_is_accepted_as_a_boolean_only() {
+        let values = resolve_values("t", &TestParams::specs(), &[assignment("use_sim_time", "true")]).unwrap();
+        assert_eq!(values.get("use_sim_time"), Some(&ParameterValue::Boolean(true)));
+        assert_eq!(TestParams::from_values(&values).port, 4567);
+        let defaults = resolve_values("t", &TestParams::specs(), &[]).unwrap();
+        assert_eq!(defaults.get("use_sim_time"), None, "left to ros2-client's built-in default");
+        let wrong = resolve_values("t", &TestParams::specs(), &[assignment("use_sim_time", "1")]).unwrap_err();
+        assert!(wrong.to_string().contains("`use_sim_time`") && wrong.to_string().contains("a boolean"), "{wrong}");
     }
 
     #[test]

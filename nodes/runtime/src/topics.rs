@@ -7,6 +7,7 @@ use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_msgs::geometry_msgs::{PoseArray, Twist};
 use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, PickupRequest, Telemetry, TerrainScan};
 use rover_msgs::nav_msgs::{OccupancyGrid, Odometry};
+use rover_msgs::rosgraph_msgs::Clock;
 use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image};
 use rover_msgs::tf2_msgs::TFMessage;
 
@@ -63,5 +64,7 @@ pub const PICKUP: Topic<PickupRequest> = Topic::new("rover/pickup", reliable(10)
 pub const MODE: Topic<DecisionState> = Topic::new("rover/mode", latched());
 /// Teleoperation velocity (overrides the decision node while fresh).
 pub const CMD_VEL: Topic<Twist> = Topic::new("cmd_vel", reliable(10));
+/// Simulated time, from the bridge (nodes with `use_sim_time` stamp with it).
+pub const CLOCK: Topic<Clock> = Topic::new("/clock", reliable(1));
 /// Bridge health.
 pub const DIAGNOSTICS: Topic<DiagnosticArray> = Topic::new("/diagnostics", reliable(10));
