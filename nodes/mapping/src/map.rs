@@ -11,6 +11,7 @@ use crate::score::{Scores, udacity_scores};
 /// Terrain-scan class codes (`rover_msgs/TerrainScan`).
 const NAVIGABLE: u8 = rover_msgs::msg::TerrainScan::NAVIGABLE;
 const ROCK: u8 = rover_msgs::msg::TerrainScan::ROCK;
+const OBSTACLE: u8 = rover_msgs::msg::TerrainScan::OBSTACLE;
 
 /// How scans become evidence and evidence becomes a map.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -29,6 +30,9 @@ pub struct MapConfig {
     /// it weighs (this range / its range) squared, as the far floor's pixels are darker, hazier
     /// and each covers more ground, metres.
     pub full_weight_range_m: f64,
+    /// Obstacle scan cells farther than this beyond the nearest obstacle cell of their bearing are
+    /// not evidence (the face of a wall projected onto the ground behind it), metres.
+    pub shadow_margin_m: f64,
     /// A cell that is not navigable is an obstacle after this many obstacle frames.
     pub min_obstacle_hits: u16,
     /// A cell holds a rock after this many rock frames.
@@ -44,9 +48,72 @@ impl Default for MapConfig {
             min_navigable_hits: 1,
             navigable_ratio: 0.2,
             full_weight_range_m: 3.0,
+            shadow_margin_m: 1.5,
             min_obstacle_hits: 2,
             min_rock_hits: 2,
         }
+    }
+}
+
+/// Width of the bearing bins of [`NearestObstacles`], degrees.
+const BEARING_BIN_DEG: f64 = 1.0;
+/// Bearing bins from -90 to +90 degrees.
+const BEARING_BINS: usize = (180.0 / BEARING_BIN_DEG) as usize + 1;
+
+/// The bearing bin of every cell of one scan layout (rows, columns, resolution and origin), so
+/// that the bins are computed once and not for every frame.
+#[derive(Debug, Clone, Default)]
+struct BearingTable {
+    layout: Option<(usize, usize, u64, u64, u64)>,
+    bins: Vec<u8>,
+}
+
+impl BearingTable {
+    /// The bins of `scan`'s layout, recomputed when the layout differs from the last one.
+    fn bins_of(&mut self, scan: &ScanGrid) -> &[u8] {
+        let layout =
+            (scan.rows, scan.cols, scan.resolution_m.to_bits(), scan.origin_x_m.to_bits(), scan.origin_y_m.to_bits());
+        if self.layout != Some(layout) {
+            self.layout = Some(layout);
+            self.bins = (0..scan.rows * scan.cols)
+                .map(|index| {
+                    let (x, y) = scan.cell_centre(index);
+                    Self::bin(x, y) as u8
+                })
+                .collect();
+        }
+        &self.bins
+    }
+
+    /// The bearing bin of rover-frame point (x, y), x ahead.
+    fn bin(x: f64, y: f64) -> usize {
+        ((y.atan2(x).to_degrees() + 90.0) / BEARING_BIN_DEG).round().clamp(0.0, (BEARING_BINS - 1) as f64) as usize
+    }
+}
+
+/// The range of the nearest obstacle cell of a scan in each bearing bin, plus a margin: obstacle
+/// cells beyond it are in the shadow of a nearer one.
+struct NearestObstacles<'t> {
+    shadow_sq: [f64; BEARING_BINS],
+    bins: &'t [u8],
+}
+
+impl<'t> NearestObstacles<'t> {
+    /// The nearest obstacle of each bearing in `scan` within `max_range_m`, plus `margin_m`.
+    fn of(scan: &ScanGrid, bins: &'t [u8], max_range_m: f64, margin_m: f64) -> Self {
+        let mut range_m = [f64::INFINITY; BEARING_BINS];
+        for (index, x, y, class) in scan.cells_within(max_range_m) {
+            if class == OBSTACLE {
+                let bin = bins[index] as usize;
+                range_m[bin] = range_m[bin].min(x.hypot(y));
+            }
+        }
+        NearestObstacles { shadow_sq: range_m.map(|r| (r + margin_m).powi(2)), bins }
+    }
+
+    /// True if scan cell `index`, `range_sq` away, lies in the shadow of a nearer obstacle.
+    fn shadowed(&self, index: usize, range_sq: f64) -> bool {
+        range_sq > self.shadow_sq[self.bins[index] as usize]
     }
 }
 
@@ -78,6 +145,32 @@ impl<'a> ScanGrid<'a> {
             origin_y_m: scan.origin_y_m as f64,
             cells: &scan.cells,
         }
+    }
+
+    /// The rover-frame centre (x ahead, y left) of cell `index`, metres.
+    fn cell_centre(&self, index: usize) -> (f64, f64) {
+        let (row, col) = (index / self.cols, index % self.cols);
+        (
+            self.origin_x_m + (row as f64 + 0.5) * self.resolution_m,
+            self.origin_y_m + (col as f64 + 0.5) * self.resolution_m,
+        )
+    }
+
+    /// The classified cells (UNKNOWN ones left out) within `max_range_m` of the rover: index,
+    /// rover-frame centre (x ahead, y left) and class, row by row.
+    fn cells_within(&self, max_range_m: f64) -> impl Iterator<Item = (usize, f64, f64, u8)> + '_ {
+        let max_range_sq = max_range_m * max_range_m;
+        (0..self.rows)
+            .map(move |row| (row, self.origin_x_m + (row as f64 + 0.5) * self.resolution_m))
+            .take_while(move |&(_, x)| x * x <= max_range_sq)
+            .flat_map(move |(row, x)| {
+                let first = row * self.cols;
+                self.cells[first..first + self.cols].iter().enumerate().filter_map(move |(col, &class)| {
+                    let y = self.origin_y_m + (col as f64 + 0.5) * self.resolution_m;
+                    let keep = (NAVIGABLE..=ROCK).contains(&class) && x * x + y * y <= max_range_sq;
+                    keep.then_some((first + col, x, y, class))
+                })
+            })
     }
 }
 
@@ -131,6 +224,7 @@ pub struct WorldMap {
     last_frame: [Vec<u32>; CLASSES],
     rock_range_m: Vec<f32>,
     frame: u32,
+    bearings: BearingTable,
 }
 
 impl WorldMap {
@@ -151,6 +245,7 @@ impl WorldMap {
             last_frame: std::array::from_fn(|_| vec![u32::MAX; CELLS]),
             rock_range_m,
             frame: 0,
+            bearings: BearingTable::default(),
         }
     }
 
@@ -180,37 +275,32 @@ impl WorldMap {
         }
         self.frame = self.frame.wrapping_add(1);
         let projector = Projector::new(pose, self.mount, self.config.correct_tilt);
-        let max_range_sq = self.config.max_range_m * self.config.max_range_m;
         let full_weight_sq = self.config.full_weight_range_m * self.config.full_weight_range_m;
+        let (max_range_m, margin_m) = (self.config.max_range_m, self.config.shadow_margin_m);
+        let mut bearings = std::mem::take(&mut self.bearings);
+        let bins = bearings.bins_of(scan);
+        let nearest_obstacles =
+            (margin_m < max_range_m).then(|| NearestObstacles::of(scan, bins, max_range_m, margin_m));
         let mut landed = 0;
         let mut nearest_rock: Option<(f64, f64, f64)> = None;
-        for row in 0..scan.rows {
-            let x = scan.origin_x_m + (row as f64 + 0.5) * scan.resolution_m;
-            if x * x > max_range_sq {
-                break;
+        for (index, x, y, class) in scan.cells_within(max_range_m) {
+            let range_sq = x * x + y * y;
+            if class == ROCK {
+                if nearest_rock.is_none_or(|(r, ..)| range_sq < r) {
+                    nearest_rock = Some((range_sq, x, y));
+                }
+                continue;
             }
-            for (col, &class) in scan.cells[row * scan.cols..(row + 1) * scan.cols].iter().enumerate() {
-                if !(NAVIGABLE..=ROCK).contains(&class) {
-                    continue;
-                }
-                let y = scan.origin_y_m + (col as f64 + 0.5) * scan.resolution_m;
-                let range_sq = x * x + y * y;
-                if range_sq > max_range_sq {
-                    continue;
-                }
-                if class == ROCK {
-                    if nearest_rock.is_none_or(|(r, ..)| range_sq < r) {
-                        nearest_rock = Some((range_sq, x, y));
-                    }
-                    continue;
-                }
-                if let Some(cell) = projector.world(x, y).and_then(|(wx, wy)| cell_of_point(wx, wy)) {
-                    let weight = (full_weight_sq / range_sq).min(1.0) as f32;
-                    self.add(cell, (class - 1) as usize, weight);
-                    landed += 1;
-                }
+            if class == OBSTACLE && nearest_obstacles.as_ref().is_some_and(|n| n.shadowed(index, range_sq)) {
+                continue;
+            }
+            if let Some(cell) = projector.world(x, y).and_then(|(wx, wy)| cell_of_point(wx, wy)) {
+                let weight = (full_weight_sq / range_sq).min(1.0) as f32;
+                self.add(cell, (class - 1) as usize, weight);
+                landed += 1;
             }
         }
+        self.bearings = bearings;
         let rock = nearest_rock.and_then(|(range_sq, x, y)| {
             let cell = projector.world(x, y).and_then(|(wx, wy)| cell_of_point(wx, wy))?;
             Some((cell, range_sq.sqrt() as f32))
@@ -349,6 +439,7 @@ mod tests {
         min_navigable_hits: 2,
         navigable_ratio: 2.0,
         full_weight_range_m: 8.0,
+        shadow_margin_m: 20.0,
         min_obstacle_hits: 2,
         min_rock_hits: 2,
     };
@@ -452,6 +543,22 @@ mod tests {
         }
         assert_eq!(map.rock_cells().len(), 2);
         assert_eq!(map.rocks(3.5), vec![(23.5, 20.5)], "seen from 1.75 m, the far echo merged into it");
+    }
+
+    #[test]
+    fn obstacles_far_behind_the_nearest_one_of_their_bearing_are_not_evidence() {
+        let (rows, cols) = (12, 1);
+        let mut cells = vec![0; rows * cols];
+        cells[2 * cols..3 * cols].fill(OBSTACLE);
+        cells[4 * cols..5 * cols].fill(OBSTACLE);
+        cells[10 * cols..11 * cols].fill(OBSTACLE);
+        let obstacle_frames = |shadow_margin_m: f64| {
+            let mut map = WorldMap::new(MapConfig { shadow_margin_m, ..STRICT });
+            map.update(&scan(&cells, rows, cols), Pose { x_m: 20.0, y_m: 20.5, ..Pose::default() });
+            [2.25, 3.25, 6.25].map(|ahead_m| map.evidence(cell_of_point(20.0 + ahead_m, 20.5).unwrap()).1)
+        };
+        assert_eq!(obstacle_frames(20.0), [1, 1, 1], "every obstacle cell counts");
+        assert_eq!(obstacle_frames(1.5), [1, 1, 0], "the wall and 1.5 m behind it count, the far face does not");
     }
 
     #[test]

@@ -18,6 +18,10 @@ rover_node::node_params! {
         /// A frame that sees a cell within this range weighs fully as evidence; farther, it weighs
         /// (this range / its range) squared, metres.
         full_weight_range_m: f64 [0.1, 20.0] = 3.0,
+        /// Obstacle cells this far beyond the nearest obstacle of their bearing (1 degree bins) are
+        /// not evidence: behind a wall the camera sees the wall's face, which the flat-floor
+        /// projection throws onto the ground beyond it, metres (20: every obstacle cell counts).
+        shadow_margin_m: f64 [0.0, 20.0] = 1.5,
         /// A cell that is not navigable becomes an obstacle after this many obstacle frames.
         min_obstacle_hits: i64 [1, 1000] = 2,
         /// A cell holds a rock after this many rock frames.
@@ -52,6 +56,7 @@ impl MappingParams {
             min_navigable_hits: self.min_navigable_hits as u16,
             navigable_ratio: self.navigable_ratio as f32,
             full_weight_range_m: self.full_weight_range_m,
+            shadow_margin_m: self.shadow_margin_m,
             min_obstacle_hits: self.min_obstacle_hits as u16,
             min_rock_hits: self.min_rock_hits as u16,
         }
