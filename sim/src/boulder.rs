@@ -2,6 +2,8 @@
 //! intersection of half-spaces that cut an ellipsoid at random depths, which gives the flat facets
 //! of Unity's low-polygon rocks; a wide piece raised on a narrower one overhangs the floor.
 
+use nalgebra::{Point3, Rotation3, Vector3};
+
 use crate::random::SplitMix64;
 use crate::world::WORLD_SIZE;
 
@@ -9,7 +11,7 @@ use crate::world::WORLD_SIZE;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HalfSpace {
     /// Outward unit normal.
-    pub normal: [f64; 3],
+    pub normal: Vector3<f64>,
     /// Offset along the normal, metres.
     pub offset: f64,
 }
@@ -20,22 +22,22 @@ pub struct ConvexPiece {
     /// The half-spaces whose intersection is the piece.
     pub faces: Vec<HalfSpace>,
     /// Its corners (where three or more faces meet), metres.
-    pub vertices: Vec<[f64; 3]>,
+    pub vertices: Vec<Point3<f64>>,
     /// For each face, its corners (indices into `vertices`) in order around it.
     pub face_corners: Vec<Vec<usize>>,
     /// Lower corner of the axis-aligned box around the piece (x, y, z), metres.
-    pub min: [f64; 3],
+    pub min: Point3<f64>,
     /// Upper corner of the box.
-    pub max: [f64; 3],
+    pub max: Point3<f64>,
 }
 
 /// An ellipsoid the piece is cut from: centre and half-axes, turned by `yaw_rad` about the vertical.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Ellipsoid {
     /// Centre (x, y, z), metres; z is the height above the floor.
-    pub centre: [f64; 3],
+    pub centre: Point3<f64>,
     /// Half-axes along the turned x, the turned y and z, metres.
-    pub radii: [f64; 3],
+    pub radii: Vector3<f64>,
     /// Turn about the vertical, radians.
     pub yaw_rad: f64,
 }
@@ -50,46 +52,40 @@ const BURIED_M: f64 = 0.3;
 impl ConvexPiece {
     /// A faceted piece cut from `ellipsoid`, facets drawn from `rng`.
     pub fn cut(ellipsoid: &Ellipsoid, rng: &mut SplitMix64) -> Self {
-        let (sin_yaw, cos_yaw) = ellipsoid.yaw_rad.sin_cos();
-        let [a, b, c] = ellipsoid.radii;
+        let yaw = Rotation3::from_axis_angle(&Vector3::z_axis(), ellipsoid.yaw_rad);
         let centre = ellipsoid.centre;
         let mut faces: Vec<HalfSpace> = fibonacci_directions(FACETS, rng.unit())
             .into_iter()
             .map(|direction| {
-                let local = [
-                    cos_yaw * direction[0] + sin_yaw * direction[1],
-                    -sin_yaw * direction[0] + cos_yaw * direction[1],
-                    direction[2],
-                ];
-                let support = ((a * local[0]).powi(2) + (b * local[1]).powi(2) + (c * local[2]).powi(2)).sqrt();
+                let local = yaw.inverse_transform_vector(&direction);
+                let support = ellipsoid.radii.component_mul(&local).norm();
                 let depth = rng.range(FACET_DEPTH.0, FACET_DEPTH.1);
-                HalfSpace { normal: direction, offset: dot(direction, centre) + depth * support }
+                HalfSpace { normal: direction, offset: direction.dot(&centre.coords) + depth * support }
             })
             .collect();
-        faces.push(HalfSpace { normal: [0.0, 0.0, -1.0], offset: BURIED_M });
+        faces.push(HalfSpace { normal: -Vector3::z(), offset: BURIED_M });
         let vertices = corners(&faces);
         let face_corners = faces.iter().map(|face| corners_around(face, &vertices)).collect();
-        let bound = |pick: fn(f64, f64) -> f64| {
-            [0, 1, 2].map(|k| vertices.iter().map(|v| v[k]).reduce(pick).unwrap_or(centre[k]))
-        };
-        ConvexPiece { min: bound(f64::min), max: bound(f64::max), faces, vertices, face_corners }
+        let min = vertices.iter().copied().reduce(|a, b| a.inf(&b)).unwrap_or(centre);
+        let max = vertices.iter().copied().reduce(|a, b| a.sup(&b)).unwrap_or(centre);
+        ConvexPiece { min, max, faces, vertices, face_corners }
     }
 
     /// True if the point (x, y, z) lies inside the piece.
-    pub fn contains(&self, p: [f64; 3]) -> bool {
-        self.faces.iter().all(|f| dot(f.normal, p) <= f.offset)
+    pub fn contains(&self, p: &Point3<f64>) -> bool {
+        self.faces.iter().all(|f| f.normal.dot(&p.coords) <= f.offset)
     }
 }
 
 /// The corners of the intersection of `faces`: the points where three faces meet that lie inside
 /// every other.
-fn corners(faces: &[HalfSpace]) -> Vec<[f64; 3]> {
+fn corners(faces: &[HalfSpace]) -> Vec<Point3<f64>> {
     let mut corners = Vec::new();
     for i in 0..faces.len() {
         for j in i + 1..faces.len() {
             for k in j + 1..faces.len() {
                 let Some(p) = meeting_point(&faces[i], &faces[j], &faces[k]) else { continue };
-                if faces.iter().all(|f| dot(f.normal, p) <= f.offset + 1e-7) {
+                if faces.iter().all(|f| f.normal.dot(&p.coords) <= f.offset + 1e-7) {
                     corners.push(p);
                 }
             }
@@ -99,62 +95,47 @@ fn corners(faces: &[HalfSpace]) -> Vec<[f64; 3]> {
 }
 
 /// The corners among `vertices` that lie on `face`, in order around it.
-fn corners_around(face: &HalfSpace, vertices: &[[f64; 3]]) -> Vec<usize> {
+fn corners_around(face: &HalfSpace, vertices: &[Point3<f64>]) -> Vec<usize> {
     let mut on_face: Vec<usize> =
-        (0..vertices.len()).filter(|&i| (dot(face.normal, vertices[i]) - face.offset).abs() < 1e-6).collect();
+        (0..vertices.len()).filter(|&i| (face.normal.dot(&vertices[i].coords) - face.offset).abs() < 1e-6).collect();
     if on_face.is_empty() {
         return on_face;
     }
     let n = on_face.len() as f64;
-    let centroid = [0, 1, 2].map(|k| on_face.iter().map(|&i| vertices[i][k]).sum::<f64>() / n);
-    let helper = if face.normal[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
-    let first = normalized(cross(face.normal, helper));
-    let second = cross(face.normal, first);
+    let centroid = on_face.iter().map(|&i| vertices[i].coords).sum::<Vector3<f64>>() / n;
+    let helper = if face.normal.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let first = face.normal.cross(&helper).normalize();
+    let second = face.normal.cross(&first);
     let angle = |i: usize| {
-        let d = [0, 1, 2].map(|k| vertices[i][k] - centroid[k]);
-        dot(d, second).atan2(dot(d, first))
+        let d = vertices[i].coords - centroid;
+        d.dot(&second).atan2(d.dot(&first))
     };
     on_face.sort_by(|&a, &b| angle(a).total_cmp(&angle(b)));
-    on_face.dedup_by(|a, b| (0..3).all(|k| (vertices[*a][k] - vertices[*b][k]).abs() < 1e-9));
+    on_face.dedup_by(|a, b| (vertices[*a] - vertices[*b]).iter().all(|d| d.abs() < 1e-9));
     on_face
 }
 
-fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
-    [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
-}
-
-fn normalized(v: [f64; 3]) -> [f64; 3] {
-    let length = dot(v, v).sqrt();
-    v.map(|c| c / length)
-}
-
 /// The point where the planes of three faces meet, if they do in one point.
-fn meeting_point(a: &HalfSpace, b: &HalfSpace, c: &HalfSpace) -> Option<[f64; 3]> {
-    let cross =
-        |u: [f64; 3], v: [f64; 3]| [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
-    let (bc, ca, ab) = (cross(b.normal, c.normal), cross(c.normal, a.normal), cross(a.normal, b.normal));
-    let determinant = dot(a.normal, bc);
+fn meeting_point(a: &HalfSpace, b: &HalfSpace, c: &HalfSpace) -> Option<Point3<f64>> {
+    let (bc, ca, ab) = (b.normal.cross(&c.normal), c.normal.cross(&a.normal), a.normal.cross(&b.normal));
+    let determinant = a.normal.dot(&bc);
     if determinant.abs() < 1e-9 {
         return None;
     }
-    Some([0, 1, 2].map(|k| (a.offset * bc[k] + b.offset * ca[k] + c.offset * ab[k]) / determinant))
+    Some(Point3::from((bc * a.offset + ca * b.offset + ab * c.offset) / determinant))
 }
 
 /// `n` directions spread evenly over the sphere (a Fibonacci lattice turned by `turn` of a circle).
-fn fibonacci_directions(n: usize, turn: f64) -> Vec<[f64; 3]> {
+fn fibonacci_directions(n: usize, turn: f64) -> Vec<Vector3<f64>> {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
     (0..n)
         .map(|i| {
             let z = 1.0 - (i as f64 + 0.5) * 2.0 / n as f64;
             let ring = (1.0 - z * z).sqrt();
             let azimuth = golden * i as f64 + turn * std::f64::consts::TAU;
-            [ring * azimuth.cos(), ring * azimuth.sin(), z]
+            Vector3::new(ring * azimuth.cos(), ring * azimuth.sin(), z)
         })
         .collect()
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// The shapes of rock the worlds use.
@@ -218,43 +199,43 @@ impl Boulder {
             BoulderKind::Lump => {
                 let height = r * rng.range(0.75, 1.1);
                 ellipsoids.push(Ellipsoid {
-                    centre: [x, y, height * 0.3],
-                    radii: [r * stretch, r / stretch, height * 0.75],
+                    centre: Point3::new(x, y, height * 0.3),
+                    radii: Vector3::new(r * stretch, r / stretch, height * 0.75),
                     yaw_rad: yaw,
                 });
             }
             BoulderKind::Cluster => {
                 let height = r * rng.range(0.7, 1.0);
-                let main = [r * 0.85 * stretch, r * 0.85 / stretch, height * 0.75];
-                ellipsoids.push(Ellipsoid { centre: [x, y, height * 0.3], radii: main, yaw_rad: yaw });
+                let main = Vector3::new(r * 0.85 * stretch, r * 0.85 / stretch, height * 0.75);
+                ellipsoids.push(Ellipsoid { centre: Point3::new(x, y, height * 0.3), radii: main, yaw_rad: yaw });
                 let (s, c) = (yaw + 1.9).sin_cos();
-                let side = [x + c * r * 0.45, y + s * r * 0.45, height * 0.2];
+                let side = Point3::new(x + c * r * 0.45, y + s * r * 0.45, height * 0.2);
                 ellipsoids.push(Ellipsoid {
                     centre: side,
-                    radii: [r * 0.55, r * 0.45, height * 0.5],
+                    radii: Vector3::new(r * 0.55, r * 0.45, height * 0.5),
                     yaw_rad: yaw + 0.7,
                 });
             }
             BoulderKind::Overhang(cap) => {
                 let foot_top = cap.underside_m + cap.thickness_m / 2.0;
                 ellipsoids.push(Ellipsoid {
-                    centre: [x, y, foot_top * 0.4],
-                    radii: [r * stretch, r / stretch, foot_top * 0.8],
+                    centre: Point3::new(x, y, foot_top * 0.4),
+                    radii: Vector3::new(r * stretch, r / stretch, foot_top * 0.8),
                     yaw_rad: yaw,
                 });
                 let half = cap.thickness_m / 2.0;
-                let centre = [x + cap.offset_m[0], y + cap.offset_m[1], cap.underside_m + half];
+                let centre = Point3::new(x + cap.offset_m[0], y + cap.offset_m[1], cap.underside_m + half);
                 ellipsoids.push(Ellipsoid {
                     centre,
-                    radii: [cap.radius_m * stretch, cap.radius_m / stretch, half],
+                    radii: Vector3::new(cap.radius_m * stretch, cap.radius_m / stretch, half),
                     yaw_rad: yaw,
                 });
             }
             BoulderKind::Pillar => {
                 let height = r * rng.range(3.0, 4.0);
                 ellipsoids.push(Ellipsoid {
-                    centre: [x, y, height * 0.45],
-                    radii: [r, r * 0.85, height * 0.6],
+                    centre: Point3::new(x, y, height * 0.45),
+                    radii: Vector3::new(r, r * 0.85, height * 0.6),
                     yaw_rad: yaw,
                 });
             }
@@ -264,7 +245,7 @@ impl Boulder {
     }
 
     /// True if any piece contains the point.
-    pub fn contains(&self, p: [f64; 3]) -> bool {
+    pub fn contains(&self, p: &Point3<f64>) -> bool {
         self.pieces.iter().any(|piece| piece.contains(p))
     }
 
@@ -289,14 +270,14 @@ impl Boulder {
         (0..)
             .map(|k| 0.05 + 0.25 * k as f64)
             .take_while(|z| *z <= up_to_m)
-            .any(|z| self.contains([x_m, y_m, ground_m + z]))
+            .any(|z| self.contains(&Point3::new(x_m, y_m, ground_m + z)))
     }
 
     /// Radius of a vertical cylinder around the centre that holds the whole boulder, metres.
     pub fn reach_m(&self) -> f64 {
         self.pieces
             .iter()
-            .flat_map(|p| [[p.min[0], p.min[1]], [p.max[0], p.max[1]], [p.min[0], p.max[1]], [p.max[0], p.min[1]]])
+            .flat_map(|p| [[p.min.x, p.min.y], [p.max.x, p.max.y], [p.min.x, p.max.y], [p.max.x, p.min.y]])
             .map(|[x, y]| (x - self.centre[0]).hypot(y - self.centre[1]))
             .fold(0.0, f64::max)
     }
@@ -307,31 +288,32 @@ mod tests {
     use super::*;
 
     fn lump() -> ConvexPiece {
-        let ellipsoid = Ellipsoid { centre: [10.0, 20.0, 0.5], radii: [2.0, 1.0, 1.0], yaw_rad: 0.0 };
+        let ellipsoid =
+            Ellipsoid { centre: Point3::new(10.0, 20.0, 0.5), radii: Vector3::new(2.0, 1.0, 1.0), yaw_rad: 0.0 };
         ConvexPiece::cut(&ellipsoid, &mut SplitMix64::new(3))
     }
 
     #[test]
     fn a_piece_lies_within_its_ellipsoid_and_holds_most_of_it() {
         let piece = lump();
-        assert!(piece.contains([10.0, 20.0, 0.5]));
-        assert!(!piece.contains([12.1, 20.0, 0.5]) && !piece.contains([10.0, 21.1, 0.5]));
-        assert!(piece.contains([11.4, 20.0, 0.5]), "80 % of the half-axis is always inside");
-        assert!(!piece.contains([10.0, 20.0, -0.35]), "cut flat below the floor");
+        assert!(piece.contains(&Point3::new(10.0, 20.0, 0.5)));
+        assert!(!piece.contains(&Point3::new(12.1, 20.0, 0.5)) && !piece.contains(&Point3::new(10.0, 21.1, 0.5)));
+        assert!(piece.contains(&Point3::new(11.4, 20.0, 0.5)), "80 % of the half-axis is always inside");
+        assert!(!piece.contains(&Point3::new(10.0, 20.0, -0.35)), "cut flat below the floor");
         assert!(piece.vertices.len() >= 20, "{} corners", piece.vertices.len());
         for v in &piece.vertices {
-            let on_faces = piece.faces.iter().filter(|f| (dot(f.normal, *v) - f.offset).abs() < 1e-6).count();
+            let on_faces = piece.faces.iter().filter(|f| (f.normal.dot(&v.coords) - f.offset).abs() < 1e-6).count();
             assert!(on_faces >= 3, "a corner lies on three faces: {v:?}");
         }
-        assert!(piece.min[0] >= 8.0 && piece.max[0] <= 12.0 && piece.min[2] >= -0.3 - 1e-9);
+        assert!(piece.min.x >= 8.0 && piece.max.x <= 12.0 && piece.min.z >= -0.3 - 1e-9);
         let visible_faces = piece.face_corners.iter().filter(|corners| corners.len() >= 3).count();
         assert!(visible_faces >= 20, "most faces are polygons: {visible_faces}");
         for (face, corners) in piece.faces.iter().zip(&piece.face_corners) {
             for pair in corners.windows(2) {
                 let (a, b) = (piece.vertices[pair[0]], piece.vertices[pair[1]]);
-                let middle = [0, 1, 2].map(|k| (a[k] + b[k]) / 2.0);
-                assert!((dot(face.normal, middle) - face.offset).abs() < 1e-6, "edges lie on their face");
-                assert!(piece.faces.iter().all(|f| dot(f.normal, middle) <= f.offset + 1e-6), "and on the piece");
+                let middle = nalgebra::center(&a, &b).coords;
+                assert!((face.normal.dot(&middle) - face.offset).abs() < 1e-6, "edges lie on their face");
+                assert!(piece.faces.iter().all(|f| f.normal.dot(&middle) <= f.offset + 1e-6), "and on the piece");
             }
         }
     }
@@ -342,10 +324,10 @@ mod tests {
         let spec = BoulderSpec { x_m: 50.0, y_m: 50.0, footprint_radius_m: 1.5, kind: BoulderKind::Overhang(cap) };
         for seed in 0..10 {
             let boulder = Boulder::new(&spec, &mut SplitMix64::new(seed));
-            assert!(boulder.contains([50.0, 50.0, 0.2]), "solid at the foot");
+            assert!(boulder.contains(&Point3::new(50.0, 50.0, 0.2)), "solid at the foot");
             let under_rim = (0..36).map(|k| (k as f64 * 10f64).to_radians()).find(|a| {
-                let p = |z: f64| [50.0 + 2.1 * a.cos(), 50.0 + 2.1 * a.sin(), z];
-                !boulder.contains(p(0.3)) && boulder.contains(p(2.5))
+                let p = |z: f64| Point3::new(50.0 + 2.1 * a.cos(), 50.0 + 2.1 * a.sin(), z);
+                !boulder.contains(&p(0.3)) && boulder.contains(&p(2.5))
             });
             assert!(under_rim.is_some(), "seed {seed}: somewhere the rim is above free floor");
             assert!(boulder.reach_m() > 2.2);

@@ -2,6 +2,8 @@
 //! view, mounted 0.4287 m ahead of the reported position and 0.2391 m above the body origin,
 //! which rests 0.0247 m below the floor, so 0.2144 m above the floor on level ground.
 
+use nalgebra::{Point3, Rotation3, Vector3};
+
 /// Pose of the rover body in the world: position of the reported origin and body angles.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct BodyPose {
@@ -36,6 +38,23 @@ pub struct CameraModel {
     pub origin_below_floor_m: f64,
 }
 
+impl BodyPose {
+    /// The turn by yaw about the vertical.
+    pub fn yaw(&self) -> Rotation3<f64> {
+        Rotation3::from_axis_angle(&Vector3::z_axis(), self.yaw_deg.to_radians())
+    }
+
+    /// The turn by pitch about the body's y axis (positive nose down).
+    pub fn pitch(&self) -> Rotation3<f64> {
+        Rotation3::from_axis_angle(&Vector3::y_axis(), self.pitch_deg.to_radians())
+    }
+
+    /// The turn by roll about the body's x axis (positive right side down).
+    pub fn roll(&self) -> Rotation3<f64> {
+        Rotation3::from_axis_angle(&Vector3::x_axis(), self.roll_deg.to_radians())
+    }
+}
+
 impl CameraModel {
     /// The Unity rover camera.
     pub fn rover() -> Self {
@@ -55,26 +74,21 @@ impl CameraModel {
     }
 
     /// Camera position in the world (x, y, height above the floor) for a body pose.
-    pub fn position(&self, pose: &BodyPose) -> [f64; 3] {
-        let offset = body_to_world(pose, [self.forward_m, 0.0, self.mount_height_m]);
-        [pose.x_m + offset[0], pose.y_m + offset[1], pose.ground_m + offset[2] - self.origin_below_floor_m]
+    pub fn position(&self, pose: &BodyPose) -> Point3<f64> {
+        let mount = body_to_world(pose, &Vector3::new(self.forward_m, 0.0, self.mount_height_m));
+        Point3::new(pose.x_m, pose.y_m, pose.ground_m) + mount - Vector3::z() * self.origin_below_floor_m
     }
 }
 
 /// Rotates a body-frame vector (x forward, y left, z up) into the world frame:
 /// yaw about z, then pitch about y (positive nose down), then roll about x (positive right side down).
-pub fn body_to_world(pose: &BodyPose, v: [f64; 3]) -> [f64; 3] {
-    let level = tilt(pose, v);
-    let (sy, cy) = pose.yaw_deg.to_radians().sin_cos();
-    [cy * level[0] - sy * level[1], sy * level[0] + cy * level[1], level[2]]
+pub fn body_to_world(pose: &BodyPose, v: &Vector3<f64>) -> Vector3<f64> {
+    pose.yaw() * tilt(pose, v)
 }
 
 /// Applies only pitch and roll: body frame into the yaw-aligned level frame.
-pub fn tilt(pose: &BodyPose, v: [f64; 3]) -> [f64; 3] {
-    let (sr, cr) = pose.roll_deg.to_radians().sin_cos();
-    let (sp, cp) = pose.pitch_deg.to_radians().sin_cos();
-    let rolled = [v[0], cr * v[1] - sr * v[2], sr * v[1] + cr * v[2]];
-    [cp * rolled[0] + sp * rolled[2], rolled[1], -sp * rolled[0] + cp * rolled[2]]
+pub fn tilt(pose: &BodyPose, v: &Vector3<f64>) -> Vector3<f64> {
+    pose.pitch() * (pose.roll() * v)
 }
 
 #[cfg(test)]
@@ -86,19 +100,20 @@ mod tests {
         let camera = CameraModel::rover();
         assert!((camera.focal_px - 114.25).abs() < 0.01);
         let pose = BodyPose { x_m: 10.0, y_m: 20.0, yaw_deg: 90.0, ..Default::default() };
-        let [x, y, z] = camera.position(&pose);
+        let camera_at = camera.position(&pose);
+        let (x, y, z) = (camera_at.x, camera_at.y, camera_at.z);
         assert!((x - 10.0).abs() < 1e-9 && (y - 20.4287).abs() < 1e-9, "({x}, {y})");
         assert!((z - 0.2144).abs() < 1e-9, "{z}");
         let on_a_bank = BodyPose { ground_m: 0.3, ..pose };
-        assert!((camera.position(&on_a_bank)[2] - 0.5144).abs() < 1e-9);
+        assert!((camera.position(&on_a_bank).z - 0.5144).abs() < 1e-9);
     }
 
     #[test]
     fn pitch_down_lowers_the_nose_and_roll_lowers_the_right_side() {
         let nose_down = BodyPose { pitch_deg: 10.0, ..Default::default() };
-        assert!(body_to_world(&nose_down, [1.0, 0.0, 0.0])[2] < 0.0);
+        assert!(body_to_world(&nose_down, &Vector3::x()).z < 0.0);
         let right_down = BodyPose { roll_deg: 10.0, ..Default::default() };
-        assert!(body_to_world(&right_down, [0.0, -1.0, 0.0])[2] < 0.0);
-        assert!(body_to_world(&right_down, [0.0, 1.0, 0.0])[2] > 0.0);
+        assert!(body_to_world(&right_down, &-Vector3::y()).z < 0.0);
+        assert!(body_to_world(&right_down, &Vector3::y()).z > 0.0);
     }
 }

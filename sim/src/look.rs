@@ -2,13 +2,15 @@
 //! pattern. Appearance seed 0 is the look calibrated against the real Unity frames; other seeds
 //! vary it within what the real frames show, so that nothing is tuned to one rendering.
 
+use nalgebra::Vector3;
+
 use crate::random::SplitMix64;
 
 /// The look of a world.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Look {
     /// Unit vector towards the sun (east, north, up).
-    pub sun: [f64; 3],
+    pub sun: Vector3<f64>,
     /// Floor colour right in front of the camera.
     pub floor_near_rgb: [f32; 3],
     /// Floor colour a few metres away.
@@ -53,7 +55,7 @@ pub struct Look {
 impl Default for Look {
     fn default() -> Self {
         Look {
-            sun: [0.321, -0.557, 0.766],
+            sun: Vector3::new(0.321, -0.557, 0.766),
             floor_near_rgb: [246.0, 233.0, 218.0],
             floor_far_rgb: [222.0, 202.0, 188.0],
             floor_far_m: 2.5,
@@ -100,14 +102,14 @@ impl Look {
             return base;
         }
         let mut rng = SplitMix64::new(seed ^ 0x1007_c0de);
-        let azimuth = base.sun[1].atan2(base.sun[0]) + rng.range(-1.0, 1.0) * SUN_AZIMUTH_JITTER_DEG.to_radians();
-        let elevation = base.sun[2].asin() + rng.range(-1.0, 1.0) * SUN_ELEVATION_JITTER_DEG.to_radians();
+        let azimuth = base.sun.y.atan2(base.sun.x) + rng.range(-1.0, 1.0) * SUN_AZIMUTH_JITTER_DEG.to_radians();
+        let elevation = base.sun.z.asin() + rng.range(-1.0, 1.0) * SUN_ELEVATION_JITTER_DEG.to_radians();
         let mut vary = |rgb: [f32; 3]| {
             let brightness = 1.0 + rng.range(-1.0, 1.0) * BRIGHTNESS_JITTER;
             rgb.map(|c| (c as f64 * brightness * (1.0 + rng.range(-1.0, 1.0) * TINT_JITTER)).clamp(0.0, 255.0) as f32)
         };
         Look {
-            sun: [elevation.cos() * azimuth.cos(), elevation.cos() * azimuth.sin(), elevation.sin()],
+            sun: Vector3::new(elevation.cos() * azimuth.cos(), elevation.cos() * azimuth.sin(), elevation.sin()),
             floor_near_rgb: vary(base.floor_near_rgb),
             floor_far_rgb: vary(base.floor_far_rgb),
             rock_lit_rgb: vary(base.rock_lit_rgb),
@@ -135,8 +137,8 @@ mod tests {
         for seed in 1..50 {
             let look = Look::from_seed(seed);
             assert_ne!(look, base);
-            assert!((look.sun.iter().map(|c| c * c).sum::<f64>() - 1.0).abs() < 1e-9, "the sun is a unit vector");
-            assert!(look.sun[2] > 0.5, "the sun stays high: {:?}", look.sun);
+            assert!((look.sun.norm_squared() - 1.0).abs() < 1e-9, "the sun is a unit vector");
+            assert!(look.sun.z > 0.5, "the sun stays high: {:?}", look.sun);
             for (a, b) in look.floor_near_rgb.iter().zip(base.floor_near_rgb) {
                 assert!((a - b).abs() <= b * 0.09 + 1.0, "seed {seed}: floor {a} against {b}");
             }

@@ -1,6 +1,8 @@
 //! The rover's dynamics (unity-sim-spec 3 and 5.4): throttle, brake and speed caps, steering that
 //! shrinks with speed, turning in place, collisions, body pitch and roll, the sample pickup.
 
+use nalgebra::Vector2;
+
 use crate::terrain::TERRAIN_STEP_M;
 use crate::wire::command::Command;
 use crate::world::{Sample, World};
@@ -139,6 +141,12 @@ impl Rover {
         self.throttle != 0.0 || self.brake != 0.0
     }
 
+    /// Unit vector along the rover's heading.
+    fn heading(&self) -> Vector2<f64> {
+        let (sin_yaw, cos_yaw) = self.yaw_deg.to_radians().sin_cos();
+        Vector2::new(cos_yaw, sin_yaw)
+    }
+
     fn frozen(&self) -> bool {
         self.pickup.is_some() || self.fixed_turn.is_some()
     }
@@ -178,8 +186,8 @@ impl Rover {
 
     /// Index of a sample within reach of the arm, if any.
     pub fn reachable_sample(&self, samples: &[Sample]) -> Option<usize> {
-        let (s, c) = self.yaw_deg.to_radians().sin_cos();
-        let (rx, ry) = (self.x_m + REACH_AHEAD_M * c, self.y_m + REACH_AHEAD_M * s);
+        let arm = self.heading() * REACH_AHEAD_M;
+        let (rx, ry) = (self.x_m + arm.x, self.y_m + arm.y);
         samples.iter().position(|sample| (sample.x_m - rx).hypot(sample.y_m - ry) <= REACH_RADIUS_M + sample.radius_m)
     }
 
@@ -288,28 +296,27 @@ impl Rover {
     }
 
     fn move_forward(&mut self, h: f64, world: &World, samples: &[Sample], events: &mut StepEvents) {
-        let (s, c) = self.yaw_deg.to_radians().sin_cos();
-        let step = [self.speed_mps * h * c, self.speed_mps * h * s];
+        let step = self.heading() * (self.speed_mps * h);
         let free_at =
-            |dx: f64, dy: f64| !footprint_blocked(world, samples, self.x_m + dx, self.y_m + dy, FOOTPRINT_RADIUS_M);
-        let (moved, speed_kept) = if self.speed_mps == 0.0 || free_at(step[0], step[1]) {
+            |d: Vector2<f64>| !footprint_blocked(world, samples, self.x_m + d.x, self.y_m + d.y, FOOTPRINT_RADIUS_M);
+        let (moved, speed_kept) = if self.speed_mps == 0.0 || free_at(step) {
             (step, 1.0)
         } else {
-            let slide = contact_normal(world, samples, self.x_m + step[0], self.y_m + step[1], FOOTPRINT_RADIUS_M)
+            let slide = contact_normal(world, samples, self.x_m + step.x, self.y_m + step.y, FOOTPRINT_RADIUS_M)
                 .map(|normal| without_part_along(step, normal))
-                .filter(|slide| free_at(slide[0], slide[1]));
-            let length = step[0].hypot(step[1]);
+                .filter(|&slide| free_at(slide));
+            let length = step.x.hypot(step.y);
             let slide = slide.or_else(|| {
                 let along = slide_along_contacts(world, samples, self.x_m, self.y_m, step);
-                free_at(along[0], along[1]).then_some(along)
+                free_at(along).then_some(along)
             });
             match slide {
-                Some(slide) if slide[0].hypot(slide[1]) > SLIDE_MIN_FRACTION * length => {
-                    (slide, slide[0].hypot(slide[1]) / length)
+                Some(slide) if slide.x.hypot(slide.y) > SLIDE_MIN_FRACTION * length => {
+                    (slide, slide.x.hypot(slide.y) / length)
                 }
                 _ => {
-                    let free = furthest_free_fraction(|f| !free_at(f * step[0], f * step[1]));
-                    ([free * step[0], free * step[1]], 0.0)
+                    let free = furthest_free_fraction(|f| !free_at(step * f));
+                    (step * free, 0.0)
                 }
             }
         };
@@ -323,14 +330,14 @@ impl Rover {
             self.in_contact &= footprint_blocked(
                 world,
                 samples,
-                self.x_m + moved[0],
-                self.y_m + moved[1],
+                self.x_m + moved.x,
+                self.y_m + moved.y,
                 FOOTPRINT_RADIUS_M + CONTACT_MARGIN_M,
             );
         }
-        events.distance_m += moved[0].hypot(moved[1]);
-        self.x_m += moved[0];
-        self.y_m += moved[1];
+        events.distance_m += moved.x.hypot(moved.y);
+        self.x_m += moved.x;
+        self.y_m += moved.y;
         if self.throttle.abs() > 0.05 && self.brake == 0.0 && self.speed_mps.abs() < 0.05 && !self.turning_in_place {
             events.stuck = true;
         }
@@ -348,17 +355,17 @@ impl Rover {
 
 /// The unit vector from the nearest blocking point to (x, y), for a footprint of radius `r` that
 /// overlaps a wall cell or a sample there.
-fn contact_normal(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) -> Option<[f64; 2]> {
+fn contact_normal(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) -> Option<Vector2<f64>> {
     contact_normals(world, samples, x, y, r).first().copied()
 }
 
 /// The unit vectors from every blocking point within `r` of (x, y) to it, nearest first.
-fn contact_normals(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) -> Vec<[f64; 2]> {
-    let mut contacts: Vec<(f64, [f64; 2])> = Vec::new();
+fn contact_normals(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) -> Vec<Vector2<f64>> {
+    let mut contacts: Vec<(f64, Vector2<f64>)> = Vec::new();
     let mut consider = |qx: f64, qy: f64, clearance: f64| {
         let length = (x - qx).hypot(y - qy);
         if length - clearance < r && length > 1e-9 {
-            contacts.push((length - clearance, [(x - qx) / length, (y - qy) / length]));
+            contacts.push((length - clearance, Vector2::new(x - qx, y - qy) / length));
         }
     };
     for [sx, sy] in world.blocked_squares_near(x, y, r) {
@@ -373,10 +380,10 @@ fn contact_normals(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) ->
 
 /// `step` without its part into any wall or sample touching the footprint at (x, y): a rover
 /// wedged between two walls can still move along the gap.
-fn slide_along_contacts(world: &World, samples: &[Sample], x: f64, y: f64, step: [f64; 2]) -> [f64; 2] {
+fn slide_along_contacts(world: &World, samples: &[Sample], x: f64, y: f64, step: Vector2<f64>) -> Vector2<f64> {
     let mut slide = step;
     for normal in contact_normals(world, samples, x, y, FOOTPRINT_RADIUS_M + CONTACT_MARGIN_M) {
-        if slide[0] * normal[0] + slide[1] * normal[1] < 0.0 {
+        if slide.dot(&normal) < 0.0 {
             slide = without_part_along(slide, normal);
         }
     }
@@ -384,9 +391,8 @@ fn slide_along_contacts(world: &World, samples: &[Sample], x: f64, y: f64, step:
 }
 
 /// `step` less its component along the unit vector `normal`.
-fn without_part_along(step: [f64; 2], normal: [f64; 2]) -> [f64; 2] {
-    let along = step[0] * normal[0] + step[1] * normal[1];
-    [step[0] - along * normal[0], step[1] - along * normal[1]]
+fn without_part_along(step: Vector2<f64>, normal: Vector2<f64>) -> Vector2<f64> {
+    step - normal * step.dot(&normal)
 }
 
 /// The largest fraction of a move in [0, 1] that stays free, by bisection (`blocked(0)` is false).

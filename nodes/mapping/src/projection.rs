@@ -1,6 +1,7 @@
 //! From the rover frame to the world: a terrain-scan cell's ground point, corrected for the body's
 //! pitch and roll with the camera model, then rotated by yaw and moved to the rover's position.
 
+use nalgebra::{Point3, Rotation3, Vector3};
 use rover_msgs::body::CameraMount;
 
 /// The body's attitude and position for one frame.
@@ -38,33 +39,26 @@ pub struct Projector {
     sin_yaw: f64,
     cos_yaw: f64,
     /// Level camera position (rover frame) and the tilted one, and the tilt rotation.
-    level_camera: [f64; 3],
-    camera: [f64; 3],
-    tilt: Option<[[f64; 3]; 3]>,
+    level_camera: Point3<f64>,
+    camera: Point3<f64>,
+    tilt: Option<Rotation3<f64>>,
 }
 
 /// Rotation by roll about x, then pitch about y (positive nose down).
-fn tilt_matrix(pitch_rad: f64, roll_rad: f64) -> [[f64; 3]; 3] {
-    let (sp, cp) = pitch_rad.sin_cos();
-    let (sr, cr) = roll_rad.sin_cos();
-    [[cp, sp * sr, sp * cr], [0.0, cr, -sr], [-sp, cp * sr, cp * cr]]
-}
-
-fn rotate(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
-    [0, 1, 2].map(|r| m[r][0] * v[0] + m[r][1] * v[1] + m[r][2] * v[2])
+fn tilt_rotation(pitch_rad: f64, roll_rad: f64) -> Rotation3<f64> {
+    Rotation3::from_axis_angle(&Vector3::y_axis(), pitch_rad) * Rotation3::from_axis_angle(&Vector3::x_axis(), roll_rad)
 }
 
 impl Projector {
     /// A projector for `pose`; with `correct_tilt` the ground points are re-projected through the
     /// tilted camera, otherwise the level-ground points are used as they are.
     pub fn new(pose: Pose, mount: CameraMount, correct_tilt: bool) -> Self {
-        let level_camera = [mount.forward_m, 0.0, mount.above_origin_m - mount.origin_below_floor_m];
-        let tilt = correct_tilt.then(|| tilt_matrix(pose.pitch_rad, pose.roll_rad));
+        let below_floor = Vector3::z() * mount.origin_below_floor_m;
+        let mount_offset = Vector3::new(mount.forward_m, 0.0, mount.above_origin_m);
+        let level_camera = Point3::from(mount_offset) - below_floor;
+        let tilt = correct_tilt.then(|| tilt_rotation(pose.pitch_rad, pose.roll_rad));
         let camera = match &tilt {
-            Some(m) => {
-                let c = rotate(m, [mount.forward_m, 0.0, mount.above_origin_m]);
-                [c[0], c[1], c[2] - mount.origin_below_floor_m]
-            }
+            Some(rotation) => Point3::from(rotation * mount_offset) - below_floor,
             None => level_camera,
         };
         let (sin_yaw, cos_yaw) = pose.yaw_rad.sin_cos();
@@ -77,13 +71,13 @@ impl Projector {
     pub fn world(&self, x: f64, y: f64) -> Option<(f64, f64)> {
         let (gx, gy) = match &self.tilt {
             None => (x, y),
-            Some(m) => {
-                let ray = rotate(m, [x - self.level_camera[0], y - self.level_camera[1], -self.level_camera[2]]);
-                if ray[2] >= -1e-9 {
+            Some(rotation) => {
+                let ray = rotation * (Point3::new(x, y, 0.0) - self.level_camera);
+                if ray.z >= -1e-9 {
                     return None;
                 }
-                let t = -self.camera[2] / ray[2];
-                (self.camera[0] + t * ray[0], self.camera[1] + t * ray[1])
+                let ground = self.camera + ray * (-self.camera.z / ray.z);
+                (ground.x, ground.y)
             }
         };
         Some((

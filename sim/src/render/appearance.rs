@@ -1,6 +1,8 @@
 //! How the world looks, baked once per world: the terrain's shading and colours node by node,
 //! the detail textures, and the colours of the floor and the fog by depth.
 
+use nalgebra::Vector3;
+
 use crate::distance::distance_to;
 use crate::look::Look;
 use crate::random::value_noise;
@@ -50,11 +52,11 @@ pub(super) enum Facing {
 
 impl Facing {
     /// The way a surface with this normal faces.
-    pub(super) fn of_normal(normal: [f64; 3]) -> Self {
-        let [x, y, z] = normal.map(f64::abs);
-        if z >= x.max(y) {
+    pub(super) fn of_normal(normal: &Vector3<f64>) -> Self {
+        let across = normal.abs();
+        if across.z >= across.x.max(across.y) {
             Facing::Up
-        } else if x >= y {
+        } else if across.x >= across.y {
             Facing::AlongX
         } else {
             Facing::AlongY
@@ -258,9 +260,8 @@ impl Appearance {
     }
 
     /// How squarely a surface facing `normal` faces the sun, 0..1.
-    pub(super) fn sunlight(&self, normal: [f64; 3]) -> f32 {
-        let sun = self.look.sun;
-        (normal[0] * sun[0] + normal[1] * sun[1] + normal[2] * sun[2]).max(0.0) as f32
+    pub(super) fn sunlight(&self, normal: &Vector3<f64>) -> f32 {
+        normal.dot(&self.look.sun).max(0.0) as f32
     }
 
     /// Colour of rock lit by `sun` (0..1), before texture and fog.
@@ -304,15 +305,15 @@ fn node_shade(terrain: &Terrain, look: &Look, node: [f64; 3], paint_m: f32) -> N
     let h = h as f32;
     let [gx, gy] = terrain.gradient_at(x, y);
     let length = (gx * gx + gy * gy + 1.0).sqrt();
-    let normal = [-gx / length, -gy / length, 1.0 / length];
-    let sun = (normal[0] * look.sun[0] + normal[1] * look.sun[1] + normal[2] * look.sun[2]).max(0.0);
+    let normal = Vector3::new(-gx, -gy, 1.0) / length;
+    let sun = normal.dot(&look.sun).max(0.0);
     let by_height = smoothstep((h - look.rock_from_height_m) / look.rock_blend_m + 0.5);
     let by_paint = smoothstep((paint_m - look.paint_edge_m) / look.paint_blend_m + 0.5);
     let rock = by_height.max(by_paint);
     let wall = (-terrain.edge_distance_at(x, y) as f64).max(0.0);
     let near_wall = 1.0 - look.wall_shadow as f64 * (-wall / look.wall_shadow_m as f64).exp();
     let patches = 1.0 + 0.07 * (value_noise(x, y, 3.0, 11 ^ look.texture_salt) as f64 - 0.5) * 2.0;
-    NodeShade { rock, floor: (near_wall * patches) as f32, sun: sun as f32, facing: Facing::of_normal(normal) }
+    NodeShade { rock, floor: (near_wall * patches) as f32, sun: sun as f32, facing: Facing::of_normal(&normal) }
 }
 
 fn smoothstep(t: f32) -> f32 {

@@ -5,6 +5,8 @@
 
 use std::ops::Range;
 
+use nalgebra::Point3;
+
 use super::appearance::{Appearance, Facing, NodeShade, fog_weights, lerp3, scale3, shade, shade_fixed, to_rgb8};
 use super::objects::PieceInView;
 use super::view::{LevelView, Window, ceil_row};
@@ -36,7 +38,7 @@ pub(super) struct FloorRow {
 /// The floor rows of a frame seen from `view`, one per level row (unused above the horizon).
 pub(super) fn floor_rows(view: &LevelView, appearance: &Appearance, rows: &mut [FloorRow]) {
     for (v, row) in rows.iter_mut().enumerate().filter(|(v, _)| *v as f64 > view.cy) {
-        let depth = view.focal * view.height.max(1e-3) / (v as f64 - view.cy);
+        let depth = view.focal * view.camera.z.max(1e-3) / (v as f64 - view.cy);
         let (visible, haze) = fog_weights(depth);
         let rgb = scale3(appearance.floor_rgb(depth), visible);
         *row = FloorRow { depth, rgb, visible, haze };
@@ -113,7 +115,7 @@ impl Painter<'_, '_> {
         }
         for sample in frame.samples {
             let ground = frame.world.ground_height(sample.x_m, sample.y_m) as f64;
-            self.draw_sample([sample.x_m, sample.y_m, ground + sample.radius_m * 0.75], sample.radius_m);
+            self.draw_sample(&Point3::new(sample.x_m, sample.y_m, ground + sample.radius_m * 0.75), sample.radius_m);
         }
     }
 
@@ -140,12 +142,12 @@ impl Painter<'_, '_> {
     fn draw_column(&mut self, terrain: &Terrain, u: usize) {
         let view = &self.frame.view;
         let [dx, dy] = view.column_direction(u);
-        let (mut ix, mut iy) = (view.x.floor() as i64, view.y.floor() as i64);
+        let (mut ix, mut iy) = (view.camera.x.floor() as i64, view.camera.y.floor() as i64);
         let (step_x, step_y) = (if dx >= 0.0 { 1 } else { -1 }, if dy >= 0.0 { 1 } else { -1 });
         let next_boundary = |p: f64, i: i64, step: i64| if step > 0 { (i + 1) as f64 - p } else { p - i as f64 };
         let (mut t_x, mut t_y) = (
-            if dx == 0.0 { f64::INFINITY } else { next_boundary(view.x, ix, step_x) / dx.abs() },
-            if dy == 0.0 { f64::INFINITY } else { next_boundary(view.y, iy, step_y) / dy.abs() },
+            if dx == 0.0 { f64::INFINITY } else { next_boundary(view.camera.x, ix, step_x) / dx.abs() },
+            if dy == 0.0 { f64::INFINITY } else { next_boundary(view.camera.y, iy, step_y) / dy.abs() },
         );
         let (delta_x, delta_y) = (1.0 / dx.abs(), 1.0 / dy.abs());
         let mut t_in = 0.0;
@@ -168,7 +170,7 @@ impl Painter<'_, '_> {
                 let mut t = t_in;
                 while t < t_out {
                     t = (t + (t * MARCH_STEP_FRACTION).max(MARCH_STEP_MIN_M)).min(t_out);
-                    let (x, y) = (view.x + t * dx, view.y + t * dy);
+                    let (x, y) = (view.camera.x + t * dx, view.camera.y + t * dy);
                     let point = self.ray_point([dx, dy], t, terrain.height_at(x, y) as f64);
                     if point.row < bottom as f64 {
                         bottom = self.fill_span(u, bottom, last.as_ref(), &point);
@@ -202,7 +204,7 @@ impl Painter<'_, '_> {
     /// height `z`.
     fn ray_point(&self, dir: [f64; 2], depth: f64, z: f64) -> RayPoint {
         let (view, appearance) = (&self.frame.view, self.frame.appearance);
-        let (x, y) = (view.x + depth * dir[0], view.y + depth * dir[1]);
+        let (x, y) = (view.camera.x + depth * dir[0], view.camera.y + depth * dir[1]);
         let shade = if inside_world(x, y) {
             appearance.shade_at(x, y)
         } else {
@@ -283,10 +285,10 @@ impl Painter<'_, '_> {
     fn draw_floor(&mut self, u: usize, dir: [f64; 2], t_out: f64, bottom: usize, plain: bool) -> usize {
         let (view, appearance) = (&self.frame.view, self.frame.appearance);
         let first = (view.row(t_out, 0.0).max(0.0) as usize).saturating_add(1);
-        let sun = appearance.look.sun[2] as f32;
+        let sun = appearance.look.sun.z as f32;
         for v in first..bottom {
             let FloorRow { depth, rgb, visible, haze } = self.frame.floor_rows[v];
-            let (x, y) = (view.x + depth * dir[0], view.y + depth * dir[1]);
+            let (x, y) = (view.camera.x + depth * dir[0], view.camera.y + depth * dir[1]);
             let (mut pixel, rock) = if plain {
                 (shade(rgb, appearance.floor_factor(x, y), haze), 0.0)
             } else {
@@ -312,13 +314,14 @@ fn inside_world(x: f64, y: f64) -> bool {
 /// True if nothing of a cell whose terrain reaches `highest` metres, crossed between forward depths
 /// `t_in` and `t_out`, can show above row `bottom`.
 fn hidden(view: &LevelView, highest: f64, t_in: f64, t_out: f64, bottom: usize) -> bool {
-    let nearest_row = if highest > view.height { view.row(t_in.max(1e-6), highest) } else { view.row(t_out, highest) };
+    let nearest_row =
+        if highest > view.camera.z { view.row(t_in.max(1e-6), highest) } else { view.row(t_out, highest) };
     nearest_row >= bottom as f64
 }
 
 /// How much of the floor pixel at (x, y), `depth` ahead, a grid line covers.
 fn grid_coverage(x: f64, y: f64, depth: f64, view: &LevelView) -> f32 {
-    let footprint = depth * depth / (view.focal * view.height.max(0.05)) + depth / view.focal;
+    let footprint = depth * depth / (view.focal * view.camera.z.max(0.05)) + depth / view.focal;
     let coverage = |p: f64| {
         let distance = ((p - 0.5) - (p - 0.5).round()).abs();
         ((GRID_HALF_WIDTH_M + footprint * 0.5 - distance) / footprint).clamp(0.0, 1.0)

@@ -337,9 +337,12 @@ mod tests {
         let pose = BodyPose { x_m: 100.0, y_m: 100.0, ..Default::default() };
         renderer.render(&world, &[], &pose, &mut RgbImage::default());
         let view = LevelView::new(renderer.camera(), renderer.camera().position(&pose), 0.0);
-        let origin = [view.x, view.y, view.height];
-        let faces: Vec<_> =
-            world.boulders().iter().flat_map(|b| &b.pieces).map(|p| objects::FacesFromCamera::new(p, origin)).collect();
+        let faces: Vec<_> = world
+            .boulders()
+            .iter()
+            .flat_map(|b| &b.pieces)
+            .map(|p| objects::FacesFromCamera::new(p, &view.camera))
+            .collect();
         let (mut boulder_pixels, mut disagreements) = (0, 0);
         let mut across = Vec::new();
         for (index, hit) in renderer.hits().iter().enumerate() {

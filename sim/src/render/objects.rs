@@ -3,6 +3,8 @@
 
 use std::ops::Range;
 
+use nalgebra::{Point3, Vector3};
+
 use super::appearance::{Facing, fog_weights, scale3, shade, to_rgb8};
 use super::columns::Painter;
 use super::view::{LevelView, NEAR_M, Window};
@@ -54,10 +56,9 @@ pub(super) struct FaceInView {
 /// band of the frame: pieces wholly behind the camera, beside the window or too far off are left
 /// out by their boxes first.
 pub(super) fn pieces_in_view<'a>(world: &'a World, view: &LevelView, window: Window) -> Vec<PieceInView<'a>> {
-    let origin = [view.x, view.y, view.height];
     let mut pieces = Vec::new();
     for piece in world.boulders().iter().flat_map(|b| &b.pieces) {
-        let corners: Vec<Option<(f64, f64, f64)>> = (0..8).map(|k| view.project(box_corner(piece, k))).collect();
+        let corners: Vec<Option<(f64, f64, f64)>> = (0..8).map(|k| view.project(&box_corner(piece, k))).collect();
         if corners.iter().all(Option::is_none) {
             continue;
         }
@@ -69,7 +70,7 @@ pub(super) fn pieces_in_view<'a>(world: &'a World, view: &LevelView, window: Win
                 continue;
             }
         }
-        let projected: Option<Vec<(f64, f64, f64)>> = piece.vertices.iter().map(|&v| view.project(v)).collect();
+        let projected: Option<Vec<(f64, f64, f64)>> = piece.vertices.iter().map(|v| view.project(v)).collect();
         let Some(projected) = projected else {
             pieces.push(PieceInView::Box { piece });
             continue;
@@ -80,7 +81,7 @@ pub(super) fn pieces_in_view<'a>(world: &'a World, view: &LevelView, window: Win
             .zip(&piece.face_corners)
             .enumerate()
             .filter_map(|(face, (plane, corners))| {
-                let room = plane.offset - (0..3).map(|k| plane.normal[k] * origin[k]).sum::<f64>();
+                let room = plane.offset - plane.normal.dot(&view.camera.coords);
                 (room < 0.0 && corners.len() >= 3).then(|| FaceInView {
                     face,
                     outline: corners.iter().map(|&i| (projected[i].0, projected[i].1)).collect(),
@@ -95,9 +96,9 @@ pub(super) fn pieces_in_view<'a>(world: &'a World, view: &LevelView, window: Win
 }
 
 /// Corner `k` of a piece's box (bit a of `k` picks the upper bound of axis a).
-fn box_corner(piece: &ConvexPiece, k: usize) -> [f64; 3] {
+fn box_corner(piece: &ConvexPiece, k: usize) -> Point3<f64> {
     let pick = |axis: usize| if k >> axis & 1 == 0 { piece.min[axis] } else { piece.max[axis] };
-    [pick(0), pick(1), pick(2)]
+    Point3::new(pick(0), pick(1), pick(2))
 }
 
 impl Painter<'_, '_> {
@@ -112,7 +113,7 @@ impl Painter<'_, '_> {
             PieceInView::Box { piece } => {
                 let view = &self.frame.view;
                 if let Some((columns, rows, nearest)) = self.screen_box(piece) {
-                    let faces = FacesFromCamera::new(piece, [view.x, view.y, view.height]);
+                    let faces = FacesFromCamera::new(piece, &view.camera);
                     self.cast_piece(piece, &faces, columns.map(|u| (u, rows.clone())), nearest);
                 }
             }
@@ -129,33 +130,33 @@ impl Painter<'_, '_> {
         let columns =
             (lo_u.ceil().max(band_start) as usize)..((hi_u.floor() + 1.0).clamp(band_start, band_end) as usize);
         let normal = face.normal;
-        let sun = appearance.sunlight(normal);
+        let sun = appearance.sunlight(&normal);
         let lit_rgb = appearance.rock_rgb(sun);
-        let facing = Facing::of_normal(normal);
+        let facing = Facing::of_normal(&normal);
         for u in columns {
             let Some((top, bottom)) = column_span(outline, u as f64) else { continue };
             let rows =
                 (top.ceil().max(v0 as f64) as usize)..((bottom.floor() + 1.0).clamp(v0 as f64, v1 as f64) as usize);
             let [dx, dy] = view.column_direction(u);
-            let across = normal[0] * dx + normal[1] * dy;
+            let across = normal.x * dx + normal.y * dy;
             for v in rows {
                 let index = self.index(u, v);
                 if self.depth_at(index) <= nearest as f32 {
                     continue;
                 }
                 let rise = view.row_rise(v);
-                let t = room / (across + normal[2] * rise);
+                let t = room / (across + normal.z * rise);
                 if t <= NEAR_M || t as f32 >= self.depth_at(index) {
                     continue;
                 }
-                let point = [view.x + t * dx, view.y + t * dy, view.height + t * rise].map(|c| c as f32);
+                let point = (view.camera + Vector3::new(dx, dy, rise) * t).map(|c| c as f32);
                 let (visible, haze) = fog_weights(t);
-                let (a, b) = facing.texture_coordinates(point[0], point[1], point[2]);
+                let (a, b) = facing.texture_coordinates(point.x, point.y, point.z);
                 let pixel = shade(scale3(lit_rgb, visible), appearance.rock_texel(a, b), haze);
                 self.put(
                     index,
                     pixel,
-                    Hit { surface: Surface::Boulder, depth_m: t as f32, height_m: point[2], sun, rock: 1.0 },
+                    Hit { surface: Surface::Boulder, depth_m: t as f32, height_m: point.z, sun, rock: 1.0 },
                 );
             }
         }
@@ -171,7 +172,6 @@ impl Painter<'_, '_> {
         nearest: f64,
     ) {
         let (view, appearance) = (&self.frame.view, self.frame.appearance);
-        let origin = [view.x, view.y, view.height];
         let mut across = std::mem::take(&mut self.scratch);
         for (u, rows) in spans {
             let [dx, dy] = view.column_direction(u);
@@ -189,16 +189,14 @@ impl Painter<'_, '_> {
                     continue;
                 }
                 let t = t as f64;
-                let point = [origin[0] + t * dx, origin[1] + t * dy, origin[2] + t * rise];
+                let point = (view.camera + Vector3::new(dx, dy, rise) * t).map(|c| c as f32);
                 let (visible, haze) = fog_weights(t);
-                let normal = piece.faces[face].normal;
+                let normal = &piece.faces[face].normal;
                 let sun = appearance.sunlight(normal);
                 let rgb = scale3(appearance.rock_rgb(sun), visible);
-                let (a, b) =
-                    Facing::of_normal(normal).texture_coordinates(point[0] as f32, point[1] as f32, point[2] as f32);
+                let (a, b) = Facing::of_normal(normal).texture_coordinates(point.x, point.y, point.z);
                 let texture = appearance.rock_texel(a, b);
-                let hit =
-                    Hit { surface: Surface::Boulder, depth_m: t as f32, height_m: point[2] as f32, sun, rock: 1.0 };
+                let hit = Hit { surface: Surface::Boulder, depth_m: t as f32, height_m: point.z, sun, rock: 1.0 };
                 self.put(index, shade(rgb, texture, haze), hit);
             }
         }
@@ -210,17 +208,17 @@ impl Painter<'_, '_> {
     fn screen_box(&self, piece: &ConvexPiece) -> Option<(Range<usize>, Range<usize>, f64)> {
         let view = &self.frame.view;
         let corner = |k: usize| box_corner(piece, k);
-        let depth = |p: [f64; 3]| (p[0] - view.x) * view.forward[0] + (p[1] - view.y) * view.forward[1];
-        let mut points: Vec<[f64; 3]> = (0..8).map(corner).filter(|&c| depth(c) >= NEAR_M).collect();
+        let depth = |p: Point3<f64>| (p.x - view.camera.x) * view.forward[0] + (p.y - view.camera.y) * view.forward[1];
+        let mut points: Vec<Point3<f64>> = (0..8).map(corner).filter(|&c| depth(c) >= NEAR_M).collect();
         for (a, b) in BOX_EDGES {
             let (pa, pb) = (corner(a), corner(b));
             let (da, db) = (depth(pa), depth(pb));
             if (da < NEAR_M) != (db < NEAR_M) {
                 let f = (NEAR_M - da) / (db - da);
-                points.push([0, 1, 2].map(|k| pa[k] + f * (pb[k] - pa[k])));
+                points.push(pa + (pb - pa) * f);
             }
         }
-        let projected: Vec<(f64, f64, f64)> = points.iter().filter_map(|&p| view.project_near(p)).collect();
+        let projected: Vec<(f64, f64, f64)> = points.iter().filter_map(|p| view.project_near(p)).collect();
         let nearest = projected.iter().map(|p| p.2).fold(f64::MAX, f64::min);
         if projected.is_empty() || nearest > MAX_PIECE_DEPTH_M {
             return None;
@@ -237,7 +235,7 @@ impl Painter<'_, '_> {
     }
 
     /// Draws a sample: a sphere of `radius` around `centre`, where it is the nearest surface.
-    pub(super) fn draw_sample(&mut self, centre: [f64; 3], radius: f64) {
+    pub(super) fn draw_sample(&mut self, centre: &Point3<f64>, radius: f64) {
         let view = &self.frame.view;
         let Some((u_mid, v_mid, depth)) = view.project(centre) else {
             return;
@@ -250,14 +248,14 @@ impl Painter<'_, '_> {
         let clamp_u = |p: f64| p.clamp(columns.start as f64, columns.end as f64) as usize;
         let clamp_v = |p: f64| p.clamp(v0 as f64, v1 as f64) as usize;
         let sun = self.frame.appearance.look.sun;
-        let origin = [view.x - centre[0], view.y - centre[1], view.height - centre[2]];
+        let origin = view.camera - centre;
         for u in clamp_u(u_mid - reach)..clamp_u(u_mid + reach + 1.0) {
             let [dx, dy] = view.column_direction(u);
             for v in clamp_v(v_mid - reach)..clamp_v(v_mid + reach + 1.0) {
-                let dz = view.row_rise(v);
-                let a = dx * dx + dy * dy + dz * dz;
-                let b = 2.0 * (dx * origin[0] + dy * origin[1] + dz * origin[2]);
-                let c = origin.iter().map(|o| o * o).sum::<f64>() - radius * radius;
+                let direction = Vector3::new(dx, dy, view.row_rise(v));
+                let a = direction.norm_squared();
+                let b = 2.0 * direction.dot(&origin);
+                let c = origin.norm_squared() - radius * radius;
                 let discriminant = b * b - 4.0 * a * c;
                 if discriminant < 0.0 {
                     continue;
@@ -267,12 +265,11 @@ impl Painter<'_, '_> {
                 if t <= 0.0 || t as f32 >= self.depth_at(index) {
                     continue;
                 }
-                let normal = [0, 1, 2].map(|k| (origin[k] + t * [dx, dy, dz][k]) / radius);
-                let light = (normal[0] * sun[0] + normal[1] * sun[1] + normal[2] * sun[2]).max(0.0);
-                let texture =
-                    0.85 + 0.3 * hash2((normal[0] * 9.0) as i64, (normal[1] * 9.0 + normal[2] * 5.0) as i64, 31);
+                let normal = (origin + direction * t) / radius;
+                let light = normal.dot(&sun).max(0.0);
+                let texture = 0.85 + 0.3 * hash2((normal.x * 9.0) as i64, (normal.y * 9.0 + normal.z * 5.0) as i64, 31);
                 let brightness = (0.55 + 0.5 * light) as f32 * texture;
-                let height_m = (centre[2] + origin[2] + t * dz) as f32;
+                let height_m = (centre.z + origin.z + t * direction.z) as f32;
                 let hit = Hit { surface: Surface::Sample, depth_m: t as f32, height_m, sun: light as f32, rock: 1.0 };
                 self.put(index, to_rgb8(scale3(SAMPLE_RGB, brightness)), hit);
             }
@@ -282,16 +279,14 @@ impl Painter<'_, '_> {
 
 /// A piece's faces as seen from the camera of one frame, for casting many rays at it.
 pub(super) struct FacesFromCamera {
-    normals: Vec<[f32; 3]>,
+    normals: Vec<Vector3<f32>>,
     /// How far the camera is inside each face's half-space (negative outside), metres.
     rooms: Vec<f32>,
 }
 
 impl FacesFromCamera {
-    pub(super) fn new(piece: &ConvexPiece, camera: [f64; 3]) -> Self {
-        let room = |f: &HalfSpace| {
-            (f.offset - (f.normal[0] * camera[0] + f.normal[1] * camera[1] + f.normal[2] * camera[2])) as f32
-        };
+    pub(super) fn new(piece: &ConvexPiece, camera: &Point3<f64>) -> Self {
+        let room = |f: &HalfSpace| (f.offset - f.normal.dot(&camera.coords)) as f32;
         let normals = piece.faces.iter().map(|f| f.normal.map(|c| c as f32)).collect();
         let rooms = piece.faces.iter().map(room).collect();
         FacesFromCamera { normals, rooms }
@@ -300,7 +295,7 @@ impl FacesFromCamera {
     /// The horizontal part of each face normal along a column's ray direction (dx, dy).
     pub(super) fn across_column(&self, dx: f64, dy: f64, out: &mut Vec<f32>) {
         out.clear();
-        out.extend(self.normals.iter().map(|n| n[0] * dx as f32 + n[1] * dy as f32));
+        out.extend(self.normals.iter().map(|n| n.x * dx as f32 + n.y * dy as f32));
     }
 
     /// Where the ray of a row rising `rise` per metre (in the column of `across`) enters the
@@ -313,7 +308,7 @@ impl FacesFromCamera {
         let (mut enter, mut exit) = ((-1.0f32, f32::MIN_POSITIVE), (1.0f32, 0.0f32));
         let mut face = usize::MAX;
         for (k, (across, (normal, room))) in across.iter().zip(self.normals.iter().zip(&self.rooms)).enumerate() {
-            let (along, room) = (across + normal[2] * rise, *room);
+            let (along, room) = (across + normal.z * rise, *room);
             if along < 0.0 {
                 if face == usize::MAX || room * enter.1 > enter.0 * along {
                     (enter, face) = ((room, along), k);
@@ -361,16 +356,17 @@ mod tests {
 
     #[test]
     fn rays_enter_a_piece_through_the_facet_facing_them() {
-        let ellipsoid = Ellipsoid { centre: [10.0, 20.0, 0.5], radii: [2.0, 1.0, 1.0], yaw_rad: 0.0 };
+        let ellipsoid =
+            Ellipsoid { centre: Point3::new(10.0, 20.0, 0.5), radii: Vector3::new(2.0, 1.0, 1.0), yaw_rad: 0.0 };
         let piece = ConvexPiece::cut(&ellipsoid, &mut SplitMix64::new(3));
-        let camera = [0.0, 20.0, 0.5];
-        let all = FacesFromCamera::new(&piece, camera);
+        let all = FacesFromCamera::new(&piece, &Point3::new(0.0, 20.0, 0.5));
         let mut across = Vec::new();
         all.across_column(1.0, 0.0, &mut across);
         let (t, face) = all.entry(&across, 0.0).expect("hits");
         assert!((8.0..=8.4).contains(&t), "enters between 80 % and 100 % of the half-axis: t = {t}");
-        assert!(piece.faces[face].normal[0] < -0.3, "the facet faces the ray");
-        assert!(piece.contains([t as f64 + 0.01, 20.0, 0.5]) && !piece.contains([t as f64 - 0.01, 20.0, 0.5]));
+        assert!(piece.faces[face].normal.x < -0.3, "the facet faces the ray");
+        let inside = |x: f64| piece.contains(&Point3::new(x, 20.0, 0.5));
+        assert!(inside(t as f64 + 0.01) && !inside(t as f64 - 0.01));
         let mut across = Vec::new();
         all.across_column(1.0, 0.5, &mut across);
         assert_eq!(all.entry(&across, 0.0), None, "passes beside");

@@ -1,6 +1,8 @@
 //! The geometry of a frame: the level camera, the part of its view a frame needs, and the rotation
 //! by the body's pitch and roll that turns the level view into the camera image.
 
+use nalgebra::{Point3, Vector3};
+
 use crate::camera::{BodyPose, CameraModel, tilt};
 
 /// Extra pixels around the level view, so that pitch and roll up to about 19 degrees stay inside.
@@ -41,9 +43,8 @@ impl Window {
 
 /// The level camera of one frame: position and the horizontal axes.
 pub(super) struct LevelView {
-    pub(super) x: f64,
-    pub(super) y: f64,
-    pub(super) height: f64,
+    /// Camera position (x, y, height above the floor), metres.
+    pub(super) camera: Point3<f64>,
     pub(super) forward: [f64; 2],
     pub(super) right: [f64; 2],
     pub(super) cx: f64,
@@ -65,18 +66,16 @@ impl LevelView {
 
     /// Row where a point at forward depth `depth` and height `z` appears.
     pub(super) fn row(&self, depth: f64, z: f64) -> f64 {
-        self.cy + self.focal * (self.height - z) / depth
+        self.cy + self.focal * (self.camera.z - z) / depth
     }
 
     /// The level camera of a camera at `position` (x, y, height) with the body's yaw, for a level
     /// view with the margins around the image.
-    pub(super) fn new(camera: &CameraModel, position: [f64; 3], yaw_deg: f64) -> Self {
+    pub(super) fn new(camera: &CameraModel, position: Point3<f64>, yaw_deg: f64) -> Self {
         let (sin_yaw, cos_yaw) = yaw_deg.to_radians().sin_cos();
         let (cx, cy) = camera.principal_point();
         LevelView {
-            x: position[0],
-            y: position[1],
-            height: position[2],
+            camera: position,
             forward: [cos_yaw, sin_yaw],
             right: [sin_yaw, -cos_yaw],
             cx: cx + MARGIN_PX as f64,
@@ -86,37 +85,38 @@ impl LevelView {
     }
 
     /// Level pixel (column, row) and forward depth of the world point `p`, if it is ahead.
-    pub(super) fn project(&self, p: [f64; 3]) -> Option<(f64, f64, f64)> {
+    pub(super) fn project(&self, p: &Point3<f64>) -> Option<(f64, f64, f64)> {
         self.project_near(p).filter(|&(_, _, depth)| depth > NEAR_M)
     }
 
     /// The same for points on the near plane too.
-    pub(super) fn project_near(&self, p: [f64; 3]) -> Option<(f64, f64, f64)> {
-        let (rx, ry) = (p[0] - self.x, p[1] - self.y);
+    pub(super) fn project_near(&self, p: &Point3<f64>) -> Option<(f64, f64, f64)> {
+        let (rx, ry) = (p.x - self.camera.x, p.y - self.camera.y);
         let depth = rx * self.forward[0] + ry * self.forward[1];
         let lateral = rx * self.right[0] + ry * self.right[1];
-        (depth >= NEAR_M * 0.999).then(|| (self.cx + self.focal * lateral / depth, self.row(depth, p[2]), depth))
+        (depth >= NEAR_M * 0.999).then(|| (self.cx + self.focal * lateral / depth, self.row(depth, p.z), depth))
     }
 }
 
 /// Where the pixels of the tilted camera are in the level view: a pure rotation, so a homography.
 pub(super) struct Rotation {
-    base: [f64; 3],
-    per_u: [f64; 3],
-    per_v: [f64; 3],
+    base: Vector3<f64>,
+    per_u: Vector3<f64>,
+    per_v: Vector3<f64>,
     cx: f64,
     cy: f64,
     focal: f64,
 }
 
 impl Rotation {
+    /// The rotation of the image of `camera` by the pitch and roll of `pose`.
     pub(super) fn new(pose: &BodyPose, camera: &CameraModel) -> Self {
         let (cx, cy) = camera.principal_point();
         let focal = camera.focal_px;
         Rotation {
-            base: tilt(pose, [1.0, 0.0, 0.0]),
-            per_u: tilt(pose, [0.0, -1.0 / focal, 0.0]),
-            per_v: tilt(pose, [0.0, 0.0, -1.0 / focal]),
+            base: tilt(pose, &Vector3::x()),
+            per_u: tilt(pose, &Vector3::new(0.0, -1.0 / focal, 0.0)),
+            per_v: tilt(pose, &Vector3::new(0.0, 0.0, -1.0 / focal)),
             cx,
             cy,
             focal,
@@ -136,17 +136,17 @@ impl Rotation {
     /// Level-view coordinates of output pixel (u, v).
     pub(super) fn level_pixel(&self, u: usize, v: usize) -> (f64, f64) {
         let (du, dv) = (u as f64 - self.cx, v as f64 - self.cy);
-        let ray = [0, 1, 2].map(|k| self.base[k] + du * self.per_u[k] + dv * self.per_v[k]);
-        let scale = self.focal / ray[0];
-        (self.cx + MARGIN_PX as f64 - ray[1] * scale, self.cy + MARGIN_PX as f64 - ray[2] * scale)
+        let ray = self.base + self.per_u * du + self.per_v * dv;
+        let scale = self.focal / ray.x;
+        (self.cx + MARGIN_PX as f64 - ray.y * scale, self.cy + MARGIN_PX as f64 - ray.z * scale)
     }
 
     /// The map from output pixels to level-view coordinates, in single precision for the
     /// resampling of a frame.
     pub(super) fn pixel_map(&self) -> PixelMap {
-        let f32s = |v: [f64; 3]| v.map(|c| c as f32);
+        let f32s = |v: Vector3<f64>| v.map(|c| c as f32);
         PixelMap {
-            base: f32s([0, 1, 2].map(|k| self.base[k] - self.cx * self.per_u[k] - self.cy * self.per_v[k])),
+            base: f32s(self.base - self.per_u * self.cx - self.per_v * self.cy),
             per_u: f32s(self.per_u),
             per_v: f32s(self.per_v),
             centre: ((self.cx + MARGIN_PX as f64) as f32, (self.cy + MARGIN_PX as f64) as f32),
@@ -157,9 +157,9 @@ impl Rotation {
 
 /// Where output pixels are in the level view (see [`Rotation::pixel_map`]).
 pub(super) struct PixelMap {
-    base: [f32; 3],
-    per_u: [f32; 3],
-    per_v: [f32; 3],
+    base: Vector3<f32>,
+    per_u: Vector3<f32>,
+    per_v: Vector3<f32>,
     centre: (f32, f32),
     focal: f32,
 }
@@ -168,9 +168,9 @@ impl PixelMap {
     /// Level-view coordinates of output pixel (u, v).
     pub(super) fn level_pixel(&self, u: usize, v: usize) -> (f32, f32) {
         let (u, v) = (u as f32, v as f32);
-        let ray = [0, 1, 2].map(|k| self.base[k] + u * self.per_u[k] + v * self.per_v[k]);
-        let scale = self.focal / ray[0];
-        (self.centre.0 - ray[1] * scale, self.centre.1 - ray[2] * scale)
+        let ray = self.base + self.per_u * u + self.per_v * v;
+        let scale = self.focal / ray.x;
+        (self.centre.0 - ray.y * scale, self.centre.1 - ray.z * scale)
     }
 }
 
