@@ -25,7 +25,7 @@ mod fixed_array;
 pub use fixed_array::Covariance;
 
 /// A ROS 2 message type: its package, its name and its fields in wire order.
-pub trait RosMessage: ros2_client::Message + Clone + Send + Sync + 'static {
+pub trait RosMessage: ros2_client::Message + RosFieldType + Clone + Send + Sync + 'static {
     /// ROS package, e.g. `sensor_msgs`.
     const PACKAGE: &'static str;
     /// Message name within the package, e.g. `Image`.
@@ -36,12 +36,31 @@ pub trait RosMessage: ros2_client::Message + Clone + Send + Sync + 'static {
     fn type_name() -> String {
         format!("{}/msg/{}", Self::PACKAGE, Self::NAME)
     }
+    /// This type's definition first, then those of every message type nested in it, each once,
+    /// in depth-first order of first use.
+    fn definitions() -> Vec<Definition> {
+        let mut definitions = Vec::new();
+        Self::add_definitions(&mut definitions);
+        definitions
+    }
+}
+
+/// The definition of one message type: its name and its fields.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Definition {
+    /// `package/Name`, as a field of this type is written, e.g. `geometry_msgs/Pose`.
+    pub type_name: String,
+    /// Field names and normalised ROS types, in wire order.
+    pub fields: Vec<(&'static str, String)>,
 }
 
 /// The ROS type of a Rust field type, e.g. `float64[]` for `Vec<f64>`.
 pub trait RosFieldType {
     /// Normalised ROS type name.
     fn ros_type() -> String;
+    /// Appends the definitions of the message types this type is made of that `definitions`
+    /// lacks (none for a primitive).
+    fn add_definitions(_definitions: &mut Vec<Definition>) {}
 }
 
 macro_rules! primitive_field_types {
@@ -60,11 +79,17 @@ impl<T: RosFieldType> RosFieldType for Vec<T> {
     fn ros_type() -> String {
         format!("{}[]", T::ros_type())
     }
+    fn add_definitions(definitions: &mut Vec<Definition>) {
+        T::add_definitions(definitions);
+    }
 }
 
 impl<T: RosFieldType, const N: usize> RosFieldType for [T; N] {
     fn ros_type() -> String {
         format!("{}[{N}]", T::ros_type())
+    }
+    fn add_definitions(definitions: &mut Vec<Definition>) {
+        T::add_definitions(definitions);
     }
 }
 

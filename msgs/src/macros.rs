@@ -27,6 +27,14 @@ macro_rules! ros_message {
             fn ros_type() -> String {
                 format!("{}/{}", $package, stringify!($name))
             }
+            fn add_definitions(definitions: &mut Vec<$crate::Definition>) {
+                let type_name = <Self as $crate::RosFieldType>::ros_type();
+                if definitions.iter().any(|d| d.type_name == type_name) {
+                    return;
+                }
+                definitions.push($crate::Definition { type_name, fields: <Self as $crate::RosMessage>::fields() });
+                $( <$ty as $crate::RosFieldType>::add_definitions(definitions); )*
+            }
         }
     };
 }

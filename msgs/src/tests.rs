@@ -81,3 +81,25 @@ fn diagnostic_values_are_found_by_key_in_the_first_status_that_has_them() {
     assert_eq!((array.value("frames"), array.value("late"), array.value("none")), (Some("3"), Some("1"), None));
     assert_eq!(array.status[1].value("frames"), Some("4"));
 }
+
+#[test]
+fn definitions_list_the_type_then_each_nested_type_once_depth_first() {
+    let names: Vec<String> =
+        crate::nav_msgs::Odometry::definitions().into_iter().map(|definition| definition.type_name).collect();
+    assert_eq!(
+        names,
+        [
+            "nav_msgs/Odometry",
+            "std_msgs/Header",
+            "builtin_interfaces/Time",
+            "geometry_msgs/PoseWithCovariance",
+            "geometry_msgs/Pose",
+            "geometry_msgs/Point",
+            "geometry_msgs/Quaternion",
+            "geometry_msgs/TwistWithCovariance",
+            "geometry_msgs/Twist",
+            "geometry_msgs/Vector3",
+        ]
+    );
+    assert_eq!(Telemetry::definitions()[0].fields, Telemetry::fields());
+}
