@@ -1,10 +1,11 @@
 //! The shared node runtime of the rover graph: ROS arguments, names and remaps, typed parameters,
-//! QoS profiles, the topic table, logging to the console and `/rosout`, the count of rejected
+//! QoS profiles, the topic table, the CDR bytes of messages, logging to the console and `/rosout`, the count of rejected
 //! inputs, and shutdown.
 //!
 //! A node binary creates a [`Runtime`] once per process, asks it for a [`RosNode`] with its
 //! parameter struct, and wires the node's [`topics`] to a plain library.
 
+pub mod cdr;
 pub mod logging;
 pub mod names;
 mod node;
@@ -17,9 +18,12 @@ pub mod shutdown;
 pub mod snapshot;
 pub mod topics;
 
-pub use node::{Params, RosNode, Runtime, domain_id_from_env, messages, resolve_params, spawn_subscriber};
+pub use node::{
+    Params, RosNode, Runtime, domain_id_from_env, messages, resolve_params, spawn_subscriber,
+    spawn_subscriber_with_info,
+};
 pub use params::NodeParams;
 pub use rejections::Rejections;
 pub use ros_args::{RosArgs, split_ros_args};
-pub use ros2_client::{Publisher, Subscription};
+pub use ros2_client::{MessageInfo, Publisher, Subscription};
 pub use shutdown::Shutdown;

@@ -6,7 +6,7 @@ use std::time::Duration;
 use anyhow::Context as _;
 use futures::StreamExt;
 use ros2_client::dds::rustdds::DomainParticipant;
-use ros2_client::{Context, MessageTypeName, Name, NodeName, NodeOptions, Publisher, Subscription};
+use ros2_client::{Context, MessageInfo, MessageTypeName, Name, NodeName, NodeOptions, Publisher, Subscription};
 use rover_msgs::RosMessage;
 use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::std_msgs::Header;
@@ -242,13 +242,27 @@ where
     M: RosMessage,
     F: FnMut(M) + Send + 'static,
 {
+    spawn_subscriber_with_info(subscription, span, move |message, _info| handler(message))
+}
+
+/// [`spawn_subscriber`] whose handler also gets each message's [`MessageInfo`] (source and
+/// reception time, publisher).
+pub fn spawn_subscriber_with_info<M, F>(
+    subscription: Subscription<M>,
+    span: tracing::Span,
+    mut handler: F,
+) -> tokio::task::JoinHandle<()>
+where
+    M: RosMessage,
+    F: FnMut(M, MessageInfo) + Send + 'static,
+{
     tokio::spawn(tracing::Instrument::instrument(
         async move {
             let mut stream = std::pin::pin!(subscription.async_stream());
             let mut malformed = 0;
             while let Some(received) = stream.next().await {
                 match received {
-                    Ok((message, _info)) => handler(message),
+                    Ok((message, info)) => handler(message, info),
                     Err(e) => log_malformed::<M>(&mut malformed, &e),
                 }
             }

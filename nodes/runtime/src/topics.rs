@@ -3,6 +3,8 @@
 use std::marker::PhantomData;
 
 use ros2_client::QosProfile;
+use ros2_client::qos::History;
+use rover_msgs::RosMessage;
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_msgs::geometry_msgs::{PoseArray, Twist};
 use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, PickupRequest, Telemetry, TerrainScan};
@@ -26,6 +28,42 @@ impl<M> Topic<M> {
     const fn new(name: &'static str, qos: QosProfile) -> Self {
         Topic { name, qos, message: PhantomData }
     }
+
+    /// The same topic with a history of `depth` messages, e.g. for a reader that must not lose
+    /// messages while it lags behind (history is not part of QoS matching).
+    pub fn with_history_depth(&self, depth: usize) -> Self {
+        Topic::new(self.name, self.qos.clone().history(History::KeepLast { depth }))
+    }
+}
+
+/// Something done with topics of the table whatever their message type (see [`visit_all`]).
+pub trait TopicVisitor {
+    /// Visits one topic.
+    fn visit<M: RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<()>;
+}
+
+/// Visits every topic of the table, in the order of the table; stops at the first error.
+pub fn visit_all(visitor: &mut impl TopicVisitor) -> anyhow::Result<()> {
+    visitor.visit(&CAMERA_COMPRESSED)?;
+    visitor.visit(&CAMERA_RAW)?;
+    visitor.visit(&CAMERA_INFO)?;
+    visitor.visit(&ODOM)?;
+    visitor.visit(&TF)?;
+    visitor.visit(&TF_STATIC)?;
+    visitor.visit(&TELEMETRY)?;
+    visitor.visit(&SAMPLE_TRUTH)?;
+    visitor.visit(&TERRAIN)?;
+    visitor.visit(&VISION)?;
+    visitor.visit(&MAP)?;
+    visitor.visit(&MAP_IMAGE)?;
+    visitor.visit(&MAP_STATS)?;
+    visitor.visit(&ROCKS)?;
+    visitor.visit(&DRIVE_CMD)?;
+    visitor.visit(&PICKUP)?;
+    visitor.visit(&MODE)?;
+    visitor.visit(&CMD_VEL)?;
+    visitor.visit(&CLOCK)?;
+    visitor.visit(&DIAGNOSTICS)
 }
 
 /// The simulator's JPEG, untouched.
@@ -68,3 +106,31 @@ pub const CMD_VEL: Topic<Twist> = Topic::new("cmd_vel", reliable(10));
 pub const CLOCK: Topic<Clock> = Topic::new("/clock", reliable(1));
 /// Bridge health.
 pub const DIAGNOSTICS: Topic<DiagnosticArray> = Topic::new("/diagnostics", reliable(10));
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Collects the name of every topic visited.
+    struct Names(Vec<&'static str>);
+
+    impl TopicVisitor for Names {
+        fn visit<M: RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<()> {
+            self.0.push(topic.name);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn every_topic_constant_of_this_file_is_visited_once() {
+        let mut names = Names(Vec::new());
+        visit_all(&mut names).unwrap();
+        let source = include_str!("topics.rs");
+        let declared = source.lines().filter(|line| line.starts_with("pub const ") && line.contains("Topic<")).count();
+        assert_eq!(names.0.len(), declared);
+        let mut unique = names.0.clone();
+        unique.sort();
+        unique.dedup();
+        assert_eq!(unique.len(), names.0.len(), "{:?}", names.0);
+    }
+}
