@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
+use rover_bridge::telemetry::SimTelemetry;
 
 /// One recorded frame.
 #[derive(Debug, Clone)]
@@ -29,6 +30,63 @@ impl RecordedFrame {
     pub fn jpeg(&self) -> anyhow::Result<Vec<u8>> {
         std::fs::read(&self.image).with_context(|| format!("cannot read {}", self.image.display()))
     }
+
+    /// The frame as the simulator would send it, with the image `jpeg`, standing, no samples.
+    pub fn sim_telemetry(&self, jpeg: Vec<u8>) -> SimTelemetry {
+        SimTelemetry {
+            steering_angle_deg: 0.0,
+            throttle: 0.0,
+            brake: 0.0,
+            speed_mps: self.speed_mps,
+            x_m: self.x_m,
+            y_m: self.y_m,
+            pitch_deg: self.pitch_deg,
+            yaw_deg: self.yaw_deg,
+            roll_deg: self.roll_deg,
+            near_sample: false,
+            picking_up: false,
+            sample_count: 0,
+            samples: Vec::new(),
+            image_jpeg: jpeg,
+        }
+    }
+
+    /// When the frame was taken, nanoseconds since the epoch, from its image's name
+    /// (`robocam_YYYY_MM_DD_hh_mm_ss_mmm.jpg`, read as UTC).
+    pub fn time_ns(&self) -> anyhow::Result<u64> {
+        let name = self.image.file_stem().and_then(|n| n.to_str()).unwrap_or_default();
+        time_ns_of_image_name(name).with_context(|| {
+            format!("cannot read the time of {}: expected robocam_YYYY_MM_DD_hh_mm_ss_mmm.jpg", self.image.display())
+        })
+    }
+}
+
+/// The time in an image name `robocam_YYYY_MM_DD_hh_mm_ss_mmm`, nanoseconds since the epoch (UTC).
+fn time_ns_of_image_name(name: &str) -> Option<u64> {
+    let numbers: Vec<u64> =
+        name.strip_prefix("robocam_")?.split('_').map(|part| part.parse().ok()).collect::<Option<_>>()?;
+    let [year, month, day, hour, minute, second, millisecond] = numbers[..] else { return None };
+    let valid = (1970..=9999).contains(&year)
+        && (1..=12).contains(&month)
+        && (1..=31).contains(&day)
+        && hour < 24
+        && minute < 60
+        && second < 61
+        && millisecond < 1000;
+    if !valid {
+        return None;
+    }
+    let seconds = days_since_epoch(year, month, day) * 86_400 + hour * 3_600 + minute * 60 + second;
+    Some(seconds * 1_000_000_000 + millisecond * 1_000_000)
+}
+
+/// Days from 1970-01-01 to the date (proleptic Gregorian calendar, year 1970 or later).
+fn days_since_epoch(year: u64, month: u64, day: u64) -> u64 {
+    let is_leap = |y: u64| (y % 4 == 0 && y % 100 != 0) || y % 400 == 0;
+    let days_in_years: u64 = (1970..year).map(|y| if is_leap(y) { 366 } else { 365 }).sum();
+    const DAYS_BEFORE_MONTH: [u64; 12] = [0, 31, 59, 90, 120, 151, 181, 212, 243, 273, 304, 334];
+    let leap_day = u64::from(month > 2 && is_leap(year));
+    days_in_years + DAYS_BEFORE_MONTH[month as usize - 1] + leap_day + day - 1
 }
 
 /// Reads `robot_log.csv` of the dataset in `dir`; image paths are resolved to `dir/IMG/<file name>`.
@@ -83,9 +141,21 @@ mod tests {
         assert_eq!(frames.len(), 1);
         assert_eq!(frames[0].image, dir.join("IMG/a.jpg"));
         assert_eq!(frames[0].yaw_deg, 56.82555);
+        assert!(frames[0].time_ns().unwrap_err().to_string().contains("a.jpg"));
         std::fs::write(dir.join("robot_log.csv"), "header\na.jpg;0;0;1;fast;1;2;3;4;5\n").unwrap();
         let error = format!("{:#}", read_log(&dir).unwrap_err());
         assert!(error.contains("line 2") && error.contains("Speed"), "{error}");
         std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    #[test]
+    fn image_names_give_the_frame_time_in_utc() {
+        let ns = |name: &str| time_ns_of_image_name(name);
+        assert_eq!(ns("robocam_1970_01_01_00_00_01_500"), Some(1_500_000_000));
+        assert_eq!(ns("robocam_2017_05_02_11_16_21_421"), Some(1_493_723_781_421_000_000));
+        assert_eq!(ns("robocam_2024_03_01_00_00_00_000"), Some(1_709_251_200_000_000_000));
+        assert_eq!(ns("robocam_2017_13_02_11_16_21_421"), None);
+        assert_eq!(ns("robocam_2017_05_02_11_16_21"), None);
+        assert_eq!(ns("frame_0001"), None);
     }
 }

@@ -5,12 +5,9 @@
 use std::time::{Duration, Instant};
 
 use futures::StreamExt;
-use rover_bridge::convert::telemetry_message;
-use rover_bridge::telemetry::SimTelemetry;
-use rover_msgs::frame_ids;
+use rover_bridge::convert::{FrameMessages, PinholeCamera};
+use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::msg::MapStats;
-use rover_msgs::sensor_msgs::CompressedImage;
-use rover_msgs::std_msgs::Header;
 use rover_node::{Runtime, messages, topics};
 
 use crate::dataset::RecordedFrame;
@@ -24,25 +21,6 @@ const DISCOVERY_TIMEOUT: Duration = Duration::from_secs(20);
 rover_node::node_params! {
     /// The replay node has no parameters.
     pub struct ReplayParams {}
-}
-
-fn sim_telemetry(frame: &RecordedFrame, jpeg: Vec<u8>) -> SimTelemetry {
-    SimTelemetry {
-        steering_angle_deg: 0.0,
-        throttle: 0.0,
-        brake: 0.0,
-        speed_mps: frame.speed_mps,
-        x_m: frame.x_m,
-        y_m: frame.y_m,
-        pitch_deg: frame.pitch_deg,
-        yaw_deg: frame.yaw_deg,
-        roll_deg: frame.roll_deg,
-        near_sample: false,
-        picking_up: false,
-        sample_count: 0,
-        samples: Vec::new(),
-        image_jpeg: jpeg,
-    }
 }
 
 /// Replays `frames` through the running perception and mapping nodes.
@@ -66,18 +44,11 @@ pub async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> any
     let (mut round_trips, mut lost, mut latest) = (Vec::new(), 0usize, None::<MapStats>);
     for (index, frame) in frames.iter().enumerate() {
         let number = index as u64 + 1;
-        let header = Header::now(frame_ids::ODOM);
-        let jpeg = frame.jpeg()?;
-        let message = telemetry_message(&sim_telemetry(frame, jpeg.clone()), number, header.clone());
+        let messages =
+            FrameMessages::new(&frame.sim_telemetry(frame.jpeg()?), number, Time::now(), &PinholeCamera::rover());
         let started = Instant::now();
-        camera
-            .publish(CompressedImage {
-                header: Header { frame_id: frame_ids::CAMERA_OPTICAL.into(), ..header },
-                format: "jpeg".into(),
-                data: jpeg,
-            })
-            .map_err(|e| anyhow::anyhow!("cannot publish the camera frame: {e:?}"))?;
-        telemetry.publish(message).map_err(|e| anyhow::anyhow!("cannot publish telemetry: {e:?}"))?;
+        camera.publish(messages.compressed).map_err(|e| anyhow::anyhow!("cannot publish the camera frame: {e:?}"))?;
+        telemetry.publish(messages.telemetry).map_err(|e| anyhow::anyhow!("cannot publish telemetry: {e:?}"))?;
         let answered = tokio::time::timeout(SCAN_TIMEOUT, async {
             loop {
                 tokio::select! {

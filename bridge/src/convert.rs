@@ -1,6 +1,7 @@
 //! Conversion of a parsed telemetry frame into the ROS messages the bridge publishes.
 
 use rover_msgs::body::CameraMount;
+use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::frame_ids;
 use rover_msgs::geometry_msgs::{
     Point, Pose, PoseArray, PoseWithCovariance, Quaternion, Transform, TransformStamped, Twist, TwistWithCovariance,
@@ -151,6 +152,36 @@ pub fn static_transforms_message(mount: &CameraMount, header: &Header) -> TFMess
 /// The `camera/image_raw/compressed` message, with the simulator's JPEG untouched.
 pub fn compressed_image_message(t: &SimTelemetry, header: Header) -> CompressedImage {
     CompressedImage { header, format: "jpeg".to_string(), data: t.image_jpeg.clone() }
+}
+
+/// The messages the bridge publishes for every telemetry frame (besides `/clock`), stamped alike.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameMessages {
+    /// `rover/telemetry`, in `odom`.
+    pub telemetry: Telemetry,
+    /// `camera/image_raw/compressed`, in `camera_optical_frame`.
+    pub compressed: CompressedImage,
+    /// `camera/camera_info`, in `camera_optical_frame`.
+    pub camera_info: CameraInfo,
+    /// `odom`.
+    pub odom: Odometry,
+    /// `/tf`: `odom` -> `base_link`.
+    pub tf: TFMessage,
+}
+
+impl FrameMessages {
+    /// The messages of telemetry frame `frame` of `camera`, stamped `stamp`.
+    pub fn new(t: &SimTelemetry, frame: u64, stamp: Time, camera: &PinholeCamera) -> Self {
+        let odom_header = Header::at(frame_ids::ODOM, stamp);
+        let camera_header = Header { frame_id: frame_ids::CAMERA_OPTICAL.to_string(), ..odom_header.clone() };
+        FrameMessages {
+            telemetry: telemetry_message(t, frame, odom_header.clone()),
+            compressed: compressed_image_message(t, camera_header.clone()),
+            camera_info: camera.camera_info(camera_header),
+            odom: odometry_message(t, odom_header.clone()),
+            tf: transform_message(t, odom_header),
+        }
+    }
 }
 
 /// The `sim/sample_truth` message: true positions of the samples on the ground.

@@ -20,7 +20,7 @@ use rover_node::{Publisher, RosNode, Runtime, spawn_subscriber, topics};
 use tracing::Instrument as _;
 
 use crate::clock::SimClock;
-use crate::convert::{self, PinholeCamera};
+use crate::convert::{self, FrameMessages, PinholeCamera};
 use crate::lockstep::{FrameSink, LockStep, LockStepConfig};
 use crate::reply::ReplyPolicy;
 use crate::server::{self, ServerConfig};
@@ -160,19 +160,13 @@ impl DdsSink {
 impl FrameSink for DdsSink {
     fn publish_frame(&self, frame: u64, telemetry: &SimTelemetry) {
         log_publish("/clock", self.clock_publisher.publish(self.clock.clock_message(frame)));
-        let odom_header = Header::at(frame_ids::ODOM, self.clock.stamp_frame(frame));
-        let camera_header = Header { frame_id: frame_ids::CAMERA_OPTICAL.to_string(), ..odom_header.clone() };
-        log_publish(
-            "rover/telemetry",
-            self.telemetry.publish(convert::telemetry_message(telemetry, frame, odom_header.clone())),
-        );
-        log_publish(
-            "camera/image_raw/compressed",
-            self.compressed.publish(convert::compressed_image_message(telemetry, camera_header.clone())),
-        );
-        log_publish("camera/camera_info", self.camera_info.publish(self.camera.camera_info(camera_header.clone())));
-        log_publish("odom", self.odom.publish(convert::odometry_message(telemetry, odom_header.clone())));
-        log_publish("/tf", self.tf.publish(convert::transform_message(telemetry, odom_header.clone())));
+        let messages = FrameMessages::new(telemetry, frame, self.clock.stamp_frame(frame), &self.camera);
+        let (odom_header, camera_header) = (messages.telemetry.header.clone(), messages.compressed.header.clone());
+        log_publish("rover/telemetry", self.telemetry.publish(messages.telemetry));
+        log_publish("camera/image_raw/compressed", self.compressed.publish(messages.compressed));
+        log_publish("camera/camera_info", self.camera_info.publish(messages.camera_info));
+        log_publish("odom", self.odom.publish(messages.odom));
+        log_publish("/tf", self.tf.publish(messages.tf));
         if let Some(raw) = &self.raw {
             self.publish_raw(raw, &telemetry.image_jpeg, camera_header);
         }
