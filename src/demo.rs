@@ -2,14 +2,16 @@
 //! live progress line, then a summary table, the mission's picture as PNG and the JSON report.
 
 use std::io::{IsTerminal as _, Write as _};
-use std::path::PathBuf;
-use std::time::Instant;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use rover_node::Runtime;
 use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 
+use crate::bag::record::Recorder;
+use crate::bag::summary;
 use crate::eval::{RunResult, table};
 use crate::graph::{GraphConfig, free_port};
 use crate::graph_mission::run_graph_mission;
@@ -18,6 +20,8 @@ use crate::mission_map::write_mission_png;
 
 /// Without a terminal, a progress line is printed every this many simulated seconds.
 const LINE_EVERY_SIM_S: f64 = 50.0;
+/// How long the recorder goes on after the graph has stopped, for the messages still on their way.
+const LAST_MESSAGES_GRACE: Duration = Duration::from_millis(500);
 
 /// Options of `rover demo`.
 #[derive(Debug, Clone, clap::Args)]
@@ -41,6 +45,9 @@ pub struct DemoArgs {
     /// End the mission when a node dies, instead of starting the node again.
     #[arg(long)]
     pub no_respawn: bool,
+    /// Record every topic of the graph into this new rosbag2 bag folder (as `rover bag record -a`).
+    #[arg(long, value_name = "DIR")]
+    pub record: Option<PathBuf>,
 }
 
 /// The JSON report of a demo run.
@@ -67,9 +74,14 @@ pub async fn run_demo(args: &DemoArgs, runtime: &Runtime, ros_args: &[String]) -
     );
     let sim_config =
         SimConfig { realtime: args.realtime, max_sim_seconds: Some(args.max_sim_seconds), ..SimConfig::default() };
+    let recorder = args.record.as_deref().map(|dir| Recorder::start(runtime, dir, &[])).transpose()?;
     let started = Instant::now();
     let mut line = ProgressLine::new(samples);
-    let outcome = run_graph_mission(runtime, config, world, sim_config, |p, _| line.show(p)).await?;
+    let outcome = run_graph_mission(runtime, config, world, sim_config, |p, _| line.show(p)).await;
+    if let Some(recorder) = recorder {
+        finish_recording(recorder, args.record.as_deref().unwrap_or(&args.out)).await?;
+    }
+    let outcome = outcome?;
     line.finish(&outcome.progress);
     let result = RunResult::of(args.seed, samples, &outcome.report, &outcome.progress, started.elapsed().as_secs_f64());
     print!("{}", table(std::slice::from_ref(&result)));
@@ -85,6 +97,15 @@ pub async fn run_demo(args: &DemoArgs, runtime: &Runtime, ros_args: &[String]) -
         tracing::warn!("nodes that did not stop cleanly: {}", outcome.unclean_nodes.join(", "));
     }
     Ok(result)
+}
+
+/// Ends the recording of the mission into `dir` once the last messages of the stopped nodes
+/// (the mapping node's final map) have arrived, and prints the bag's summary.
+async fn finish_recording(recorder: Recorder, dir: &Path) -> anyhow::Result<()> {
+    tokio::time::sleep(LAST_MESSAGES_GRACE).await;
+    let metadata = recorder.finish().await?;
+    eprint!("{}", summary(dir, &metadata));
+    Ok(())
 }
 
 /// The live progress line: rewritten in place on a terminal, one line per 50 sim seconds otherwise.

@@ -1,6 +1,7 @@
 //! The `rover` application: the subcommands that combine the libraries of the graph (replaying
-//! recorded datasets, the demo, the evaluation).
+//! recorded datasets, the demo, the evaluation, recording and playing bags).
 
+pub mod bag;
 pub mod chaos;
 pub mod dataset;
 pub mod demo;

@@ -3,6 +3,7 @@
 use std::process::ExitCode;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
+use rover::bag::{BagArgs, BagCommand};
 use rover::nodes::{Node, ROS_ARGS_HELP, node_names, run_all};
 use rover_node::params::help_table;
 use rover_node::{Runtime, Shutdown, logging, split_ros_args};
@@ -46,6 +47,9 @@ enum Command {
     /// Run the headless simulator: connects to the bridge as the Unity simulator does, renders the
     /// camera, simulates the rover and prints a report at the end (or on Ctrl-C).
     Sim(rover_sim::cli::SimArgs),
+    /// Record and play rosbag2 bags (MCAP storage) of the graph's topics, as `ros2 bag` does, and
+    /// turn a recorded dataset into a bag.
+    Bag(rover::bag::BagArgs),
 }
 
 /// The command line, with each node's parameter table in its long help.
@@ -151,5 +155,14 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
             Ok(())
         }
         Command::Sim(args) => rover_sim::cli::run(&args, async move { shutdown.wait().await }).await.map(drop),
+        Command::Bag(BagArgs { command: BagCommand::Record(args) }) => {
+            rover::bag::record::record(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
+        }
+        Command::Bag(BagArgs { command: BagCommand::Play(args) }) => {
+            rover::bag::play::play(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
+        }
+        Command::Bag(BagArgs { command: BagCommand::FromDataset(args) }) => {
+            rover::bag::from_dataset::from_dataset(&args, &ros_args).map(drop)
+        }
     }
 }

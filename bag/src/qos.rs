@@ -3,13 +3,19 @@
 
 use serde::{Deserialize, Serialize};
 
-/// A duration of a QoS policy; zero seconds and nanoseconds means the middleware's default.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+/// A duration of a QoS policy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct QosDuration {
     /// Whole seconds.
     pub sec: i64,
     /// Nanoseconds beyond `sec`.
     pub nsec: u64,
+}
+
+impl QosDuration {
+    /// No deadline, no expiry, an endless lease: the largest duration in nanoseconds, as rosbag2
+    /// writes it.
+    pub const INFINITE: QosDuration = QosDuration { sec: 9_223_372_036, nsec: 854_775_807 };
 }
 
 /// One offered QoS profile, with rosbag2's field names and values.
@@ -36,18 +42,18 @@ pub struct QosProfile {
 }
 
 impl QosProfile {
-    /// Keep last `depth`, reliable or best effort, transient local or volatile; the other policies
-    /// at their defaults.
+    /// Keep last `depth`, reliable or best effort, transient local or volatile; no deadline, no
+    /// lifespan, automatic liveliness with an infinite lease (ros2-client's defaults).
     pub fn keep_last(depth: u64, reliable: bool, transient_local: bool) -> Self {
         QosProfile {
             history: "keep_last".to_string(),
             depth,
             reliability: if reliable { "reliable" } else { "best_effort" }.to_string(),
             durability: if transient_local { "transient_local" } else { "volatile" }.to_string(),
-            deadline: QosDuration::default(),
-            lifespan: QosDuration::default(),
+            deadline: QosDuration::INFINITE,
+            lifespan: QosDuration::INFINITE,
             liveliness: "automatic".to_string(),
-            liveliness_lease_duration: QosDuration::default(),
+            liveliness_lease_duration: QosDuration::INFINITE,
             avoid_ros_namespace_conventions: false,
         }
     }

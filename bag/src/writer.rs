@@ -17,6 +17,13 @@ pub const QOS_METADATA_KEY: &str = "offered_qos_profiles";
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TopicId(usize);
 
+impl TopicId {
+    /// Its position among the topics added, from 0.
+    pub fn index(self) -> usize {
+        self.0
+    }
+}
+
 /// One topic being written: its MCAP channel, its message count so far.
 #[derive(Debug)]
 struct WrittenTopic {
