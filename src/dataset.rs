@@ -82,7 +82,7 @@ fn time_ns_of_image_name(name: &str) -> Option<u64> {
 
 /// Days from 1970-01-01 to the date (proleptic Gregorian calendar, year 1970 or later).
 fn days_since_epoch(year: u64, month: u64, day: u64) -> u64 {
-    let is_leap = |y: u64| (y % 4 == 0 && y % 100 != 0) || y % 400 == 0;
+    let is_leap = |y: u64| (y.is_multiple_of(4) && !y.is_multiple_of(100)) || y.is_multiple_of(400);
     let days_in_years: u64 = (1970..year).map(|y| if is_leap(y) { 366 } else { 365 }).sum();
     const DAYS_BEFORE_MONTH: [u64; 12] = [0, 31, 59, 90, 120, 151, 181, 212, 243, 273, 304, 334];
     let leap_day = u64::from(month > 2 && is_leap(year));

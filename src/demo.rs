@@ -74,15 +74,20 @@ pub async fn run_demo(args: &DemoArgs, runtime: &Runtime, ros_args: &[String]) -
     );
     let sim_config =
         SimConfig { realtime: args.realtime, max_sim_seconds: Some(args.max_sim_seconds), ..SimConfig::default() };
-    let recorder = args.record.as_deref().map(|dir| Recorder::start(runtime, dir, &[])).transpose()?;
+    let recording = match &args.record {
+        Some(dir) => Some((Recorder::start(runtime, dir, &[])?, dir)),
+        None => None,
+    };
     let started = Instant::now();
     let mut line = ProgressLine::new(samples);
     let outcome = run_graph_mission(runtime, config, world, sim_config, |p, _| line.show(p)).await;
-    if let Some(recorder) = recorder {
-        finish_recording(recorder, args.record.as_deref().unwrap_or(&args.out)).await?;
+    if let Ok(outcome) = &outcome {
+        line.finish(&outcome.progress);
+    }
+    if let Some((recorder, dir)) = recording {
+        finish_recording(recorder, dir).await?;
     }
     let outcome = outcome?;
-    line.finish(&outcome.progress);
     let result = RunResult::of(args.seed, samples, &outcome.report, &outcome.progress, started.elapsed().as_secs_f64());
     print!("{}", table(std::slice::from_ref(&result)));
     let path = args.out.join("map.png");
@@ -104,7 +109,7 @@ pub async fn run_demo(args: &DemoArgs, runtime: &Runtime, ros_args: &[String]) -
 async fn finish_recording(recorder: Recorder, dir: &Path) -> anyhow::Result<()> {
     tokio::time::sleep(LAST_MESSAGES_GRACE).await;
     let metadata = recorder.finish().await?;
-    eprint!("{}", summary(dir, &metadata));
+    print!("{}", summary(dir, &metadata));
     Ok(())
 }
 

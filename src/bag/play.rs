@@ -5,6 +5,7 @@ use std::collections::HashMap;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+use futures::future::BoxFuture;
 use rover_bag::{BagMessage, BagReader, TopicInfo};
 use rover_msgs::RosMessage;
 use rover_node::topics::{Topic, TopicVisitor, visit_all};
@@ -34,7 +35,8 @@ pub struct PlayArgs {
     /// topic table).
     #[arg(long, num_args = 1.., value_name = "TOPIC")]
     pub topics: Vec<String>,
-    /// Before playing, wait (up to 30 s) until TOPIC has a subscriber; may be repeated.
+    /// Before playing, wait (up to 30 s) until TOPIC has a subscriber; name a topic N times to
+    /// wait for N subscribers.
     #[arg(long = "wait-for", value_name = "TOPIC")]
     pub wait_for: Vec<String>,
 }
@@ -50,7 +52,9 @@ fn positive_rate(text: &str) -> Result<f64, String> {
 trait CdrPublisher: Send {
     /// Deserializes `data` into the topic's message type and publishes it.
     fn publish_cdr(&self, data: &[u8]) -> anyhow::Result<()>;
-    /// Subscriptions matched so far.
+    /// Resolves once a subscription has matched.
+    fn first_subscription<'a>(&'a self, node: &'a RosNode) -> BoxFuture<'a, ()>;
+    /// Subscriptions matched so far (known only after the first).
     fn subscriptions(&self, node: &RosNode) -> usize;
 }
 
@@ -58,6 +62,10 @@ impl<M: RosMessage> CdrPublisher for Publisher<M> {
     fn publish_cdr(&self, data: &[u8]) -> anyhow::Result<()> {
         let message = rover_node::cdr::decode::<M>(data)?;
         self.publish(message).map_err(|e| anyhow::anyhow!("cannot publish a {}: {e}", M::type_name()))
+    }
+
+    fn first_subscription<'a>(&'a self, node: &'a RosNode) -> BoxFuture<'a, ()> {
+        Box::pin(self.wait_for_subscription(node.inner()))
     }
 
     fn subscriptions(&self, node: &RosNode) -> usize {
@@ -111,7 +119,8 @@ fn publishers(node: &mut RosNode, wanted: &[TopicInfo]) -> anyhow::Result<HashMa
     Ok(made)
 }
 
-/// Waits until each of `topics` (resolved names of played topics) has a subscriber.
+/// Waits until each of `topics` (resolved names of played topics) has as many subscribers as it
+/// is named.
 async fn wait_for_subscribers(
     node: &RosNode,
     publishers: &HashMap<String, Box<dyn CdrPublisher>>,
@@ -119,9 +128,20 @@ async fn wait_for_subscribers(
 ) -> anyhow::Result<()> {
     let played: Vec<String> = publishers.keys().cloned().collect();
     check_known(topics, &played, "played")?;
-    let started = Instant::now();
-    while let Some(waiting) = topics.iter().find(|t| publishers[*t].subscriptions(node) == 0) {
-        anyhow::ensure!(started.elapsed() < SUBSCRIBER_WAIT, "no subscriber on {waiting} within {SUBSCRIBER_WAIT:?}");
+    let wanted = |topic: &String| topics.iter().filter(|t| *t == topic).count();
+    let deadline = tokio::time::Instant::now() + SUBSCRIBER_WAIT;
+    for topic in topics {
+        tokio::time::timeout_at(deadline, publishers[topic].first_subscription(node))
+            .await
+            .map_err(|_| anyhow::anyhow!("no subscriber on {topic} within {SUBSCRIBER_WAIT:?}"))?;
+    }
+    while let Some(waiting) = topics.iter().find(|t| publishers[*t].subscriptions(node) < wanted(t)) {
+        anyhow::ensure!(
+            tokio::time::Instant::now() < deadline,
+            "{waiting} has {} of the {} subscribers waited for after {SUBSCRIBER_WAIT:?}",
+            publishers[waiting].subscriptions(node),
+            wanted(waiting)
+        );
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     Ok(())

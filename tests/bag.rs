@@ -1,0 +1,295 @@
+//! `rover bag`: a short demo mission recorded with `rover demo --record`, read back by rosbags and
+//! rclpy (`tests/python/bag_check.py`) and played into a fresh mapping node, which must end with
+//! the recorded map statistics; the Udacity test dataset turned into a bag and played through
+//! perception and mapping, which must score as `rover replay` does.
+
+mod support;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+use std::time::Duration;
+
+use rover_bag::BagReader;
+use rover_msgs::msg::MapStats;
+use rover_node::topics;
+use support::{Domain, Latest, Process, rover, shared_dir, start_process, test_runtime};
+
+/// Simulated seconds of the recorded mission.
+const MISSION_SIM_SECONDS: &str = "40";
+/// How long the mapping node waits after its last scan before it publishes.
+const PUBLISH_DELAY_MS: &str = "publish_max_delay_ms:=100.0";
+/// How long after the end of playback the final map statistics have surely arrived.
+const FINAL_STATS_WAIT: Duration = Duration::from_secs(3);
+
+fn ground_truth() -> String {
+    shared_dir().join("udacity/calibration_images/map_bw.png").display().to_string()
+}
+
+fn dataset() -> String {
+    shared_dir().join("udacity/test_dataset").display().to_string()
+}
+
+fn scratch_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rover-test-bag-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create the test folder");
+    dir
+}
+
+/// A topic as the recorder's summary lists it: type and message count.
+type Reported = BTreeMap<String, (String, u64)>;
+
+/// The topic lines of a bag summary (`  /topic  pkg/msg/Type  count`).
+fn reported_topics(summary: &str) -> Reported {
+    summary
+        .lines()
+        .filter_map(|line| {
+            let fields: Vec<&str> = line.split_whitespace().collect();
+            match fields[..] {
+                [topic, type_name, count] if line.starts_with("  /") => {
+                    Some((topic.to_string(), (type_name.to_string(), count.parse().ok()?)))
+                }
+                _ => None,
+            }
+        })
+        .collect()
+}
+
+/// The recorded mission: the bag and what the recorder reported.
+struct Recorded {
+    bag: PathBuf,
+    reported: Reported,
+}
+
+/// Records a short mission on `map_bw.png` once for the tests of this file.
+fn recorded_mission() -> &'static Recorded {
+    static RECORDED: OnceLock<Recorded> = OnceLock::new();
+    RECORDED.get_or_init(|| {
+        support::assert_isolated();
+        let domain = Domain::reserve();
+        let dir = scratch_dir("mission");
+        let bag = dir.join("mission_bag");
+        let output = Command::new(rover())
+            .args(["demo", "--map", &ground_truth(), "--max-sim-seconds", MISSION_SIM_SECONDS, "--no-respawn"])
+            .arg("--out")
+            .arg(dir.join("demo"))
+            .arg("--record")
+            .arg(&bag)
+            .args(["--ros-args", "-p", &format!("mapping:ground_truth_png:={}", ground_truth())])
+            .args(["-p", &format!("mapping:{PUBLISH_DELAY_MS}")])
+            .env("ROS_DOMAIN_ID", domain.id.to_string())
+            .output()
+            .expect("run rover demo --record");
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        assert!(output.status.success(), "rover demo failed:\n{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
+        eprintln!("{stdout}");
+        Recorded { bag, reported: reported_topics(&stdout) }
+    })
+}
+
+/// The last message of type `M` on `topic` in the bag `dir`.
+fn last_in_bag<M: rover_msgs::RosMessage>(dir: &Path, topic: &str) -> M {
+    let bag = BagReader::open(dir).expect("open the bag");
+    let last = bag.messages().map(|m| m.expect("read the bag")).filter(|m| m.topic == topic).last();
+    rover_node::cdr::decode(&last.unwrap_or_else(|| panic!("no {topic} in the bag")).data).expect("decode")
+}
+
+#[test]
+fn the_recorder_reports_every_topic_of_the_table_and_the_mission_traffic() {
+    let recorded = recorded_mission();
+    assert_eq!(recorded.reported.len(), 20, "{:?}", recorded.reported);
+    let count = |topic: &str| recorded.reported[topic].1;
+    let frames = count("/rover/telemetry");
+    assert!(frames >= 900, "{frames} telemetry frames for {MISSION_SIM_SECONDS} sim s");
+    for topic in ["/camera/image_raw/compressed", "/camera/camera_info", "/odom", "/tf", "/clock"] {
+        assert_eq!(count(topic), frames, "{topic}: the bridge publishes it with every frame");
+    }
+    for topic in ["/rover/terrain", "/rover/drive_cmd"] {
+        assert!((frames - 1..=frames).contains(&count(topic)), "{topic}: {} answers to {frames} frames", count(topic));
+    }
+    // The latched map reaches a late reader, so the map published at the mapping node's start
+    // may be recorded while the statistics published with it went out before the match.
+    assert!(count("/rover/map_stats") >= 30 && count("/map") >= count("/rover/map_stats"));
+    assert_eq!(count("/tf_static"), 1);
+    assert_eq!(recorded.reported["/rover/terrain"].0, "rover_msgs/msg/TerrainScan");
+}
+
+#[test]
+fn rosbags_and_rclpy_read_every_message_of_the_recorded_mission() {
+    let Some(python) = support::python_with(&["rosbags.rosbag2", "rclpy", "rosidl_runtime_py", "rover_msgs.msg"])
+    else {
+        return;
+    };
+    let recorded = recorded_mission();
+    let expected: serde_json::Map<String, serde_json::Value> = recorded
+        .reported
+        .iter()
+        .map(|(topic, (type_name, count))| (topic.clone(), serde_json::json!({"type": type_name, "count": count})))
+        .collect();
+    let output = Command::new(python)
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/python/bag_check.py"))
+        .arg(&recorded.bag)
+        .arg(serde_json::Value::Object(expected).to_string())
+        .output()
+        .expect("run bag_check.py");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "bag_check.py: {}\n{stdout}", String::from_utf8_lossy(&output.stderr));
+    let result: serde_json::Value = serde_json::from_str(&stdout).expect("one JSON object");
+    eprintln!("{result}");
+    let total: u64 = recorded.reported.values().map(|(_, count)| count).sum();
+    assert_eq!(result["decoded"], total, "every message decoded by rclpy and by rosbags");
+    let stats: MapStats = last_in_bag(&recorded.bag, "/rover/map_stats");
+    assert_eq!(result["last_map_stats"]["navigable_cells"], stats.navigable_cells);
+    assert!((result["last_map_stats"]["mapped_pct"].as_f64().unwrap() - stats.mapped_pct as f64).abs() < 1e-4);
+}
+
+/// Plays `bag` (`play_args` after the folder) on `domain` and returns the last map statistics
+/// that a subscriber of the test got from the nodes. Needs a tokio runtime (the test's node).
+fn play_and_read_map_stats(domain: &Domain, bag: &Path, play_args: &[&str]) -> MapStats {
+    let runtime = test_runtime(domain);
+    let (mut node, _) = runtime.node::<support::NoParams>("bag_test").expect("test node");
+    let stats = Latest::subscribe(&mut node, &topics::MAP_STATS);
+    let mut player =
+        start_process(&rover(), &[&["bag", "play", bag.to_str().unwrap()], play_args].concat(), domain, "player");
+    let status = player.wait_for_exit(Duration::from_secs(180)).expect("the player ends at the end of the bag");
+    assert!(status.success(), "rover bag play failed:\n{}", player.log_text());
+    eprintln!("{}", player.log_text());
+    std::thread::sleep(FINAL_STATS_WAIT);
+    stats.last().expect("map statistics from the mapping node")
+}
+
+fn start_mapping(domain: &Domain) -> Process {
+    start_process(
+        &rover(),
+        &["mapping", "--ros-args", "-p", &format!("ground_truth_png:={}", ground_truth()), "-p", PUBLISH_DELAY_MS],
+        domain,
+        "mapping",
+    )
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn the_recorded_scans_played_into_a_fresh_mapping_node_give_the_recorded_map() {
+    let recorded = recorded_mission();
+    let domain = Domain::reserve();
+    let _mapping = start_mapping(&domain);
+    let played = play_and_read_map_stats(
+        &domain,
+        &recorded.bag,
+        &[
+            "--topics",
+            "rover/terrain",
+            "rover/telemetry",
+            "sim/sample_truth",
+            "--wait-for",
+            "rover/terrain",
+            "--wait-for",
+            "rover/telemetry",
+            "--wait-for",
+            "sim/sample_truth",
+        ],
+    );
+    let stats: MapStats = last_in_bag(&recorded.bag, "/rover/map_stats");
+    eprintln!("recorded {stats:?}\nplayed   {played:?}");
+    assert!(stats.mapped_pct > 5.0, "the recorded mission mapped {} %", stats.mapped_pct);
+    assert!(
+        (played.mapped_pct - stats.mapped_pct).abs() <= 0.1,
+        "mapped {} vs {}",
+        played.mapped_pct,
+        stats.mapped_pct
+    );
+    assert!(
+        (played.fidelity_pct - stats.fidelity_pct).abs() <= 0.1,
+        "fidelity {} vs {}",
+        played.fidelity_pct,
+        stats.fidelity_pct
+    );
+    assert_eq!((played.navigable_cells, played.obstacle_cells), (stats.navigable_cells, stats.obstacle_cells));
+}
+
+fn replay_json() -> serde_json::Value {
+    let output = Command::new(rover())
+        .args(["replay", &dataset(), "--ground-truth", &ground_truth(), "--json"])
+        .output()
+        .expect("run rover replay");
+    assert!(output.status.success(), "rover replay failed: {}", String::from_utf8_lossy(&output.stderr));
+    serde_json::from_slice(&output.stdout).expect("one JSON object")
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn the_test_dataset_as_a_bag_plays_through_perception_and_mapping_to_the_replay_scores() {
+    support::assert_isolated();
+    let dir = scratch_dir("dataset");
+    let bag = dir.join("test_dataset_bag");
+    let output = Command::new(rover())
+        .args(["bag", "from-dataset", &dataset(), "-o", bag.to_str().unwrap()])
+        .output()
+        .expect("run rover bag from-dataset");
+    assert!(output.status.success(), "from-dataset failed: {}", String::from_utf8_lossy(&output.stderr));
+    let reported = reported_topics(&String::from_utf8_lossy(&output.stdout));
+    assert_eq!(reported["/camera/image_raw/compressed"], ("sensor_msgs/msg/CompressedImage".to_string(), 283));
+    assert_eq!(reported["/rover/telemetry"].1, 283);
+    let domain = Domain::reserve();
+    let _perception = start_process(&rover(), &["perception"], &domain, "perception");
+    let _mapping = start_mapping(&domain);
+    let played = play_and_read_map_stats(
+        &domain,
+        &bag,
+        &[
+            "--rate",
+            "2",
+            "--wait-for",
+            "camera/image_raw/compressed",
+            "--wait-for",
+            "rover/telemetry",
+            "--wait-for",
+            "rover/telemetry",
+        ],
+    );
+    let offline = replay_json();
+    eprintln!("replay {offline}\nplayed {played:?}");
+    let rounded = |value: f32| (value as f64 * 10.0).round() / 10.0;
+    assert_eq!(rounded(played.mapped_pct), offline["mapped_pct"].as_f64().unwrap());
+    assert_eq!(rounded(played.fidelity_pct), offline["fidelity_pct"].as_f64().unwrap());
+    assert_eq!(played.navigable_cells as u64, offline["navigable_cells"].as_u64().unwrap());
+}
+
+#[test]
+fn bad_inputs_are_named_without_a_panic() {
+    support::assert_isolated();
+    let dir = scratch_dir("bad");
+    let run = |args: &[&str]| {
+        let output = Command::new(rover()).args(args).env("ROS_DOMAIN_ID", "231").output().expect("run rover");
+        assert!(!output.status.success(), "rover {args:?} succeeded");
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        stderr
+    };
+    let missing = dir.join("missing");
+    assert!(run(&["bag", "play", missing.to_str().unwrap()]).contains("does not exist"));
+    assert!(run(&["bag", "play", dir.to_str().unwrap()]).contains("is not a rosbag2 bag"));
+    let corrupt = dir.join("corrupt");
+    std::fs::create_dir_all(&corrupt).unwrap();
+    std::fs::write(
+        corrupt.join("metadata.yaml"),
+        "rosbag2_bagfile_information:\n  version: 9\n  storage_identifier: mcap\n  relative_file_paths: [corrupt_0.mcap]\n  duration: {nanoseconds: 0}\n  starting_time: {nanoseconds_since_epoch: 0}\n  message_count: 1\n  topics_with_message_count:\n  - topic_metadata: {name: /rover/telemetry, type: rover_msgs/msg/Telemetry, serialization_format: cdr}\n    message_count: 1\n",
+    )
+    .unwrap();
+    std::fs::write(corrupt.join("corrupt_0.mcap"), b"\x89MCAP0\r\n\x01\xff\xff\xff\xff\xff\xff\xff\x7f").unwrap();
+    let error = run(&["bag", "play", corrupt.to_str().unwrap()]);
+    assert!(error.contains("corrupt_0.mcap"), "{error}");
+    let existing = run(&["bag", "from-dataset", &dataset(), "-o", dir.to_str().unwrap()]);
+    assert!(existing.contains("already exists"), "{existing}");
+    assert!(
+        run(&["bag", "from-dataset", dir.to_str().unwrap(), "-o", dir.join("x").to_str().unwrap()])
+            .contains("robot_log.csv")
+    );
+    let unknown = run(&["bag", "record", "-o", dir.join("y").to_str().unwrap(), "rover/nothing"]);
+    assert!(
+        unknown.contains("topic /rover/nothing is not in the graph's topic table")
+            && unknown.contains("/rover/telemetry"),
+        "{unknown}"
+    );
+    assert!(run(&["bag", "play", dir.to_str().unwrap(), "--rate", "0"]).contains("not a positive number"));
+}
