@@ -44,24 +44,12 @@ pub enum BagCommand {
     FromDataset(from_dataset::FromDatasetArgs),
 }
 
-/// A topic of the table as a node with `identity` names it, and its message type.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct TableTopic {
-    /// The name in the table, e.g. `rover/telemetry`.
-    pub table_name: &'static str,
-    /// The name after namespace and remaps, e.g. `/rover/telemetry`.
-    pub resolved: String,
-    /// The message type, e.g. `rover_msgs/msg/Telemetry`.
-    pub type_name: String,
-}
-
-/// Every topic of the table, resolved for `identity`.
-pub fn table_topics(identity: &NodeIdentity) -> anyhow::Result<Vec<TableTopic>> {
-    struct Collect<'a>(&'a NodeIdentity, Vec<TableTopic>);
+/// The name of every topic of the table, resolved for `identity` (namespace and remaps).
+pub fn resolved_table_names(identity: &NodeIdentity) -> anyhow::Result<Vec<String>> {
+    struct Collect<'a>(&'a NodeIdentity, Vec<String>);
     impl TopicVisitor for Collect<'_> {
         fn visit<M: RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<()> {
-            let resolved = self.0.resolve_topic(topic.name)?;
-            self.1.push(TableTopic { table_name: topic.name, resolved, type_name: M::type_name() });
+            self.1.push(self.0.resolve_topic(topic.name)?);
             Ok(())
         }
     }

@@ -13,7 +13,7 @@ use rover_node::{MessageInfo, RosNode, Runtime, spawn_subscriber_with_info};
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
-use super::{BagParams, add_topic, check_known, now_ns, resolve_names, summary, table_topics};
+use super::{BagParams, add_topic, check_known, now_ns, resolve_names, resolved_table_names, summary};
 
 /// The recorder's node name (as `ros2 bag record`'s).
 const RECORDER_NODE: &str = "rosbag2_recorder";
@@ -118,7 +118,7 @@ impl Recorder {
 /// The resolved names of `requested` topics (all of the table's when empty), each checked to be
 /// in the table.
 fn selected_topics(node: &RosNode, requested: &[String]) -> anyhow::Result<Vec<String>> {
-    let table: Vec<String> = table_topics(node.identity())?.into_iter().map(|t| t.resolved).collect();
+    let table = resolved_table_names(node.identity())?;
     if requested.is_empty() {
         return Ok(table);
     }
