@@ -57,36 +57,45 @@ fn reported_topics(summary: &str) -> Reported {
         .collect()
 }
 
-/// The recorded mission: the bag and what the recorder reported.
+/// The recorded mission: the bag, what the recorder reported and the mapping node's log.
 struct Recorded {
     bag: PathBuf,
     reported: Reported,
+    mapping_log: PathBuf,
+}
+
+/// The frames a mapping node's log says it mapped (its last line: `mapping: N frames mapped, ...`).
+fn frames_mapped(log: &str) -> Option<u64> {
+    log.lines().rev().find_map(|line| line.split("mapping: ").nth(1)?.split(" frames mapped").next()?.parse().ok())
 }
 
 /// Records a short mission on `map_bw.png` once for the tests of this file.
 fn recorded_mission() -> &'static Recorded {
     static RECORDED: OnceLock<Recorded> = OnceLock::new();
-    RECORDED.get_or_init(|| {
-        support::assert_isolated();
-        let domain = Domain::reserve();
-        let dir = scratch_dir("mission");
-        let bag = dir.join("mission_bag");
-        let output = Command::new(rover())
-            .args(["demo", "--map", &ground_truth(), "--max-sim-seconds", MISSION_SIM_SECONDS, "--no-respawn"])
-            .arg("--out")
-            .arg(dir.join("demo"))
-            .arg("--record")
-            .arg(&bag)
-            .args(["--ros-args", "-p", &format!("mapping:ground_truth_png:={}", ground_truth())])
-            .args(["-p", &format!("mapping:{PUBLISH_DELAY_MS}")])
-            .env("ROS_DOMAIN_ID", domain.id.to_string())
-            .output()
-            .expect("run rover demo --record");
-        let stdout = String::from_utf8_lossy(&output.stdout);
-        assert!(output.status.success(), "rover demo failed:\n{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
-        eprintln!("{stdout}");
-        Recorded { bag, reported: reported_topics(&stdout) }
-    })
+    RECORDED.get_or_init(|| record_mission("mission"))
+}
+
+/// Records a short mission on `map_bw.png` with `rover demo --record` in the folder `name`.
+fn record_mission(name: &str) -> Recorded {
+    support::assert_isolated();
+    let domain = Domain::reserve();
+    let dir = scratch_dir(name);
+    let bag = dir.join("mission_bag");
+    let output = Command::new(rover())
+        .args(["demo", "--map", &ground_truth(), "--max-sim-seconds", MISSION_SIM_SECONDS, "--no-respawn"])
+        .arg("--out")
+        .arg(dir.join("demo"))
+        .arg("--record")
+        .arg(&bag)
+        .args(["--ros-args", "-p", &format!("mapping:ground_truth_png:={}", ground_truth())])
+        .args(["-p", &format!("mapping:{PUBLISH_DELAY_MS}")])
+        .env("ROS_DOMAIN_ID", domain.id.to_string())
+        .output()
+        .expect("run rover demo --record");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "rover demo failed:\n{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
+    eprintln!("{stdout}");
+    Recorded { bag, reported: reported_topics(&stdout), mapping_log: dir.join("demo/logs/mapping.log") }
 }
 
 /// The last message of type `M` on `topic` in the bag `dir`.
@@ -106,8 +115,9 @@ fn the_recorder_reports_every_topic_of_the_table_and_the_mission_traffic() {
     for topic in ["/camera/image_raw/compressed", "/camera/camera_info", "/odom", "/tf", "/clock"] {
         assert_eq!(count(topic), frames, "{topic}: the bridge publishes it with every frame");
     }
+    // The frames still in flight when the simulator stops may go unanswered.
     for topic in ["/rover/terrain", "/rover/drive_cmd"] {
-        assert!((frames - 1..=frames).contains(&count(topic)), "{topic}: {} answers to {frames} frames", count(topic));
+        assert!((frames - 3..=frames).contains(&count(topic)), "{topic}: {} answers to {frames} frames", count(topic));
     }
     // The latched map reaches a late reader, so the map published at the mapping node's start
     // may be recorded while the statistics published with it went out before the match.
@@ -169,11 +179,20 @@ fn start_mapping(domain: &Domain) -> Process {
     )
 }
 
-#[tokio::test(flavor = "multi_thread")]
-async fn the_recorded_scans_played_into_a_fresh_mapping_node_give_the_recorded_map() {
-    let recorded = recorded_mission();
+/// A recorded mission's scans played into a fresh mapping node.
+struct Replayed {
+    recorded: MapStats,
+    played: MapStats,
+    /// Frames mapped by the mission's mapping node and by the fresh one.
+    frames_mapped: (Option<u64>, Option<u64>),
+    /// The scans of the bag and the frames mapped, in words.
+    scans: String,
+}
+
+/// Plays the scans, telemetry and sample truth of `recorded` into a fresh mapping node.
+fn replay_mission(recorded: &Recorded) -> Replayed {
     let domain = Domain::reserve();
-    let _mapping = start_mapping(&domain);
+    let mut mapping = start_mapping(&domain);
     let played = play_and_read_map_stats(
         &domain,
         &recorded.bag,
@@ -182,6 +201,8 @@ async fn the_recorded_scans_played_into_a_fresh_mapping_node_give_the_recorded_m
             "rover/terrain",
             "rover/telemetry",
             "sim/sample_truth",
+            "--rate",
+            "0.5",
             "--wait-for",
             "rover/terrain",
             "--wait-for",
@@ -190,22 +211,54 @@ async fn the_recorded_scans_played_into_a_fresh_mapping_node_give_the_recorded_m
             "sim/sample_truth",
         ],
     );
-    let stats: MapStats = last_in_bag(&recorded.bag, "/rover/map_stats");
-    eprintln!("recorded {stats:?}\nplayed   {played:?}");
-    assert!(stats.mapped_pct > 5.0, "the recorded mission mapped {} %", stats.mapped_pct);
+    mapping.interrupt(support::STOP_TIMEOUT);
+    let recorded_log = std::fs::read_to_string(&recorded.mapping_log).unwrap_or_default();
+    let frames = (frames_mapped(&recorded_log), frames_mapped(&mapping.log_text()));
+    let scans = format!(
+        "scans: {} in the bag, {:?} mapped by the mission's mapping node, {:?} by the fresh one",
+        recorded.reported["/rover/terrain"].1, frames.0, frames.1
+    );
+    let stats = last_in_bag(&recorded.bag, "/rover/map_stats");
+    eprintln!("recorded {stats:?}\nplayed   {played:?}\n{scans}");
+    Replayed { recorded: stats, played, frames_mapped: frames, scans }
+}
+
+/// Missions recorded at most until one whose mapping node mapped every scan it was sent.
+const MISSION_ATTEMPTS: usize = 3;
+
+#[tokio::test(flavor = "multi_thread")]
+async fn the_recorded_scans_played_into_a_fresh_mapping_node_give_the_recorded_map() {
+    let mut replayed = replay_mission(recorded_mission());
+    // On a loaded machine the mission's mapping node can fall more than its reader's history
+    // behind and lose scans that the recorder (a deeper history) kept; its map then differs
+    // from the bag's through no fault of the bag, so such a mission is recorded again.
+    for attempt in 1..MISSION_ATTEMPTS {
+        if replayed.frames_mapped.0 == replayed.frames_mapped.1 {
+            break;
+        }
+        eprintln!("the mission's mapping node lost scans ({}); recording another mission", replayed.scans);
+        replayed = replay_mission(&record_mission(&format!("mission-{attempt}")));
+    }
+    let Replayed { recorded, played, frames_mapped, scans } = replayed;
+    assert!(frames_mapped.0.is_some() && frames_mapped.0 == frames_mapped.1, "{scans}");
+    assert!(recorded.mapped_pct > 5.0, "the recorded mission mapped {} %", recorded.mapped_pct);
     assert!(
-        (played.mapped_pct - stats.mapped_pct).abs() <= 0.1,
-        "mapped {} vs {}",
+        (played.mapped_pct - recorded.mapped_pct).abs() <= 0.1,
+        "mapped {} vs {}; {scans}",
         played.mapped_pct,
-        stats.mapped_pct
+        recorded.mapped_pct
     );
     assert!(
-        (played.fidelity_pct - stats.fidelity_pct).abs() <= 0.1,
-        "fidelity {} vs {}",
+        (played.fidelity_pct - recorded.fidelity_pct).abs() <= 0.1,
+        "fidelity {} vs {}; {scans}",
         played.fidelity_pct,
-        stats.fidelity_pct
+        recorded.fidelity_pct
     );
-    assert_eq!((played.navigable_cells, played.obstacle_cells), (stats.navigable_cells, stats.obstacle_cells));
+    assert_eq!(
+        (played.navigable_cells, played.obstacle_cells),
+        (recorded.navigable_cells, recorded.obstacle_cells),
+        "navigable and obstacle cells; {scans}"
+    );
 }
 
 fn replay_json() -> serde_json::Value {
