@@ -253,4 +253,48 @@ mod tests {
         assert!(foreign.contains("not MCAP") && foreign.contains(&file.display().to_string()), "{foreign}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    mod fuzz {
+        use proptest::prelude::*;
+        use rover_fuzzing::mutation::{mutated_bytes, mutated_text};
+
+        use super::*;
+
+        /// A bag written once in a folder named after `name`, its MCAP bytes and its metadata text.
+        fn valid_bag(name: &str) -> (Vec<u8>, String) {
+            let dir = temp_dir(name);
+            write_bag(&dir);
+            let bag = BagReader::open(&dir).unwrap();
+            let mcap = std::fs::read(&bag.files[0]).unwrap();
+            let metadata = std::fs::read_to_string(dir.join(crate::metadata::FILE_NAME)).unwrap();
+            std::fs::remove_dir_all(&dir).unwrap();
+            (mcap, metadata)
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_bag_mutated_mcap(bytes in mutated_bytes(valid_bag("fuzz-mcap-seed").0)) {
+                let dir = temp_dir("fuzz-mcap");
+                write_bag(&dir);
+                let file = BagReader::open(&dir).unwrap().files[0].clone();
+                std::fs::write(&file, &bytes).unwrap();
+                if let Ok(bag) = BagReader::open(&dir) {
+                    for message in bag.messages() {
+                        if let Err(e) = message {
+                            prop_assert!(e.to_string().contains(&file.display().to_string()), "{}", e);
+                        }
+                    }
+                }
+                std::fs::remove_dir_all(&dir).unwrap();
+            }
+
+            #[test]
+            fn fuzz_bag_mutated_metadata(text in mutated_text(vec![valid_bag("fuzz-metadata-seed").1])) {
+                let path = Path::new("fuzz/metadata.yaml");
+                if let Err(e) = BagMetadata::from_yaml(&text, path) {
+                    prop_assert!(e.to_string().contains("fuzz/metadata.yaml"), "{}", e);
+                }
+            }
+        }
+    }
 }
