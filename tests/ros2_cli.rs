@@ -141,7 +141,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
         // so the type must be named (see README "Simulated time").
         let clock = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/clock", "rosgraph_msgs/msg/Clock"]));
         let sim_time = scope.spawn(|| ros2_ok(domain, &["param", "get", "/mapping", "use_sim_time"]));
-        let hz = scope.spawn(|| ros2(domain, Duration::from_secs(8), &["topic", "hz", "/rover/telemetry"]).1);
+        let hz = scope.spawn(|| ros2(domain, Duration::from_secs(20), &["topic", "hz", "/rover/telemetry"]).1);
         let info = scope.spawn(|| ros2_ok(domain, &["topic", "info", "-v", "/map"]));
         let interface = scope.spawn(|| ros2_ok(domain, &["interface", "show", "rover_msgs/msg/Telemetry"]));
         let params = scope.spawn(|| {
