@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use anyhow::Context as _;
 use base64::Engine as _;
-use rover_imaging::RgbImage;
+use rover_imaging::message::{rgb_image_from_message, rgb8_message};
 use rover_msgs::body::CameraMount;
 use rover_msgs::frame_ids;
 use rover_msgs::geometry_msgs::PoseArray;
@@ -178,30 +178,6 @@ fn log_publish<E: std::fmt::Debug>(topic: &str, result: Result<(), E>) {
     if let Err(e) = result {
         tracing::warn!("cannot publish on {topic}: {e:?}");
     }
-}
-
-fn rgb8_message(image: RgbImage, header: Header) -> Image {
-    Image {
-        header,
-        height: image.height as u32,
-        width: image.width as u32,
-        encoding: "rgb8".to_string(),
-        is_bigendian: 0,
-        step: image.width as u32 * 3,
-        data: image.data,
-    }
-}
-
-/// Converts an rgb8 `Image` message into an image, or says why it cannot.
-pub fn rgb_image_from_message(message: Image) -> Result<RgbImage, String> {
-    let (width, height) = (message.width as usize, message.height as usize);
-    if message.encoding != "rgb8" {
-        return Err(format!("encoding {:?}, expected \"rgb8\"", message.encoding));
-    }
-    if message.step as usize != width * 3 || message.data.len() != width * height * 3 {
-        return Err(format!("{} bytes with step {} for {width}x{height} rgb8", message.data.len(), message.step));
-    }
-    Ok(RgbImage { width, height, data: message.data })
 }
 
 fn inset_base64(message: Image, quality: u8) -> Result<String, String> {

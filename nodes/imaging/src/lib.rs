@@ -2,8 +2,10 @@
 //!
 //! JPEGs are written the way Unity's `EncodeToJPG()` writes the simulator's camera frames
 //! (JFIF, IJG quality 75, 4:2:0) and read with `zune-jpeg` into RGB buffers. [`text`] and
-//! [`shapes`] draw on RGB images, for the map pictures.
+//! [`shapes`] draw on RGB images, for the map pictures; [`message`] turns them into
+//! `sensor_msgs/Image` messages and back.
 
+pub mod message;
 pub mod shapes;
 pub mod text;
 

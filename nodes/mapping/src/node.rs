@@ -4,6 +4,7 @@
 use std::time::{Duration, Instant};
 
 use futures::StreamExt;
+use rover_imaging::message::rgb8_message;
 use rover_msgs::frame_ids;
 use rover_msgs::geometry_msgs::{Point, Pose as PoseMsg, PoseArray, Quaternion};
 use rover_msgs::map_grid::SIDE_CELLS;
@@ -120,15 +121,7 @@ impl Outputs {
             collected: mapping.samples_collected() as usize,
         };
         let image = map_inset(mapping.map(), mapping.ground_truth(), &rocks, &inset);
-        let message = Image {
-            header: header.clone(),
-            height: image.height as u32,
-            width: image.width as u32,
-            encoding: "rgb8".to_string(),
-            is_bigendian: 0,
-            step: image.width as u32 * 3,
-            data: image.data,
-        };
+        let message = rgb8_message(image, header.clone());
         warn_on_error("map/image", self.image.publish(message));
         warn_on_error("rover/map_stats", self.stats.publish(stats));
         if self.last_rocks.as_ref() != Some(&rocks) {

@@ -2,6 +2,7 @@
 //! classified bird's-eye view out.
 
 use futures::StreamExt;
+use rover_imaging::message::rgb8_message;
 use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::msg::{Telemetry, TerrainScan};
 use rover_msgs::sensor_msgs::{CompressedImage, Image};
@@ -165,15 +166,7 @@ impl Worker {
         let every = self.settings.vision_every_frames as u64;
         if every > 0 && self.frames.is_multiple_of(every) {
             let image = vision_image(self.perception.table(), self.perception.classes());
-            let message = Image {
-                header,
-                height: image.height as u32,
-                width: image.width as u32,
-                encoding: "rgb8".to_string(),
-                is_bigendian: 0,
-                step: image.width as u32 * 3,
-                data: image.data,
-            };
+            let message = rgb8_message(image, header);
             if let Err(e) = self.vision.publish(message) {
                 tracing::warn!("cannot publish rover/vision: {e:?}");
             }
