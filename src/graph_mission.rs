@@ -220,6 +220,18 @@ fn handler<M>(
     move |message| update(&mut evaluator.lock().expect("evaluator lock"), message)
 }
 
+/// How many frames a decision state may be ahead of the last telemetry the evaluator saw (the two
+/// travel separately).
+const MODE_AHEAD_FRAMES: u64 = 25;
+
+/// True if a decision state of bridge frame `frame` belongs to this mission: the evaluator has seen
+/// telemetry (`last`: bridge frame, mission frame) up to shortly before it. A latched `done` of the
+/// previous mission's graph, still being stopped when this evaluator subscribed, has a frame far
+/// ahead of a new mission's first frames, or comes before any.
+fn answers_a_frame_seen(last: Option<(u64, u64)>, frame: u64) -> bool {
+    last.is_some_and(|(bridge_frame, _)| frame <= bridge_frame + MODE_AHEAD_FRAMES)
+}
+
 fn subscribe_evaluator(
     node: &mut rover_node::RosNode,
     evaluator: &Arc<Mutex<Evaluator>>,
@@ -229,7 +241,7 @@ fn subscribe_evaluator(
     let span = node.span();
     let done = done.clone();
     let on_mode = move |e: &mut Evaluator, state: DecisionState| {
-        if state.mode == Mode::Done.name() {
+        if state.mode == Mode::Done.name() && answers_a_frame_seen(e.frames.last(), state.frame) {
             done.notify_one();
         }
         e.progress.mode = state.mode;
@@ -257,4 +269,17 @@ fn subscribe_evaluator(
             handler(evaluator, |e, d: DiagnosticArray| e.on_diagnostics(&d)),
         ),
     ])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_done_from_an_earlier_mission_is_not_this_missions_done() {
+        assert!(!answers_a_frame_seen(None, 10), "no telemetry seen yet");
+        assert!(!answers_a_frame_seen(Some((40, 40)), 26_300), "the last frame of a 1052 s mission");
+        assert!(answers_a_frame_seen(Some((26_290, 26_290)), 26_300), "its own frame, a little ahead");
+        assert!(answers_a_frame_seen(Some((500, 9_000)), 480), "after a bridge restart, in bridge frames");
+    }
 }
