@@ -32,7 +32,12 @@ pub struct PinholeCamera {
 impl PinholeCamera {
     /// The Unity rover camera (unity-sim-spec 4.1): f = 80 / tan(35 deg) = 114.25 px.
     pub fn rover() -> Self {
-        PinholeCamera { width: 320, height: 160, focal_px: 80.0 / 35f64.to_radians().tan() }
+        Self::of_size(320, 160)
+    }
+
+    /// The rover camera's 70 degree vertical field of view at `width` x `height` pixels.
+    pub fn of_size(width: u32, height: u32) -> Self {
+        PinholeCamera { width, height, focal_px: (height as f64 / 2.0) / 35f64.to_radians().tan() }
     }
 
     /// The `CameraInfo` message of this camera.

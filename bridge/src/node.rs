@@ -114,11 +114,7 @@ struct DdsSink {
 
 impl DdsSink {
     fn new(node: &mut RosNode, params: &BridgeParams, clock: Arc<SimClock>) -> anyhow::Result<Self> {
-        let camera = PinholeCamera {
-            width: params.image_width as u32,
-            height: params.image_height as u32,
-            focal_px: (params.image_height as f64 / 2.0) / 35f64.to_radians().tan(),
-        };
+        let camera = PinholeCamera::of_size(params.image_width as u32, params.image_height as u32);
         let tf_static = node.publisher(&topics::TF_STATIC)?;
         let static_transforms =
             convert::static_transforms_message(&CameraMount::UNITY, &Header::at(frame_ids::MAP, clock.now()));
