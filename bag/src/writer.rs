@@ -41,7 +41,6 @@ pub struct BagWriter {
     mcap: mcap::Writer<BufWriter<File>>,
     topics: Vec<WrittenTopic>,
     log_ns_range: Option<(u64, u64)>,
-    bytes: u64,
 }
 
 impl BagWriter {
@@ -64,16 +63,11 @@ impl BagWriter {
             .compression(None)
             .create(BufWriter::new(file))
             .map_err(|e| BagError::mcap(&path, e))?;
-        Ok(BagWriter { dir: dir.to_path_buf(), file_name, mcap, topics: Vec::new(), log_ns_range: None, bytes: 0 })
-    }
-
-    /// The bag folder.
-    pub fn dir(&self) -> &Path {
-        &self.dir
+        Ok(BagWriter { dir: dir.to_path_buf(), file_name, mcap, topics: Vec::new(), log_ns_range: None })
     }
 
     /// The MCAP file.
-    pub fn mcap_path(&self) -> PathBuf {
+    fn mcap_path(&self) -> PathBuf {
         self.dir.join(&self.file_name)
     }
 
@@ -106,22 +100,11 @@ impl BagWriter {
         };
         self.mcap.write_to_known_channel(&header, data).map_err(|e| BagError::mcap(&path, e))?;
         written.messages += 1;
-        self.bytes += data.len() as u64;
         self.log_ns_range = Some(match self.log_ns_range {
             None => (time.log_ns, time.log_ns),
             Some((first, last)) => (first.min(time.log_ns), last.max(time.log_ns)),
         });
         Ok(())
-    }
-
-    /// Messages written so far on each topic, in the order the topics were added.
-    pub fn counts(&self) -> Vec<(&TopicInfo, u64)> {
-        self.topics.iter().map(|t| (&t.info, t.messages)).collect()
-    }
-
-    /// Bytes of message data written so far.
-    pub fn message_bytes(&self) -> u64 {
-        self.bytes
     }
 
     /// Ends the MCAP file with its summary and writes `metadata.yaml`; returns the metadata.
