@@ -63,30 +63,16 @@ impl RecordedFrame {
 
 /// The time in an image name `robocam_YYYY_MM_DD_hh_mm_ss_mmm`, nanoseconds since the epoch (UTC).
 fn time_ns_of_image_name(name: &str) -> Option<u64> {
-    let numbers: Vec<u64> =
+    let numbers: Vec<u32> =
         name.strip_prefix("robocam_")?.split('_').map(|part| part.parse().ok()).collect::<Option<_>>()?;
     let [year, month, day, hour, minute, second, millisecond] = numbers[..] else { return None };
-    let valid = (1970..=9999).contains(&year)
-        && (1..=12).contains(&month)
-        && (1..=31).contains(&day)
-        && hour < 24
-        && minute < 60
-        && second < 61
-        && millisecond < 1000;
-    if !valid {
-        return None;
-    }
-    let seconds = days_since_epoch(year, month, day) * 86_400 + hour * 3_600 + minute * 60 + second;
-    Some(seconds * 1_000_000_000 + millisecond * 1_000_000)
-}
-
-/// Days from 1970-01-01 to the date (proleptic Gregorian calendar, year 1970 or later).
-fn days_since_epoch(year: u64, month: u64, day: u64) -> u64 {
-    let is_leap = |y: u64| (y.is_multiple_of(4) && !y.is_multiple_of(100)) || y.is_multiple_of(400);
-    let days_in_years: u64 = (1970..year).map(|y| if is_leap(y) { 366 } else { 365 }).sum();
-    const DAYS_BEFORE_MONTH: [u64; 12] = [0, 31, 59, 90, 120, 151, 181, 212, 243, 273, 304, 334];
-    let leap_day = u64::from(month > 2 && is_leap(year));
-    days_in_years + DAYS_BEFORE_MONTH[month as usize - 1] + leap_day + day - 1
+    let time = chrono::NaiveDate::from_ymd_opt(i32::try_from(year).ok()?, month, day)?.and_hms_milli_opt(
+        hour,
+        minute,
+        second,
+        Some(millisecond).filter(|&ms| ms < 1000)?,
+    )?;
+    u64::try_from(time.and_utc().timestamp_nanos_opt()?).ok()
 }
 
 /// Reads `robot_log.csv` of the dataset in `dir`; image paths are resolved to `dir/IMG/<file name>`.
