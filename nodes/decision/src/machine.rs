@@ -199,6 +199,9 @@ pub struct Machine {
     last_drive: Drive,
     frame: u64,
     tally: SampleTally,
+    /// Recalled from an earlier machine: home comes from the mission ([`Machine::resume`]), not
+    /// from where the rover happens to stand at this machine's first frame.
+    awaits_home: bool,
 }
 
 impl Machine {
@@ -227,12 +230,14 @@ impl Machine {
             last_drive: Drive::stop(0.0),
             frame: 0,
             tally: SampleTally::default(),
+            awaits_home: false,
         }
     }
 
     /// Takes over a mission an earlier machine started: its home and the samples it collected.
     pub fn resume(&mut self, memory: Memory) {
         self.status.home = Some(memory.home);
+        self.awaits_home = false;
         self.tally = SampleTally::starting_at(memory.samples_collected);
         self.status.samples_collected = memory.samples_collected;
         self.status.reason = "resumed".to_string();
@@ -253,6 +258,7 @@ impl Machine {
     pub fn recall(&mut self, recollection: Recollection) {
         self.explorer = Explorer::with_memory(recollection.explorer);
         self.samples.set_ignored(recollection.ignored_rocks);
+        self.awaits_home = self.status.home.is_none();
         match recollection.stage {
             Stage::Exploring => {}
             Stage::ReturningHome => self.enter(State::ReturnHome(None), "resumed on the way home"),
@@ -313,7 +319,9 @@ impl Machine {
 
     /// Decides the drive command for one frame.
     pub fn step(&mut self, obs: &Observation) -> Drive {
-        self.status.home.get_or_insert((obs.position.x_m, obs.position.y_m));
+        if !self.awaits_home {
+            self.status.home.get_or_insert((obs.position.x_m, obs.position.y_m));
+        }
         self.frame = obs.frame;
         self.explorer.inspect(&obs.position, &self.params);
         self.tally.update(obs.samples_remaining);
@@ -641,7 +649,10 @@ impl Machine {
 
     fn return_home(&mut self, obs: &Observation, route: Option<Route>) -> Drive {
         let p = self.params.clone();
-        let home = self.status.home.unwrap_or((obs.position.x_m, obs.position.y_m));
+        let Some(home) = self.status.home else {
+            self.state = State::ReturnHome(route);
+            return Drive::stop(p.brake);
+        };
         let distance_m = obs.position.distance_to(home);
         if distance_m <= p.home_tolerance_m {
             self.enter(State::Done, "home");
@@ -731,6 +742,28 @@ mod tests {
         assert_eq!(second.recollection(), learnt);
         second.recall(Recollection { stage: Stage::ReturningHome, ..learnt });
         assert_eq!(second.status().mode, Mode::ReturnHome);
+    }
+
+    #[test]
+    fn a_machine_recalled_on_the_way_home_waits_for_the_missions_home_before_it_is_done() {
+        let params = DecisionParams::default();
+        let mut first = Machine::new(params.clone());
+        first.set_map(corridor());
+        first.step(&observation(1, 100.5, 100.5));
+        let learnt = Recollection { stage: Stage::ReturningHome, ..first.recollection() };
+        let mut second = Machine::new(params.clone());
+        second.set_map(corridor());
+        second.recall(learnt);
+        for frame in 100..110 {
+            let drive = second.step(&observation(frame, 110.5, 100.5));
+            assert_eq!((drive.throttle, second.status().mode), (0.0, Mode::ReturnHome), "frame {frame}");
+            assert!(drive.brake > 0.0, "brakes while home is unknown");
+        }
+        second.resume(Memory { home: (100.5, 100.5), samples_collected: 6 });
+        let drive = second.step(&observation(110, 110.5, 100.5));
+        assert_eq!(second.status().mode, Mode::ReturnHome, "10 m from home is not home");
+        assert_eq!(second.status().home, Some((100.5, 100.5)));
+        assert!(drive.brake == 0.0, "{drive:?}");
     }
 
     #[test]
