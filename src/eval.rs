@@ -12,10 +12,11 @@ use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 
 use crate::chaos::Chaos;
-use crate::graph::{GraphConfig, free_port, log_dir};
+use crate::graph::{GraphConfig, RemoteNodes, free_port, log_dir};
 use crate::graph_mission::run_graph_mission;
-use crate::mission::{NodeSettings, Progress, run_in_process};
+use crate::mission::{NodeSettings, Progress, Replies, run_in_process};
 use crate::mission_map::{MissionMap, write_mission_png};
+use crate::nodes::Node;
 use crate::time_by_mode::{self, TimeByMode};
 
 /// Options of `rover eval`.
@@ -52,6 +53,27 @@ pub struct EvalArgs {
     /// End a mission when a node dies, instead of starting the node again.
     #[arg(long, conflicts_with = "in_process")]
     pub no_respawn: bool,
+    /// Start these nodes on another host through --remote-exec, e.g. mapping,decision,pickup
+    /// (`tools/two-hosts` does).
+    #[arg(long, value_name = "NODES", value_delimiter = ',', requires = "remote_exec", conflicts_with = "in_process")]
+    pub remote_nodes: Vec<String>,
+    /// The command that runs a program on the other host, e.g. "ip netns exec base".
+    #[arg(long, value_name = "COMMAND", requires = "remote_nodes")]
+    pub remote_exec: Option<String>,
+}
+
+impl EvalArgs {
+    /// The nodes to start on another host, checked against the graph's node names.
+    fn remote_nodes(&self) -> anyhow::Result<Option<RemoteNodes>> {
+        let Some(exec) = &self.remote_exec else { return Ok(None) };
+        let names: Vec<&str> = Node::ALL.iter().map(|n| n.name()).collect();
+        if let Some(unknown) = self.remote_nodes.iter().find(|n| !names.contains(&n.as_str())) {
+            anyhow::bail!("--remote-nodes {unknown:?}: expected some of {}", names.join(", "));
+        }
+        let exec: Vec<String> = exec.split_whitespace().map(str::to_string).collect();
+        anyhow::ensure!(!exec.is_empty(), "--remote-exec is empty: expected a command such as \"ip netns exec base\"");
+        Ok(Some(RemoteNodes { nodes: self.remote_nodes.clone(), exec }))
+    }
 }
 
 /// Parses `A..B` (inclusive) or a single seed.
@@ -99,9 +121,10 @@ pub struct RunResult {
     /// Simulated seconds by activity: the decision's modes, and picking up, turning in place and
     /// standing still apart from them.
     pub time_by_mode_s: TimeByMode,
-    /// Frames whose drive command missed the bridge's reply deadline, so that the bridge held
-    /// the last one (0 in process): a loaded machine changes the course of a graph mission.
-    pub deadline_misses: u64,
+    /// How the bridge answered (all zero in process): late frames change the course of a graph
+    /// mission on a loaded machine or a slow link.
+    #[serde(flatten)]
+    pub replies: Replies,
 }
 
 impl RunResult {
@@ -132,7 +155,7 @@ impl RunResult {
             final_mode: progress.mode.clone(),
             distance_m: report.distance_m,
             time_by_mode_s: progress.time_by_mode.clone(),
-            deadline_misses: progress.deadline_misses,
+            replies: progress.replies,
         }
     }
 }
@@ -181,6 +204,7 @@ pub async fn run_graph_eval(args: &EvalArgs, runtime: &Runtime, ros_args: &[Stri
         let mut config = GraphConfig::of_current_exe(free_port()?, log_dir("eval").join(format!("seed{seed}")))?;
         config.ros_args = ros_args.to_vec();
         config.respawn = !args.no_respawn;
+        config.remote = args.remote_nodes()?;
         let sim_config = SimConfig { max_sim_seconds: Some(args.max_sim_seconds), ..SimConfig::default() };
         let started = Instant::now();
         let mut next_line_s = PROGRESS_EVERY_SIM_S;
@@ -273,13 +297,17 @@ pub fn time_table(results: &[RunResult]) -> String {
     for (_, title) in ACTIVITIES {
         out += &format!("  {title:>8}");
     }
-    out += "  distance m  late frames\n";
+    out += "  distance m  late frames  brakes  reply p50 ms  p99 ms\n";
     for r in results {
         out += &format!("{:>4}", r.seed);
         for (activity, _) in ACTIVITIES {
             out += &format!("  {:>8.0}", r.time_by_mode_s.seconds(activity));
         }
-        out += &format!("  {:>10.0}  {:>11}\n", r.distance_m, r.deadline_misses);
+        let replies = &r.replies;
+        out += &format!(
+            "  {:>10.0}  {:>11}  {:>6}  {:>12.2}  {:>6.2}\n",
+            r.distance_m, replies.deadline_misses, replies.silence_brakes, replies.reply_p50_ms, replies.reply_p99_ms
+        );
     }
     out
 }

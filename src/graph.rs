@@ -29,13 +29,25 @@ pub struct GraphConfig {
     pub log_dir: PathBuf,
     /// Start a node that dies again, after a back-off (see [`Graph::respawn_dead`]).
     pub respawn: bool,
+    /// Nodes started on another host (`None`: all on this one).
+    pub remote: Option<RemoteNodes>,
+}
+
+/// Nodes that run on another host, each started through a command prefix that runs a program
+/// there (e.g. `ip netns exec base`, as `tools/two-hosts` does).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct RemoteNodes {
+    /// The nodes' names, e.g. `mapping`.
+    pub nodes: Vec<String>,
+    /// The command prefix; the node's own command line follows it.
+    pub exec: Vec<String>,
 }
 
 impl GraphConfig {
     /// A graph of this very executable (`rover`), logging into `log_dir`.
     pub fn of_current_exe(port: u16, log_dir: PathBuf) -> anyhow::Result<Self> {
         let rover = std::env::current_exe().context("cannot find the rover executable")?;
-        Ok(GraphConfig { rover, domain_id: None, port, ros_args: Vec::new(), log_dir, respawn: true })
+        Ok(GraphConfig { rover, domain_id: None, port, ros_args: Vec::new(), log_dir, respawn: true, remote: None })
     }
 
     /// The folder where the nodes keep what a restarted node carries on from (the mapping and
@@ -88,7 +100,15 @@ impl NodeProcess {
     }
 
     fn command(config: &GraphConfig, name: &str) -> Command {
-        let mut command = Command::new(&config.rover);
+        let remote = config.remote.as_ref().filter(|r| r.nodes.iter().any(|n| n == name));
+        let mut command = match remote.and_then(|r| r.exec.split_first()) {
+            Some((program, prefix)) => {
+                let mut command = Command::new(program);
+                command.args(prefix).arg(&config.rover);
+                command
+            }
+            None => Command::new(&config.rover),
+        };
         command.arg(name).arg("--ros-args").args(&config.ros_args);
         // Aimed at one node each, so they also reach the nodes of `rover all`; the others ignore them.
         command.args(["-p", &format!("bridge:port:={}", config.port)]);
@@ -400,5 +420,26 @@ mod tests {
         stable.died();
         stable.started_at -= RESPAWN_STABLE_AFTER;
         assert_eq!(stable.died(), Some(RESPAWN_FIRST_DELAY), "a node that ran long enough starts again at once");
+    }
+
+    #[test]
+    fn remote_nodes_start_through_the_other_hosts_command_and_the_rest_here() {
+        let mut config = GraphConfig::of_current_exe(4567, PathBuf::from("/tmp/logs")).expect("exe");
+        config.remote = Some(RemoteNodes {
+            nodes: vec!["mapping".to_string()],
+            exec: ["ip", "netns", "exec", "base"].map(String::from).to_vec(),
+        });
+        let line = |name: &str| {
+            let command = NodeProcess::command(&config, name);
+            let args: Vec<String> = command.get_args().map(|a| a.to_string_lossy().into_owned()).collect();
+            (command.get_program().to_string_lossy().into_owned(), args)
+        };
+        let (program, args) = line("mapping");
+        assert_eq!(program, "ip");
+        assert_eq!(args[..4], ["netns", "exec", "base", &config.rover.to_string_lossy()]);
+        assert_eq!(args[4..6], ["mapping", "--ros-args"]);
+        let (program, args) = line("bridge");
+        assert_eq!(program, config.rover.to_string_lossy());
+        assert_eq!(args[..2], ["bridge", "--ros-args"]);
     }
 }

@@ -20,7 +20,7 @@ use rover_sim::world::World;
 use tokio::sync::Notify;
 
 use crate::graph::{Graph, GraphConfig};
-use crate::mission::Progress;
+use crate::mission::{Progress, Replies};
 use crate::mission_map::{MissionMap, sample_marks};
 use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
 
@@ -32,6 +32,11 @@ const SUPERVISION_PERIOD: Duration = Duration::from_millis(100);
 const STALL_LIMIT: Duration = Duration::from_secs(60);
 /// The key of the bridge's `/diagnostics` value that counts late drive commands.
 const BRIDGE_DEADLINE_MISSES: &str = "deadline_misses";
+/// The key that counts replies braking after the silence limit.
+const BRIDGE_SILENCE_BRAKES: &str = "replies_silence_brake";
+/// The keys of the reply latency's median and 99th percentile, milliseconds.
+const BRIDGE_REPLY_P50: &str = "reply_latency_p50_ms";
+const BRIDGE_REPLY_P99: &str = "reply_latency_p99_ms";
 /// How long each node gets to exit after SIGINT.
 const STOP_TIMEOUT: Duration = Duration::from_secs(5);
 
@@ -78,7 +83,7 @@ impl Evaluator {
             collected: 0,
             mode: "starting".to_string(),
             time_by_mode: TimeByMode::default(),
-            deadline_misses: 0,
+            replies: Replies::default(),
         };
         let mission_map = MissionMap {
             ground_truth: world.ground_truth().to_vec(),
@@ -120,8 +125,18 @@ impl Evaluator {
     }
 
     fn on_diagnostics(&mut self, diagnostics: &DiagnosticArray) {
+        let replies = &mut self.progress.replies;
         if let Some(misses) = diagnostics.value(BRIDGE_DEADLINE_MISSES).and_then(|value| value.parse().ok()) {
-            self.progress.deadline_misses = misses;
+            replies.deadline_misses = misses;
+        }
+        if let Some(brakes) = diagnostics.value(BRIDGE_SILENCE_BRAKES).and_then(|value| value.parse().ok()) {
+            replies.silence_brakes = brakes;
+        }
+        if let Some(p50) = diagnostics.value(BRIDGE_REPLY_P50).and_then(|value| value.parse().ok()) {
+            replies.reply_p50_ms = p50;
+        }
+        if let Some(p99) = diagnostics.value(BRIDGE_REPLY_P99).and_then(|value| value.parse().ok()) {
+            replies.reply_p99_ms = p99;
         }
     }
 

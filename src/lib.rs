@@ -8,6 +8,7 @@ pub mod demo;
 pub mod eval;
 pub mod graph;
 pub mod graph_mission;
+pub mod link;
 pub mod mission;
 pub mod mission_map;
 pub mod nodes;

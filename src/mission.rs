@@ -21,6 +21,7 @@ use rover_pickup::{Pickup, PickupParams, checked_arm_input};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
 use rover_sim::wire::command::Command;
 use rover_sim::world::World;
+use serde::Serialize;
 
 use crate::mission_map::{DrivenPath, MissionMap, sample_marks};
 use crate::nodes::Node;
@@ -71,8 +72,21 @@ pub struct Progress {
     pub mode: String,
     /// Simulated seconds by activity so far.
     pub time_by_mode: TimeByMode,
-    /// Frames whose drive command missed the bridge's reply deadline (none without a bridge).
+    /// How the bridge answered the simulator (all zero without a bridge).
+    pub replies: Replies,
+}
+
+/// How the bridge answered the simulator, from its `/diagnostics`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Replies {
+    /// Frames whose drive command missed the reply deadline, so that the bridge held the last one.
     pub deadline_misses: u64,
+    /// Frames answered with the brake because the graph had been silent too long.
+    pub silence_brakes: u64,
+    /// Telemetry in to reply out, median over the bridge's recent frames, milliseconds.
+    pub reply_p50_ms: f64,
+    /// The same, 99th percentile.
+    pub reply_p99_ms: f64,
 }
 
 /// How a mission ended.
@@ -121,7 +135,7 @@ pub fn run_in_process(
             collected: sim.report().samples_collected,
             mode: mode.name().to_string(),
             time_by_mode: clock.times().clone(),
-            deadline_misses: 0,
+            replies: Replies::default(),
         }
     };
     let started = Instant::now();

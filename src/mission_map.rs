@@ -224,6 +224,7 @@ fn draw_legend(image: &mut RgbImage, left: usize, lines: &[String]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mission::Replies;
     use crate::time_by_mode::TimeByMode;
 
     fn result() -> RunResult {
@@ -241,7 +242,7 @@ mod tests {
             final_mode: rover_decision::machine::Mode::Done.name().to_string(),
             distance_m: 900.0,
             time_by_mode_s: TimeByMode::default(),
-            deadline_misses: 0,
+            replies: Replies::default(),
         }
     }
 

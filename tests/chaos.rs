@@ -71,6 +71,7 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
         ros_args: Vec::new(),
         log_dir: log_dir.clone(),
         respawn: true,
+        remote: None,
     };
     let world = rover_sim::procgen::procedural_world(WORLD_SEED);
     let samples = world.samples.len();

@@ -95,8 +95,15 @@ impl SimulatedGraph {
             .chain([format!("__ns:={namespace}"), "-p".into(), "bridge:diagnostics_period_ms:=200.0".into()])
             .collect();
         let log_dir = std::env::temp_dir().join(format!("rover-isolation-{label}-{}", std::process::id()));
-        let config =
-            GraphConfig { rover: rover(), domain_id: Some(domain.id), port, ros_args, log_dir, respawn: false };
+        let config = GraphConfig {
+            rover: rover(),
+            domain_id: Some(domain.id),
+            port,
+            ros_args,
+            log_dir,
+            respawn: false,
+            remote: None,
+        };
         let graph = Graph::start(config).unwrap_or_else(|e| panic!("start graph {label}: {e:#}"));
         let port = port.to_string();
         let seed = seed.to_string();

@@ -120,6 +120,7 @@ fn start_graph(mode: Mode, domain: &Domain) -> Graph {
         ros_args: ros_args.iter().map(|a| a.to_string()).collect(),
         log_dir: std::env::temp_dir().join(format!("rover-interop-{mode:?}-{}", std::process::id())),
         respawn: false,
+        remote: None,
     };
     match mode {
         Mode::MultiProcess => Graph::start(config),
