@@ -1,0 +1,232 @@
+//! The lock-step loop's latency budget, hop by hop. A Unity-dialect client replays the 283 real
+//! frames of `../shared/udacity/test_dataset` (images and poses) through the whole graph (bridge,
+//! perception, mapping, decision, pickup, each its own process) and times every telemetry to its
+//! reply. A second pass adds a probe that subscribes to `rover/telemetry`, `rover/terrain` and
+//! `rover/drive_cmd` and splits that time into hops (the probe's own delivery delays each stamp
+//! alike). The baseline, in the same run: the Python seed solution
+//! (`tests/python/seed_baseline/drive_baseline.py`) answering the same frames.
+//!
+//! Run inside the loopback-only namespace: `tools/isolated cargo bench --bench loop_latency`.
+
+#[path = "../tests/support/mod.rs"]
+mod support;
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::process::Stdio;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use rover::graph::{Graph, GraphConfig};
+use rover_node::{spawn_subscriber, topics};
+use rover_sim::wire::client::{ClientConfig, Simulation, run_client};
+use rover_sim::wire::command::Command;
+use support::echo_sim::{LoadedFrame, recorded_frames, telemetry_json};
+use support::{Domain, NoParams, test_runtime, wait_for_port};
+
+/// Times the 283 frames are replayed in each pass.
+const ROUNDS: usize = 4;
+/// Replies left out at the start of each pass.
+const WARM_UP_REPLIES: usize = 100;
+/// The Python modules of the seed solution.
+const SEED_MODULES: [&str; 6] = ["socketio", "engineio", "eventlet", "numpy", "cv2", "PIL"];
+
+/// The client side of a pass: sends the recorded frames in turn and notes when each telemetry
+/// left and when the reply answering it came back (replies come in order).
+struct Replay {
+    frames: Vec<LoadedFrame>,
+    sent: Vec<Instant>,
+    replied: Vec<Instant>,
+    /// Replies that answer no telemetry (drive_rover.py sends one when a client connects).
+    unsolicited: usize,
+    limit: usize,
+}
+
+impl Replay {
+    fn new(frames: Vec<LoadedFrame>, unsolicited: usize) -> Self {
+        let limit = WARM_UP_REPLIES + ROUNDS * frames.len();
+        Replay { frames, sent: Vec::new(), replied: Vec::new(), unsolicited, limit }
+    }
+
+    /// Telemetry sent to reply received, for each answered telemetry after the warm-up.
+    fn latencies(&self) -> Vec<Duration> {
+        self.sent.iter().zip(&self.replied).skip(WARM_UP_REPLIES).map(|(sent, replied)| *replied - *sent).collect()
+    }
+}
+
+impl Simulation for Replay {
+    fn telemetry_json(&mut self) -> String {
+        let frame = &self.frames[self.sent.len() % self.frames.len()];
+        let json = telemetry_json(frame, frame.frame.x_m);
+        self.sent.push(Instant::now());
+        json
+    }
+
+    fn apply(&mut self, _command: Command) {
+        if self.unsolicited > 0 {
+            self.unsolicited -= 1;
+        } else {
+            self.replied.push(Instant::now());
+        }
+    }
+
+    fn finished(&self) -> bool {
+        self.replied.len() >= self.limit
+    }
+}
+
+async fn replay(port: u16, unsolicited: usize) -> Replay {
+    let mut replay = Replay::new(recorded_frames(), unsolicited);
+    let config = ClientConfig::unity("127.0.0.1", port);
+    tokio::time::timeout(Duration::from_secs(300), run_client(&mut replay, &config, std::future::pending()))
+        .await
+        .expect("a pass ends within 5 minutes");
+    replay
+}
+
+/// When the probe received each frame's message of one topic.
+#[derive(Clone, Default)]
+struct Arrivals(Arc<Mutex<HashMap<u64, Instant>>>);
+
+impl Arrivals {
+    fn note(&self, frame: u64) {
+        self.0.lock().expect("arrivals lock").entry(frame).or_insert_with(Instant::now);
+    }
+
+    fn at(&self, frame: u64) -> Option<Instant> {
+        self.0.lock().expect("arrivals lock").get(&frame).copied()
+    }
+}
+
+/// The probe's view of the loop: arrival times of telemetry, scans and drive commands by frame.
+struct Probe {
+    telemetry: Arrivals,
+    terrain: Arrivals,
+    drive: Arrivals,
+    _node: rover_node::RosNode,
+    _runtime: rover_node::Runtime,
+}
+
+impl Probe {
+    fn start(domain: &Domain) -> Probe {
+        let runtime = test_runtime(domain);
+        let (mut node, _) = runtime.node::<NoParams>("latency_probe").expect("the probe node");
+        let (telemetry, terrain, drive) = (Arrivals::default(), Arrivals::default(), Arrivals::default());
+        let sink = telemetry.clone();
+        let subscription = node.subscription(&topics::TELEMETRY).expect("subscribe");
+        spawn_subscriber(subscription, tracing::Span::none(), move |m| sink.note(m.frame));
+        let sink = terrain.clone();
+        let subscription = node.subscription(&topics::TERRAIN).expect("subscribe");
+        spawn_subscriber(subscription, tracing::Span::none(), move |m| sink.note(m.frame));
+        let sink = drive.clone();
+        let subscription = node.subscription(&topics::DRIVE_CMD).expect("subscribe");
+        spawn_subscriber(subscription, tracing::Span::none(), move |m| sink.note(m.frame));
+        Probe { telemetry, terrain, drive, _node: node, _runtime: runtime }
+    }
+
+    /// The hops of each answered frame after the warm-up (bridge frames count from 1 in the
+    /// order the telemetry was sent): bridge in, perception, decision, bridge out.
+    fn hops(&self, replay: &Replay) -> [Vec<Duration>; 4] {
+        let mut hops: [Vec<Duration>; 4] = Default::default();
+        for (index, (sent, replied)) in replay.sent.iter().zip(&replay.replied).enumerate().skip(WARM_UP_REPLIES) {
+            let frame = index as u64 + 1;
+            let (Some(telemetry), Some(terrain), Some(drive)) =
+                (self.telemetry.at(frame), self.terrain.at(frame), self.drive.at(frame))
+            else {
+                continue;
+            };
+            let stamps = [*sent, telemetry, terrain, drive, *replied];
+            for (hop, pair) in hops.iter_mut().zip(stamps.windows(2)) {
+                hop.push(pair[1].saturating_duration_since(pair[0]));
+            }
+        }
+        hops
+    }
+}
+
+/// The whole graph, each node its own process, on `domain`.
+fn start_graph(domain: &Domain, label: &str) -> Graph {
+    let log_dir = std::env::temp_dir().join(format!("rover-loop-latency-{}-{label}", std::process::id()));
+    let config = GraphConfig {
+        rover: support::rover(),
+        domain_id: Some(domain.id),
+        port: domain.port(),
+        ros_args: Vec::new(),
+        log_dir,
+        respawn: false,
+        remote: None,
+    };
+    let graph = Graph::start(config).expect("start the graph");
+    wait_for_port(domain.port(), Duration::from_secs(20));
+    graph
+}
+
+/// The seed solution's server on `port`, if Python has its modules.
+fn start_seed_solution(domain: &Domain) -> Option<support::Process> {
+    let python = support::python_with(&SEED_MODULES)?;
+    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/python/seed_baseline/drive_baseline.py");
+    let port = domain.port().to_string();
+    let mut command = std::process::Command::new(python);
+    command.args(["-W", "ignore"]).arg(script).args(["--port", &port, "--quiet"]).stdin(Stdio::null());
+    let log = std::env::temp_dir().join(format!("rover-loop-latency-{}-seed.log", std::process::id()));
+    let process = support::Process::spawn("seed", command, log).expect("start drive_baseline.py");
+    wait_for_port(domain.port(), Duration::from_secs(30));
+    Some(process)
+}
+
+struct Percentiles {
+    p50_ms: f64,
+    p99_ms: f64,
+}
+
+fn percentiles(samples: &[Duration]) -> Percentiles {
+    let mut ms: Vec<f64> = samples.iter().map(|d| d.as_secs_f64() * 1000.0).collect();
+    ms.sort_by(f64::total_cmp);
+    let at = |q: f64| ms.get(((ms.len().max(1) - 1) as f64 * q).round() as usize).copied().unwrap_or(f64::NAN);
+    Percentiles { p50_ms: at(0.5), p99_ms: at(0.99) }
+}
+
+fn print_row(label: &str, samples: &[Duration]) -> Percentiles {
+    let p = percentiles(samples);
+    println!("{label:<34} p50 {:>7.3} ms  p99 {:>7.3} ms  ({} frames)", p.p50_ms, p.p99_ms, samples.len());
+    p
+}
+
+fn main() {
+    support::assert_isolated();
+    let runtime = tokio::runtime::Runtime::new().expect("tokio runtime");
+    let _entered = runtime.enter();
+    let domain = Domain::reserve();
+    let frames = recorded_frames().len();
+    println!("loop latency: {ROUNDS} x {frames} recorded frames after {WARM_UP_REPLIES} warm-up replies, telemetry sent -> reply received");
+
+    let graph = start_graph(&domain, "plain");
+    let plain = runtime.block_on(replay(domain.port(), 0));
+    drop(graph);
+    let ours = print_row("rover graph (5 processes)", &plain.latencies());
+
+    let probe = Probe::start(&domain);
+    let graph = start_graph(&domain, "probed");
+    let probed = runtime.block_on(replay(domain.port(), 0));
+    drop(graph);
+    print_row("rover graph with the probe", &probed.latencies());
+    let names = ["  bridge in (socket -> telemetry)", "  perception (-> rover/terrain)", "  decision (-> rover/drive_cmd)", "  bridge out (-> reply received)"];
+    for (name, hop) in names.iter().zip(probe.hops(&probed)) {
+        print_row(name, &hop);
+    }
+
+    match start_seed_solution(&domain) {
+        Some(_seed) => {
+            let seed = runtime.block_on(replay(domain.port(), 1));
+            let baseline = print_row("Python seed solution", &seed.latencies());
+            println!(
+                "ratio rover / seed solution:       p50 {:.2}x  p99 {:.2}x",
+                ours.p50_ms / baseline.p50_ms,
+                ours.p99_ms / baseline.p99_ms
+            );
+        }
+        None => println!("Python seed solution: skipped (python3 lacks {SEED_MODULES:?})"),
+    }
+    let verdict = |ok: bool| if ok { "met" } else { "MISSED" };
+    println!("targets: p50 <= 2 ms {}, p99 <= 5 ms {}", verdict(ours.p50_ms <= 2.0), verdict(ours.p99_ms <= 5.0));
+}
