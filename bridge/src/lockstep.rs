@@ -13,7 +13,7 @@ use rover_node::rejections::{clipped, worth_logging};
 use tokio::sync::oneshot;
 
 use crate::reply::{CommandSource, DriveValues, LastCommand, Reply, ReplyPolicy};
-use crate::stats::BridgeStats;
+use crate::stats::{BridgeStats, LoopHops};
 use crate::telemetry::{SimTelemetry, parse_telemetry_value};
 use crate::teleop::{TeleopGains, twist_to_drive};
 
@@ -50,8 +50,15 @@ enum FrameState {
 }
 
 struct Waiting {
-    frame: u64,
+    published_at: Instant,
     receiver: oneshot::Receiver<DriveValues>,
+    facts: FrameFacts,
+}
+
+/// What the reply to a frame depends on besides its drive command.
+#[derive(Debug, Clone, Copy)]
+struct FrameFacts {
+    frame: u64,
     near_sample: bool,
     picking_up: bool,
     speed_mps: f64,
@@ -165,11 +172,21 @@ impl<S: FrameSink> LockStep<S> {
 
     /// Waits for the drive command of a frame (up to the deadline) and decides the reply.
     pub async fn reply(&self, in_flight: InFlight) -> Reply {
-        let reply = match in_flight.state {
-            FrameState::Decided(reply) => reply,
-            FrameState::Waiting(waiting) => self.decide(waiting).await,
+        let InFlight { received_at, state } = in_flight;
+        let (reply, hops) = match state {
+            FrameState::Decided(reply) => (reply, None),
+            FrameState::Waiting(waiting) => {
+                let published_at = waiting.published_at;
+                let (reply, command_at) = self.decide(waiting).await;
+                let hops = command_at.map(|at| LoopHops {
+                    bridge_in: published_at - received_at,
+                    graph: at - published_at,
+                    bridge_out: at.elapsed(),
+                });
+                (reply, hops)
+            }
         };
-        self.stats.replied(&reply, in_flight.received_at.elapsed());
+        self.stats.replied(&reply, received_at.elapsed(), hops);
         reply
     }
 
@@ -189,25 +206,32 @@ impl<S: FrameSink> LockStep<S> {
         let (sender, receiver) = oneshot::channel();
         lock(&self.waiting).insert(frame, sender);
         self.sink.publish_frame(frame, &telemetry);
-        FrameState::Waiting(Waiting {
+        let facts = FrameFacts {
             frame,
-            receiver,
             near_sample: telemetry.near_sample,
             picking_up: telemetry.picking_up,
             speed_mps: telemetry.speed_mps,
-        })
+        };
+        FrameState::Waiting(Waiting { published_at: Instant::now(), receiver, facts })
     }
 
-    async fn decide(&self, waiting: Waiting) -> Reply {
+    /// The reply to a frame, and when its drive command came (`None` if it did not in time).
+    async fn decide(&self, waiting: Waiting) -> (Reply, Option<Instant>) {
         let config = self.config();
-        let Waiting { frame, receiver, near_sample, picking_up, speed_mps } = waiting;
+        let Waiting { receiver, facts, .. } = waiting;
         let fresh = if config.policy.deadline.is_zero() {
             let mut receiver = receiver;
             receiver.try_recv().ok()
         } else {
             tokio::time::timeout(config.policy.deadline, receiver).await.ok().and_then(Result::ok)
         };
-        lock(&self.waiting).remove(&frame);
+        let command_at = fresh.is_some().then(Instant::now);
+        lock(&self.waiting).remove(&facts.frame);
+        (self.reply_for(&config, fresh, facts), command_at)
+    }
+
+    fn reply_for(&self, config: &LockStepConfig, fresh: Option<DriveValues>, facts: FrameFacts) -> Reply {
+        let FrameFacts { frame, near_sample, picking_up, speed_mps } = facts;
         if self.pickup_requested.swap(false, Ordering::Relaxed) {
             if near_sample && !picking_up {
                 return Reply::Pickup;
@@ -215,7 +239,7 @@ impl<S: FrameSink> LockStep<S> {
             tracing::warn!(frame, "ignored a pickup request: no sample is within reach or a pickup is running");
             self.stats.problem("pickup_without_sample");
         }
-        if let Some(values) = self.teleop_values(&config, speed_mps) {
+        if let Some(values) = self.teleop_values(config, speed_mps) {
             return Reply::Data(values, CommandSource::Teleop);
         }
         let last = *lock(&self.last_command);
@@ -335,6 +359,27 @@ mod tests {
             reply,
             Reply::Data(DriveValues { throttle: 0.3, brake: 0.0, steering_deg: 5.0 }, CommandSource::Fresh)
         );
+    }
+
+    #[tokio::test]
+    async fn a_frames_time_splits_into_the_bridge_in_the_graph_and_the_bridge_out() {
+        let (core, frames) = core();
+        let answering = {
+            let core = core.clone();
+            tokio::spawn(async move { core.reply(core.receive(Some(&payload(false)))).await })
+        };
+        let (frame, _frames) =
+            tokio::task::spawn_blocking(move || (frames.recv().unwrap(), frames)).await.unwrap();
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        core.on_drive_command(frame, 0.3, 0.0, 5.0);
+        answering.await.unwrap();
+        core.reply(core.receive(Some(&payload(false)))).await;
+        let [bridge_in, graph, bridge_out] = core.stats().hops();
+        assert_eq!([bridge_in.samples, graph.samples, bridge_out.samples], [1, 1, 1], "the held frame has no hops");
+        assert!((20.0..50.0).contains(&graph.p50_ms), "the graph took the 20 ms: {graph:?}");
+        assert!(bridge_in.p50_ms < 20.0 && bridge_out.p50_ms < 20.0, "{bridge_in:?} {bridge_out:?}");
+        let total = core.stats().latency();
+        assert!(total.p50_ms >= graph.p50_ms, "{total:?}");
     }
 
     #[tokio::test]

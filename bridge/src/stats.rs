@@ -13,6 +13,51 @@ use crate::reply::{CommandSource, Reply};
 /// Number of recent reply latencies kept for the percentiles.
 const LATENCY_WINDOW: usize = 2000;
 
+/// Where a frame's time went, from the bridge's clock: its own work on the way in (parse, check,
+/// publish), the graph (published to drive command in) and its own work on the way out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LoopHops {
+    /// Telemetry received to its messages published.
+    pub bridge_in: Duration,
+    /// Messages published to the frame's drive command received.
+    pub graph: Duration,
+    /// Drive command received to reply decided.
+    pub bridge_out: Duration,
+}
+
+/// The hops of [`LoopHops`] as `/diagnostics` names them (`hop_NAME_p50_ms`, `hop_NAME_p99_ms`).
+pub const HOP_NAMES: [&str; 3] = ["bridge_in", "graph", "bridge_out"];
+
+/// The latest durations of one kind, for percentiles.
+#[derive(Debug)]
+struct LatencyWindow(Mutex<VecDeque<f64>>);
+
+impl Default for LatencyWindow {
+    fn default() -> Self {
+        LatencyWindow(Mutex::new(VecDeque::with_capacity(LATENCY_WINDOW)))
+    }
+}
+
+impl LatencyWindow {
+    fn record(&self, duration: Duration) {
+        let mut window = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if window.len() == LATENCY_WINDOW {
+            window.pop_front();
+        }
+        window.push_back(duration.as_secs_f64() * 1000.0);
+    }
+
+    fn summary(&self) -> LatencySummary {
+        let mut values: Vec<f64> = self.0.lock().unwrap_or_else(|e| e.into_inner()).iter().copied().collect();
+        if values.is_empty() {
+            return LatencySummary::default();
+        }
+        values.sort_by(f64::total_cmp);
+        let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
+        LatencySummary { p50_ms: at(0.5), p99_ms: at(0.99), samples: values.len() }
+    }
+}
+
 /// Counters of the bridge, shared by the socket handlers and the diagnostics publisher.
 #[derive(Debug)]
 pub struct BridgeStats {
@@ -29,7 +74,8 @@ pub struct BridgeStats {
     replies_manual: AtomicU64,
     bad_commands: AtomicU64,
     problems: Mutex<BTreeMap<String, u64>>,
-    latencies_ms: Mutex<VecDeque<f64>>,
+    latencies: LatencyWindow,
+    hops: [LatencyWindow; 3],
     last_rate: Mutex<(Instant, u64)>,
 }
 
@@ -50,7 +96,8 @@ impl Default for BridgeStats {
             replies_manual: AtomicU64::new(0),
             bad_commands: AtomicU64::new(0),
             problems: Mutex::new(BTreeMap::new()),
-            latencies_ms: Mutex::new(VecDeque::with_capacity(LATENCY_WINDOW)),
+            latencies: LatencyWindow::default(),
+            hops: Default::default(),
             last_rate: Mutex::new((now, 0)),
         }
     }
@@ -99,8 +146,9 @@ impl BridgeStats {
         self.bad_commands.fetch_add(1, Ordering::Relaxed) + 1
     }
 
-    /// Counts one reply and records how long the frame took from arrival to reply.
-    pub fn replied(&self, reply: &Reply, latency: Duration) {
+    /// Counts one reply and records how long the frame took from arrival to reply, and where
+    /// the time went when a drive command answered it.
+    pub fn replied(&self, reply: &Reply, latency: Duration, hops: Option<LoopHops>) {
         let counter = match reply {
             Reply::Data(_, CommandSource::Fresh) => &self.replies_fresh,
             Reply::Data(_, CommandSource::Held) => &self.replies_held,
@@ -111,11 +159,12 @@ impl BridgeStats {
             Reply::Manual => &self.replies_manual,
         };
         counter.fetch_add(1, Ordering::Relaxed);
-        let mut latencies = self.latencies_ms.lock().unwrap_or_else(|e| e.into_inner());
-        if latencies.len() == LATENCY_WINDOW {
-            latencies.pop_front();
+        self.latencies.record(latency);
+        if let Some(LoopHops { bridge_in, graph, bridge_out }) = hops {
+            for (window, duration) in self.hops.iter().zip([bridge_in, graph, bridge_out]) {
+                window.record(duration);
+            }
         }
-        latencies.push_back(latency.as_secs_f64() * 1000.0);
     }
 
     /// Frames received so far.
@@ -140,14 +189,12 @@ impl BridgeStats {
 
     /// Percentiles of the recent reply latencies.
     pub fn latency(&self) -> LatencySummary {
-        let mut values: Vec<f64> =
-            self.latencies_ms.lock().unwrap_or_else(|e| e.into_inner()).iter().copied().collect();
-        if values.is_empty() {
-            return LatencySummary::default();
-        }
-        values.sort_by(f64::total_cmp);
-        let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
-        LatencySummary { p50_ms: at(0.5), p99_ms: at(0.99), samples: values.len() }
+        self.latencies.summary()
+    }
+
+    /// Percentiles of the recent frames' hops, in the order of [`HOP_NAMES`].
+    pub fn hops(&self) -> [LatencySummary; 3] {
+        [0, 1, 2].map(|hop| self.hops[hop].summary())
     }
 
     /// Telemetry frames per second since the previous call.
@@ -215,6 +262,10 @@ impl BridgeStats {
             key_value("replies_manual", self.replies_manual.load(Ordering::Relaxed).to_string()),
             key_value("bad_drive_commands", self.bad_commands.load(Ordering::Relaxed).to_string()),
         ];
+        for (name, hop) in HOP_NAMES.iter().zip(self.hops()) {
+            values.push(key_value(&format!("hop_{name}_p50_ms"), format!("{:.3}", hop.p50_ms)));
+            values.push(key_value(&format!("hop_{name}_p99_ms"), format!("{:.3}", hop.p99_ms)));
+        }
         for (kind, count) in self.problems.lock().unwrap_or_else(|e| e.into_inner()).iter() {
             values.push(key_value(&format!("problem_{kind}"), count.to_string()));
         }
@@ -246,9 +297,9 @@ mod tests {
         stats.client_connected();
         for ms in 1..=100 {
             stats.frame_received();
-            stats.replied(&Reply::Data(DriveValues::brake(0.0), CommandSource::Fresh), Duration::from_millis(ms));
+            stats.replied(&Reply::Data(DriveValues::brake(0.0), CommandSource::Fresh), Duration::from_millis(ms), None);
         }
-        stats.replied(&Reply::Data(DriveValues::brake(1.0), CommandSource::Held), Duration::from_millis(50));
+        stats.replied(&Reply::Data(DriveValues::brake(1.0), CommandSource::Held), Duration::from_millis(50), None);
         stats.problem("not_a_number");
         stats.problem("not_a_number");
         let latency = stats.latency();
@@ -258,6 +309,7 @@ mod tests {
         let diagnostics = stats.diagnostics("/bridge", Header::default());
         let status = &diagnostics.status[0];
         assert_eq!(status.value("frames"), Some("100"));
+        assert_eq!(status.value("hop_graph_p50_ms"), Some("0.000"), "no hops recorded");
         assert_eq!(status.value("deadline_misses"), Some("1"));
         assert_eq!(status.value("problem_not_a_number"), Some("2"));
         assert_eq!(status.value("link_up"), Some("true"));
