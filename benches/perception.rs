@@ -10,8 +10,8 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use rover::dataset::read_log;
-use rover::replay::frame_pose;
-use rover_mapping::map::{ScanGrid, WorldMap};
+use rover::replay::{frame_pose, scan_grid};
+use rover_mapping::map::WorldMap;
 use rover_mapping::params::MappingParams;
 use rover_perception::node::PerceptionParams;
 
@@ -54,16 +54,8 @@ fn main() -> anyhow::Result<()> {
             geometry.fill(classes, &mut cells);
             perceive.push(started.elapsed());
             std::hint::black_box(summary);
-            let scan = ScanGrid {
-                rows: geometry.rows,
-                cols: geometry.cols,
-                resolution_m: geometry.resolution_m,
-                origin_x_m: geometry.origin_x_m,
-                origin_y_m: geometry.origin_y_m,
-                cells: &cells,
-            };
             let started = Instant::now();
-            std::hint::black_box(map.update(&scan, frame_pose(frame)));
+            std::hint::black_box(map.update(&scan_grid(&geometry, &cells), frame_pose(frame)));
             map_update.push(started.elapsed());
         }
     }

@@ -9,6 +9,7 @@ use rover_mapping::params::MappingParams;
 use rover_mapping::projection::Pose;
 use rover_mapping::score::ground_truth_from_png;
 use rover_perception::node::PerceptionParams;
+use rover_perception::scan::ScanGeometry;
 use serde::Serialize;
 
 use crate::dataset::{RecordedFrame, read_log};
@@ -63,6 +64,18 @@ fn median_ms(mut samples: Vec<Duration>) -> f64 {
     samples[samples.len() / 2].as_secs_f64() * 1000.0
 }
 
+/// The bird's-eye grid of `geometry` holding the class codes `cells`, as the map takes it.
+pub fn scan_grid<'a>(geometry: &ScanGeometry, cells: &'a [u8]) -> ScanGrid<'a> {
+    ScanGrid {
+        rows: geometry.rows,
+        cols: geometry.cols,
+        resolution_m: geometry.resolution_m,
+        origin_x_m: geometry.origin_x_m,
+        origin_y_m: geometry.origin_y_m,
+        cells,
+    }
+}
+
 /// The pose of a recorded frame in REP-103 angles, converted like the bridge converts telemetry.
 pub fn frame_pose(frame: &RecordedFrame) -> Pose {
     Pose {
@@ -99,16 +112,8 @@ pub fn replay_frames(
         };
         geometry.fill(classes, &mut cells);
         perception_times.push(started.elapsed());
-        let scan = ScanGrid {
-            rows: geometry.rows,
-            cols: geometry.cols,
-            resolution_m: geometry.resolution_m,
-            origin_x_m: geometry.origin_x_m,
-            origin_y_m: geometry.origin_y_m,
-            cells: &cells,
-        };
         let started = Instant::now();
-        let update = map.update(&scan, frame_pose(frame));
+        let update = map.update(&scan_grid(&geometry, &cells), frame_pose(frame));
         mapping_times.push(started.elapsed());
         match update {
             Update::Used(_) => mapped += 1,

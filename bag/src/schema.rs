@@ -57,20 +57,11 @@ mod tests {
         assert!(text.starts_with("std_msgs/Header header\nstring child_frame_id\n"), "{text}");
         let (_, nested) = sections(&text);
         let names: Vec<&str> = nested.iter().map(|(name, _)| name.as_str()).collect();
-        assert_eq!(
-            names,
-            [
-                "std_msgs/Header",
-                "builtin_interfaces/Time",
-                "geometry_msgs/PoseWithCovariance",
-                "geometry_msgs/Pose",
-                "geometry_msgs/Point",
-                "geometry_msgs/Quaternion",
-                "geometry_msgs/TwistWithCovariance",
-                "geometry_msgs/Twist",
-                "geometry_msgs/Vector3",
-            ]
-        );
+        let definitions = Odometry::definitions();
+        let nested_types: Vec<&str> = definitions[1..].iter().map(|d| d.type_name.as_str()).collect();
+        assert_eq!(names, nested_types, "the nested types, in the order of the definitions");
+        assert_eq!(names.len(), 9);
+        assert_eq!(names[2], "geometry_msgs/PoseWithCovariance");
         let covariance = &nested[2].1;
         assert_eq!(covariance, "geometry_msgs/Pose pose\nfloat64[36] covariance\n");
         assert!(text.contains(&format!("\n{SEPARATOR}\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n")));
