@@ -15,12 +15,14 @@ pub struct Impairment {
     pub jitter: Duration,
     /// Share of packets lost, percent.
     pub loss_pct: f64,
+    /// From this instant on every packet is lost: the link is cut (`None`: never).
+    pub cut_at: Option<Instant>,
 }
 
 impl Impairment {
     /// True when the link does nothing to packets.
     pub fn is_none(&self) -> bool {
-        self.delay.is_zero() && self.jitter.is_zero() && self.loss_pct <= 0.0
+        self.delay.is_zero() && self.jitter.is_zero() && self.loss_pct <= 0.0 && self.cut_at.is_none()
     }
 }
 
@@ -55,7 +57,8 @@ impl Direction {
     pub fn departure(&mut self, arrival: Instant, bytes: usize) -> Option<Instant> {
         self.counts.packets += 1;
         self.counts.bytes += bytes as u64;
-        if self.random.unit() * 100.0 < self.impairment.loss_pct {
+        let cut = self.impairment.cut_at.is_some_and(|at| arrival >= at);
+        if cut || self.random.unit() * 100.0 < self.impairment.loss_pct {
             self.counts.lost += 1;
             return None;
         }
@@ -77,7 +80,12 @@ mod tests {
     use super::*;
 
     fn impairment(delay_ms: u64, jitter_ms: u64, loss_pct: f64) -> Impairment {
-        Impairment { delay: Duration::from_millis(delay_ms), jitter: Duration::from_millis(jitter_ms), loss_pct }
+        Impairment {
+            delay: Duration::from_millis(delay_ms),
+            jitter: Duration::from_millis(jitter_ms),
+            loss_pct,
+            cut_at: None,
+        }
     }
 
     #[test]
@@ -108,6 +116,17 @@ mod tests {
         assert_eq!((counts.packets, counts.bytes), (100_000, 10_000_000));
         assert_eq!(counts.lost as usize, 100_000 - delivered);
         assert!((800..1200).contains(&counts.lost), "{counts:?}");
+    }
+
+    #[test]
+    fn a_cut_link_loses_every_packet_from_the_cut_on() {
+        let start = Instant::now();
+        let cut_at = start + Duration::from_secs(1);
+        let mut link = Direction::new(Impairment { cut_at: Some(cut_at), ..impairment(5, 0, 0.0) }, 2);
+        assert!(link.departure(start, 100).is_some());
+        assert!(link.departure(cut_at - Duration::from_millis(1), 100).is_some());
+        assert!((0..100).all(|i| link.departure(cut_at + Duration::from_millis(i), 100).is_none()));
+        assert_eq!(link.counts().lost, 100);
     }
 
     #[test]

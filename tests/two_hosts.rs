@@ -1,6 +1,7 @@
 //! `tools/two-hosts`: the graph split over two network namespaces joined by an impaired link. The
 //! drive commands cross the link, so the bridge's reply latency cannot be under the two one-way
-//! delays; the namespaces and the link are gone afterwards, also after Ctrl-C.
+//! delays; a cut link brakes the rover; the namespaces and the link are gone afterwards, also
+//! after Ctrl-C.
 
 mod support;
 
@@ -74,6 +75,33 @@ fn a_mission_runs_across_a_delayed_lossy_link_and_leaves_nothing_behind() {
     );
     assert!(run["deadline_misses"].is_u64() && run["silence_brakes"].is_u64(), "{run}");
     assert!(stderr.contains("packets") && stderr.contains("lost"), "the link's counts: {stderr}");
+    assert_cleaned_up(&stderr);
+}
+
+#[test]
+fn a_cut_link_brakes_the_rover_once_the_silence_limit_has_passed() {
+    let Output { status, stdout, stderr } = two_hosts(&[
+        "--delay-ms",
+        "5",
+        "--cut-after-s",
+        "6",
+        "--procedural",
+        "--seeds",
+        "0",
+        "--max-sim-seconds",
+        "30",
+        "--json",
+    ])
+    .output()
+    .expect("run tools/two-hosts");
+    let stderr = String::from_utf8_lossy(&stderr);
+    assert!(status.success(), "{stderr}");
+    let runs: serde_json::Value = serde_json::from_slice(&stdout).expect("the eval's JSON");
+    let run = &runs[0];
+    let count = |key: &str| run[key].as_u64().unwrap_or_else(|| panic!("{key} in {run}"));
+    assert!(run["distance_m"].as_f64().is_some_and(|d| d > 1.0), "it drove before the cut: {run}");
+    assert!(count("silence_brakes") > 25, "more than a second of braked frames after the cut: {run}");
+    assert!(count("deadline_misses") >= count("silence_brakes"), "{run}");
     assert_cleaned_up(&stderr);
 }
 

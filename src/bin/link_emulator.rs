@@ -43,6 +43,9 @@ struct Args {
     /// Share of packets lost in each direction, percent.
     #[arg(long, value_name = "PCT", default_value_t = 0.0)]
     loss_pct: f64,
+    /// Cut the link this many seconds after it came up: from then on every packet is lost.
+    #[arg(long, value_name = "SECONDS")]
+    cut_after_s: Option<f64>,
     /// Seed of the delays and losses.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -62,10 +65,16 @@ impl Args {
             "--loss-pct {}: expected 0 to 100",
             self.loss_pct
         );
+        let cut_at = match self.cut_after_s {
+            Some(s) if s.is_finite() && s >= 0.0 => Some(Instant::now() + Duration::from_secs_f64(s)),
+            Some(s) => anyhow::bail!("--cut-after-s {s}: expected a number of seconds, 0 or more"),
+            None => None,
+        };
         Ok(Impairment {
             delay: millis("delay-ms", self.delay_ms)?,
             jitter: millis("jitter-ms", self.jitter_ms)?,
             loss_pct: self.loss_pct,
+            cut_at,
         })
     }
 }
