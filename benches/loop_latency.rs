@@ -18,6 +18,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use rover::graph::{Graph, GraphConfig};
+use rover_bridge::stats::HOP_NAMES;
+use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_node::{spawn_subscriber, topics};
 use rover_sim::wire::client::{ClientConfig, Simulation, run_client};
 use rover_sim::wire::command::Command;
@@ -103,6 +105,7 @@ struct Probe {
     telemetry: Arrivals,
     terrain: Arrivals,
     drive: Arrivals,
+    diagnostics: support::Latest<DiagnosticArray>,
     _node: rover_node::RosNode,
     _runtime: rover_node::Runtime,
 }
@@ -121,7 +124,8 @@ impl Probe {
         let sink = drive.clone();
         let subscription = node.subscription(&topics::DRIVE_CMD).expect("subscribe");
         spawn_subscriber(subscription, tracing::Span::none(), move |m| sink.note(m.frame));
-        Probe { telemetry, terrain, drive, _node: node, _runtime: runtime }
+        let diagnostics = support::Latest::subscribe(&mut node, &topics::DIAGNOSTICS);
+        Probe { telemetry, terrain, drive, diagnostics, _node: node, _runtime: runtime }
     }
 
     /// The hops of each answered frame after the warm-up (bridge frames count from 1 in the
@@ -142,6 +146,18 @@ impl Probe {
         }
         hops
     }
+}
+
+/// The bridge's own split of its recent frames, from its last `/diagnostics`, one line per hop.
+fn bridge_hops(diagnostics: &[DiagnosticArray]) -> Vec<String> {
+    let Some(last) = diagnostics.last() else { return vec!["  (no /diagnostics received)".to_string()] };
+    HOP_NAMES
+        .iter()
+        .map(|hop| {
+            let value = |q: &str| last.value(&format!("hop_{hop}_{q}_ms")).unwrap_or("?").to_string();
+            format!("  bridge's clock: {hop:<13} p50 {:>7} ms  p99 {:>7} ms", value("p50"), value("p99"))
+        })
+        .collect()
 }
 
 /// The whole graph, each node its own process, on `domain`.
@@ -198,7 +214,9 @@ fn main() {
     let _entered = runtime.enter();
     let domain = Domain::reserve();
     let frames = recorded_frames().len();
-    println!("loop latency: {ROUNDS} x {frames} recorded frames after {WARM_UP_REPLIES} warm-up replies, telemetry sent -> reply received");
+    println!(
+        "loop latency: {ROUNDS} x {frames} recorded frames after {WARM_UP_REPLIES} warm-up replies, telemetry sent -> reply received"
+    );
 
     let graph = start_graph(&domain, "plain");
     let plain = runtime.block_on(replay(domain.port(), 0));
@@ -208,11 +226,20 @@ fn main() {
     let probe = Probe::start(&domain);
     let graph = start_graph(&domain, "probed");
     let probed = runtime.block_on(replay(domain.port(), 0));
+    std::thread::sleep(Duration::from_millis(1100));
     drop(graph);
     print_row("rover graph with the probe", &probed.latencies());
-    let names = ["  bridge in (socket -> telemetry)", "  perception (-> rover/terrain)", "  decision (-> rover/drive_cmd)", "  bridge out (-> reply received)"];
+    let names = [
+        "  bridge in (socket -> telemetry)",
+        "  perception (-> rover/terrain)",
+        "  decision (-> rover/drive_cmd)",
+        "  bridge out (-> reply received)",
+    ];
     for (name, hop) in names.iter().zip(probe.hops(&probed)) {
         print_row(name, &hop);
+    }
+    for line in bridge_hops(&probe.diagnostics.all()) {
+        println!("{line}");
     }
 
     match start_seed_solution(&domain) {
