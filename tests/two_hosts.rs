@@ -43,28 +43,21 @@ fn assert_cleaned_up(stderr: &str) {
     }
 }
 
-#[test]
-fn a_mission_runs_across_a_delayed_lossy_link_and_leaves_nothing_behind() {
-    let Output { status, stdout, stderr } = two_hosts(&[
-        "--delay-ms",
-        "10",
-        "--jitter-ms",
-        "2",
-        "--loss-pct",
-        "1",
-        "--procedural",
-        "--seeds",
-        "0",
-        "--max-sim-seconds",
-        "15",
-        "--json",
-    ])
-    .output()
-    .expect("run tools/two-hosts");
-    let stderr = String::from_utf8_lossy(&stderr);
+/// Runs procedural world 0 for `sim_seconds` over a link with `link` options; returns the eval's
+/// JSON row and what the run printed on stderr.
+fn run_over(link: &[&str], sim_seconds: &str) -> (serde_json::Value, String) {
+    let world = ["--procedural", "--seeds", "0", "--max-sim-seconds", sim_seconds, "--json"];
+    let Output { status, stdout, stderr } =
+        two_hosts(&[link, &world[..]].concat()).output().expect("run tools/two-hosts");
+    let stderr = String::from_utf8_lossy(&stderr).into_owned();
     assert!(status.success(), "{stderr}");
     let runs: serde_json::Value = serde_json::from_slice(&stdout).expect("the eval's JSON");
-    let run = &runs[0];
+    (runs[0].clone(), stderr)
+}
+
+#[test]
+fn a_mission_runs_across_a_delayed_lossy_link_and_leaves_nothing_behind() {
+    let (run, stderr) = run_over(&["--delay-ms", "10", "--jitter-ms", "2", "--loss-pct", "1"], "15");
     let number = |key: &str| run[key].as_f64().unwrap_or_else(|| panic!("{key} in {run}"));
     assert!(number("sim_seconds") >= 14.9, "{run}");
     assert!(number("distance_m") > 1.0, "drive commands came back across the link: {run}");
@@ -80,24 +73,7 @@ fn a_mission_runs_across_a_delayed_lossy_link_and_leaves_nothing_behind() {
 
 #[test]
 fn a_cut_link_brakes_the_rover_once_the_silence_limit_has_passed() {
-    let Output { status, stdout, stderr } = two_hosts(&[
-        "--delay-ms",
-        "5",
-        "--cut-after-s",
-        "6",
-        "--procedural",
-        "--seeds",
-        "0",
-        "--max-sim-seconds",
-        "30",
-        "--json",
-    ])
-    .output()
-    .expect("run tools/two-hosts");
-    let stderr = String::from_utf8_lossy(&stderr);
-    assert!(status.success(), "{stderr}");
-    let runs: serde_json::Value = serde_json::from_slice(&stdout).expect("the eval's JSON");
-    let run = &runs[0];
+    let (run, stderr) = run_over(&["--delay-ms", "5", "--cut-after-s", "6"], "30");
     let count = |key: &str| run[key].as_u64().unwrap_or_else(|| panic!("{key} in {run}"));
     assert!(run["distance_m"].as_f64().is_some_and(|d| d > 1.0), "it drove before the cut: {run}");
     assert!(count("silence_brakes") > 25, "more than a second of braked frames after the cut: {run}");

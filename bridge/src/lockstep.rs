@@ -344,14 +344,24 @@ mod tests {
         serde_json::Value::Object(fields)
     }
 
-    #[tokio::test]
-    async fn the_command_for_the_frame_is_the_reply() {
-        let (core, frames) = core();
+    /// Sends one frame through `core` on a task of its own; returns that task (its reply) and the
+    /// frame's number once published.
+    async fn frame_in_flight(
+        core: &Arc<LockStep<ChannelSink>>,
+        frames: std::sync::mpsc::Receiver<u64>,
+    ) -> (tokio::task::JoinHandle<Reply>, u64, std::sync::mpsc::Receiver<u64>) {
         let answering = {
             let core = core.clone();
             tokio::spawn(async move { core.reply(core.receive(Some(&payload(false)))).await })
         };
-        let frame = tokio::task::spawn_blocking(move || frames.recv().unwrap()).await.unwrap();
+        let (frame, frames) = tokio::task::spawn_blocking(move || (frames.recv().unwrap(), frames)).await.unwrap();
+        (answering, frame, frames)
+    }
+
+    #[tokio::test]
+    async fn the_command_for_the_frame_is_the_reply() {
+        let (core, frames) = core();
+        let (answering, frame, _frames) = frame_in_flight(&core, frames).await;
         core.on_drive_command(frame + 1, 1.0, 0.0, 0.0);
         core.on_drive_command(frame, 0.3, 0.0, 5.0);
         let reply = answering.await.unwrap();
@@ -364,12 +374,7 @@ mod tests {
     #[tokio::test]
     async fn a_frames_time_splits_into_the_bridge_in_the_graph_and_the_bridge_out() {
         let (core, frames) = core();
-        let answering = {
-            let core = core.clone();
-            tokio::spawn(async move { core.reply(core.receive(Some(&payload(false)))).await })
-        };
-        let (frame, _frames) =
-            tokio::task::spawn_blocking(move || (frames.recv().unwrap(), frames)).await.unwrap();
+        let (answering, frame, _frames) = frame_in_flight(&core, frames).await;
         tokio::time::sleep(Duration::from_millis(20)).await;
         core.on_drive_command(frame, 0.3, 0.0, 5.0);
         answering.await.unwrap();
