@@ -15,6 +15,7 @@ use crate::bag::summary;
 use crate::eval::{RunResult, table};
 use crate::graph::{GraphConfig, free_port};
 use crate::graph_mission::run_graph_mission;
+use crate::live_view::{self, LiveView, LiveViewArgs};
 use crate::mission::Progress;
 use crate::mission_map::write_mission_png;
 
@@ -48,6 +49,13 @@ pub struct DemoArgs {
     /// Record every topic of the graph into this new rosbag2 bag folder (as `rover bag record -a`).
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
+    /// Serve the mission live to Foxglove on ws://127.0.0.1:8765 (as `rover live-view`); with
+    /// --realtime it plays at the speed a person watches.
+    #[arg(long)]
+    pub foxglove: bool,
+    /// Port of --foxglove.
+    #[arg(long, default_value_t = live_view::DEFAULT_PORT, value_name = "PORT", requires = "foxglove")]
+    pub foxglove_port: u16,
 }
 
 /// The JSON report of a demo run.
@@ -78,6 +86,12 @@ pub async fn run_demo(args: &DemoArgs, runtime: &Runtime, ros_args: &[String]) -
         Some(dir) => Some((Recorder::start(runtime, dir, &[])?, dir)),
         None => None,
     };
+    let live_view = if args.foxglove {
+        let view_args = LiveViewArgs { host: "127.0.0.1".to_string(), port: args.foxglove_port };
+        Some(LiveView::start(runtime, &view_args).await?)
+    } else {
+        None
+    };
     let started = Instant::now();
     let mut line = ProgressLine::new(samples);
     let outcome = run_graph_mission(runtime, config, world, sim_config, |p, _| line.show(p)).await;
@@ -86,6 +100,9 @@ pub async fn run_demo(args: &DemoArgs, runtime: &Runtime, ros_args: &[String]) -
     }
     if let Some((recorder, dir)) = recording {
         finish_recording(recorder, dir).await?;
+    }
+    if let Some(view) = live_view {
+        view.stop().await;
     }
     let outcome = outcome?;
     let result = RunResult::of(args.seed, samples, &outcome.report, &outcome.progress, started.elapsed().as_secs_f64());

@@ -9,6 +9,7 @@ pub mod eval;
 pub mod graph;
 pub mod graph_mission;
 pub mod link;
+pub mod live_view;
 pub mod mission;
 pub mod mission_map;
 pub mod nodes;

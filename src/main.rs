@@ -50,6 +50,10 @@ enum Command {
     /// Record and play rosbag2 bags (MCAP storage) of the graph's topics, as `ros2 bag` does, and
     /// turn a recorded dataset into a bag.
     Bag(rover::bag::BagArgs),
+    /// Serve the graph's camera, map, odometry, TF, rocks, mode and telemetry live to Foxglove
+    /// (Open connection, Foxglove WebSocket, ws://127.0.0.1:8765) until Ctrl-C.
+    #[command(name = "live-view", after_help = ROS_ARGS_HELP)]
+    LiveView(rover::live_view::LiveViewArgs),
 }
 
 /// The command line, with each node's parameter table in its long help.
@@ -164,5 +168,6 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
         Command::Bag(BagArgs { command: BagCommand::FromDataset(args) }) => {
             rover::bag::from_dataset::from_dataset(&args, &ros_args).map(drop)
         }
+        Command::LiveView(args) => rover::live_view::run(&args, dds(participant, ros_args, shutdown)?).await,
     }
 }
