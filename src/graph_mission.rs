@@ -6,6 +6,7 @@
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use rover_bridge::stats::{DEADLINE_MISSES_KEY, REPLY_P50_KEY, REPLY_P99_KEY, SILENCE_BRAKES_KEY};
 use rover_decision::machine::Mode;
 use rover_mapping::score::{LocatedSamples, occupancy_scores};
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
@@ -30,13 +31,6 @@ const PROGRESS_PERIOD: Duration = Duration::from_millis(500);
 const SUPERVISION_PERIOD: Duration = Duration::from_millis(100);
 /// Without a new telemetry frame for this long the graph counts as stalled and the run ends.
 const STALL_LIMIT: Duration = Duration::from_secs(60);
-/// The key of the bridge's `/diagnostics` value that counts late drive commands.
-const BRIDGE_DEADLINE_MISSES: &str = "deadline_misses";
-/// The key that counts replies braking after the silence limit.
-const BRIDGE_SILENCE_BRAKES: &str = "replies_silence_brake";
-/// The keys of the reply latency's median and 99th percentile, milliseconds.
-const BRIDGE_REPLY_P50: &str = "reply_latency_p50_ms";
-const BRIDGE_REPLY_P99: &str = "reply_latency_p99_ms";
 /// How long each node gets to exit after SIGINT.
 const STOP_TIMEOUT: Duration = Duration::from_secs(5);
 
@@ -126,18 +120,10 @@ impl Evaluator {
 
     fn on_diagnostics(&mut self, diagnostics: &DiagnosticArray) {
         let replies = &mut self.progress.replies;
-        if let Some(misses) = diagnostics.value(BRIDGE_DEADLINE_MISSES).and_then(|value| value.parse().ok()) {
-            replies.deadline_misses = misses;
-        }
-        if let Some(brakes) = diagnostics.value(BRIDGE_SILENCE_BRAKES).and_then(|value| value.parse().ok()) {
-            replies.silence_brakes = brakes;
-        }
-        if let Some(p50) = diagnostics.value(BRIDGE_REPLY_P50).and_then(|value| value.parse().ok()) {
-            replies.reply_p50_ms = p50;
-        }
-        if let Some(p99) = diagnostics.value(BRIDGE_REPLY_P99).and_then(|value| value.parse().ok()) {
-            replies.reply_p99_ms = p99;
-        }
+        update_from(&mut replies.deadline_misses, diagnostics, DEADLINE_MISSES_KEY);
+        update_from(&mut replies.silence_brakes, diagnostics, SILENCE_BRAKES_KEY);
+        update_from(&mut replies.reply_p50_ms, diagnostics, REPLY_P50_KEY);
+        update_from(&mut replies.reply_p99_ms, diagnostics, REPLY_P99_KEY);
     }
 
     fn on_telemetry(&mut self, telemetry: &Telemetry, step_s: f64) {
@@ -233,6 +219,13 @@ fn handler<M>(
 ) -> impl FnMut(M) + Send + 'static {
     let evaluator = evaluator.clone();
     move |message| update(&mut evaluator.lock().expect("evaluator lock"), message)
+}
+
+/// Sets `value` from the number under `key` in `diagnostics`, when there is one.
+fn update_from<T: std::str::FromStr>(value: &mut T, diagnostics: &DiagnosticArray, key: &str) {
+    if let Some(number) = diagnostics.value(key).and_then(|text| text.parse().ok()) {
+        *value = number;
+    }
 }
 
 /// How many frames a decision state may be ahead of the last telemetry the evaluator saw (the two

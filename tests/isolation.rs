@@ -12,6 +12,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use rover::graph::{Graph, GraphConfig};
+use rover_bridge::stats::SILENCE_BRAKES_KEY;
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{DriveCommand, Telemetry};
@@ -173,11 +174,11 @@ impl Counters {
         let value = |view: &DomainView, namespace: &str, key: &str| view.counter(namespace, key).unwrap_or(0);
         Counters {
             a_fresh: value(one, "/a", "replies_fresh"),
-            a_braking: value(one, "/a", "replies_silence_brake"),
+            a_braking: value(one, "/a", SILENCE_BRAKES_KEY),
             b_fresh: value(one, "/b", "replies_fresh"),
-            b_braking: value(one, "/b", "replies_silence_brake"),
+            b_braking: value(one, "/b", SILENCE_BRAKES_KEY),
             c_fresh: value(two, "/a", "replies_fresh"),
-            c_braking: value(two, "/a", "replies_silence_brake"),
+            c_braking: value(two, "/a", SILENCE_BRAKES_KEY),
         }
     }
 

@@ -13,6 +13,15 @@ use crate::reply::{CommandSource, Reply};
 /// Number of recent reply latencies kept for the percentiles.
 const LATENCY_WINDOW: usize = 2000;
 
+/// `/diagnostics` key: replies without a fresh command (held or silence brake).
+pub const DEADLINE_MISSES_KEY: &str = "deadline_misses";
+/// `/diagnostics` key: replies braking after the silence limit.
+pub const SILENCE_BRAKES_KEY: &str = "replies_silence_brake";
+/// `/diagnostics` key: the reply latency's median over the window, milliseconds.
+pub const REPLY_P50_KEY: &str = "reply_latency_p50_ms";
+/// `/diagnostics` key: the reply latency's 99th percentile over the window, milliseconds.
+pub const REPLY_P99_KEY: &str = "reply_latency_p99_ms";
+
 /// Where a frame's time went, from the bridge's clock: its own work on the way in (parse, check,
 /// publish), the graph (published to drive command in) and its own work on the way out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -194,7 +203,7 @@ impl BridgeStats {
 
     /// Percentiles of the recent frames' hops, in the order of [`HOP_NAMES`].
     pub fn hops(&self) -> [LatencySummary; 3] {
-        [0, 1, 2].map(|hop| self.hops[hop].summary())
+        self.hops.each_ref().map(LatencyWindow::summary)
     }
 
     /// Telemetry frames per second since the previous call.
@@ -250,12 +259,12 @@ impl BridgeStats {
             key_value("telemetry_rate_hz", format!("{rate:.1}")),
             key_value("frames", self.frames().to_string()),
             key_value("connections", self.connections.load(Ordering::Relaxed).to_string()),
-            key_value("reply_latency_p50_ms", format!("{:.3}", latency.p50_ms)),
-            key_value("reply_latency_p99_ms", format!("{:.3}", latency.p99_ms)),
+            key_value(REPLY_P50_KEY, format!("{:.3}", latency.p50_ms)),
+            key_value(REPLY_P99_KEY, format!("{:.3}", latency.p99_ms)),
             key_value("replies_fresh", self.fresh_replies().to_string()),
-            key_value("deadline_misses", self.deadline_misses().to_string()),
+            key_value(DEADLINE_MISSES_KEY, self.deadline_misses().to_string()),
             key_value("replies_held", self.replies_held.load(Ordering::Relaxed).to_string()),
-            key_value("replies_silence_brake", silence.to_string()),
+            key_value(SILENCE_BRAKES_KEY, silence.to_string()),
             key_value("replies_teleop", self.replies_teleop.load(Ordering::Relaxed).to_string()),
             key_value("replies_rejected_frame", self.replies_rejected.load(Ordering::Relaxed).to_string()),
             key_value("replies_pickup", self.replies_pickup.load(Ordering::Relaxed).to_string()),
