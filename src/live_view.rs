@@ -14,6 +14,8 @@ use rover_node::topics::{self, Topic, TopicVisitor, visit_all};
 use rover_node::{MessageInfo, RosNode, Runtime, spawn_subscriber_with_info};
 use tokio::task::JoinHandle;
 
+use crate::bag::record::message_time;
+
 /// Foxglove's default port for a live connection.
 pub const DEFAULT_PORT: u16 = 8765;
 /// The message encoding of every channel: ROS 2's CDR.
@@ -81,11 +83,6 @@ impl LiveView {
         Ok(LiveView { _context: context, _node: node, subscribers, server })
     }
 
-    /// The port served.
-    pub fn port(&self) -> u16 {
-        self.server.port()
-    }
-
     /// Ends the subscriptions and closes the server's connections.
     pub async fn stop(self) {
         for subscriber in &self.subscribers {
@@ -110,7 +107,7 @@ impl TopicVisitor for Forward<'_> {
         }
         let channel = channel::<M>(self.context, &self.node.identity().resolve_topic(topic.name)?)?;
         let handler = move |message: M, info: MessageInfo| match rover_node::cdr::encode(&message) {
-            Ok(data) => channel.log_with_meta(&data, PartialMetadata { log_time: log_time_ns(&info) }),
+            Ok(data) => channel.log_with_meta(&data, PartialMetadata { log_time: Some(message_time(&info).log_ns) }),
             Err(e) => tracing::warn!("{e:#}"),
         };
         let subscription = self.node.subscription(topic)?;
@@ -128,11 +125,6 @@ fn channel<M: RosMessage>(context: &Arc<Context>, name: &str) -> anyhow::Result<
         .context(context)
         .build_raw()
         .map_err(|e| anyhow::anyhow!("cannot make the Foxglove channel {name}: {e}"))
-}
-
-/// When the message was received, nanoseconds since the epoch (now when unknown).
-fn log_time_ns(info: &MessageInfo) -> Option<u64> {
-    info.received_timestamp().and_then(|time| u64::try_from(time.to_nanos()).ok())
 }
 
 /// Runs `rover live-view` until shutdown.

@@ -172,7 +172,7 @@ impl TopicVisitor for Subscribe<'_> {
 
 /// When a message was received (log time) and sent (publish time; its reception when the
 /// publisher gave no source time).
-fn message_time(info: &MessageInfo) -> MessageTime {
+pub(crate) fn message_time(info: &MessageInfo) -> MessageTime {
     let nanos = |time: ros2_client::ROSTime| u64::try_from(time.to_nanos()).unwrap_or(0);
     let log_ns = info.received_timestamp().map_or_else(now_ns, nanos);
     MessageTime { log_ns, publish_ns: info.source_timestamp().map_or(log_ns, nanos) }
