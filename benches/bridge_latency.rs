@@ -11,23 +11,10 @@ mod support;
 use std::time::Duration;
 
 use support::echo_sim::{EchoCheckingSimulator, run_fake_unity};
-use support::{Domain, echo_node, rover, start_process, wait_for_port};
+use support::{Domain, Percentiles, echo_node, percentiles, rover, start_process, wait_for_port};
 
 const FRAMES: usize = 5000;
 const WARM_UP_FRAMES: usize = 300;
-
-struct Percentiles {
-    p50_ms: f64,
-    p99_ms: f64,
-    max_ms: f64,
-}
-
-fn percentiles(latencies: &[Duration]) -> Percentiles {
-    let mut ms: Vec<f64> = latencies.iter().map(|d| d.as_secs_f64() * 1000.0).collect();
-    ms.sort_by(f64::total_cmp);
-    let at = |q: f64| ms[((ms.len() - 1) as f64 * q).round() as usize];
-    Percentiles { p50_ms: at(0.5), p99_ms: at(0.99), max_ms: at(1.0) }
-}
 
 async fn measure(domain: &Domain, bridge_params: &[&str], with_echo: bool) -> (Percentiles, usize) {
     let port = format!("port:={}", domain.port());

@@ -24,7 +24,7 @@ use rover_node::{spawn_subscriber, topics};
 use rover_sim::wire::client::{ClientConfig, Simulation, run_client};
 use rover_sim::wire::command::Command;
 use support::echo_sim::{LoadedFrame, recorded_frames, telemetry_json};
-use support::{Domain, NoParams, test_runtime, wait_for_port};
+use support::{Domain, NoParams, Percentiles, percentiles, test_runtime, wait_for_port};
 
 /// Times the 283 frames are replayed in each pass.
 const ROUNDS: usize = 4;
@@ -188,18 +188,6 @@ fn start_seed_solution(domain: &Domain) -> Option<support::Process> {
     let process = support::Process::spawn("seed", command, log).expect("start drive_baseline.py");
     wait_for_port(domain.port(), Duration::from_secs(30));
     Some(process)
-}
-
-struct Percentiles {
-    p50_ms: f64,
-    p99_ms: f64,
-}
-
-fn percentiles(samples: &[Duration]) -> Percentiles {
-    let mut ms: Vec<f64> = samples.iter().map(|d| d.as_secs_f64() * 1000.0).collect();
-    ms.sort_by(f64::total_cmp);
-    let at = |q: f64| ms.get(((ms.len().max(1) - 1) as f64 * q).round() as usize).copied().unwrap_or(f64::NAN);
-    Percentiles { p50_ms: at(0.5), p99_ms: at(0.99) }
 }
 
 fn print_row(label: &str, samples: &[Duration]) -> Percentiles {

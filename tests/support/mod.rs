@@ -217,3 +217,18 @@ pub fn ros2_cli_or_skip() -> bool {
     eprintln!("skipped: no `ros2` command line and no {} to install it from", wheels.display());
     false
 }
+
+/// Percentiles of durations, milliseconds (NaN when there are none).
+pub struct Percentiles {
+    pub p50_ms: f64,
+    pub p99_ms: f64,
+    pub max_ms: f64,
+}
+
+/// The median, 99th percentile and maximum of `samples`.
+pub fn percentiles(samples: &[Duration]) -> Percentiles {
+    let mut ms: Vec<f64> = samples.iter().map(|d| d.as_secs_f64() * 1000.0).collect();
+    ms.sort_by(f64::total_cmp);
+    let at = |q: f64| ms.get(((ms.len().max(1) - 1) as f64 * q).round() as usize).copied().unwrap_or(f64::NAN);
+    Percentiles { p50_ms: at(0.5), p99_ms: at(0.99), max_ms: at(1.0) }
+}
