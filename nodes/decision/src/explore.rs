@@ -199,7 +199,7 @@ impl Explorer {
             self.replan(grid, start, at, frame, params);
             self.planned = Some((frame, map_version));
         }
-        lookahead(&self.target.as_ref()?.path, at, params.lookahead_m)
+        lookahead(grid, &self.target.as_ref()?.path, at, params)
     }
 
     /// While looking at a reached target: the middle of its unexplored cells. The look (and the
@@ -228,6 +228,10 @@ impl Explorer {
                 path: Vec::new(),
                 recoveries: 0,
             });
+            if let Some(target) = &self.target {
+                let cost = costs.distance[target.cell];
+                tracing::debug!(frame, at = ?(at.x_m, at.y_m), target = ?cell_centre_m(target.cell), cost, "new frontier target");
+            }
         }
         if let Some(target) = self.target.as_mut() {
             target.path = costs.path_to(target.cell).unwrap_or_default();
@@ -301,7 +305,7 @@ mod tests {
         let waypoint = explorer.waypoint(&grid, 1, &rover, 0, &params).unwrap();
         let target = explorer.target().unwrap();
         assert!((58.0..61.0).contains(&target.0), "target at the frontier: {target:?}");
-        assert!(waypoint.0 > rover.x_m && (rover.distance_to(waypoint) - params.lookahead_m).abs() < 1.5);
+        assert!(waypoint.0 > rover.x_m && (params.lookahead_m..=params.max_lookahead_m).contains(&rover.distance_to(waypoint)));
         assert!(explorer.cost_to((40.5, 51.5)).is_some() && explorer.cost_to((5.5, 5.5)).is_none());
     }
 

@@ -154,6 +154,20 @@ impl Grid {
         })
     }
 
+    /// Whether the straight line from point `from` (metres) to cell `to` crosses only cells that
+    /// are neither obstacles nor next to one (the cell of `from` aside).
+    pub fn clear_line(&self, from: (f64, f64), to: usize) -> bool {
+        let start = cell_of_point(from.0, from.1);
+        let target = cell_centre_m(to);
+        let steps = ((target.0 - from.0).hypot(target.1 - from.1) / SIGHT_STEP_M).ceil() as usize;
+        (1..=steps).all(|k| {
+            let t = k as f64 / steps as f64;
+            let point = (from.0 + t * (target.0 - from.0), from.1 + t * (target.1 - from.1));
+            cell_of_point(point.0, point.1)
+                .is_some_and(|cell| Some(cell) == start || (self.cells[cell] != Cell::Blocked && !self.near_wall[cell]))
+        })
+    }
+
     /// Cells within `radius` cells of cell `i` (a square neighbourhood, clipped at the edges).
     pub fn cells_around(i: usize, radius: usize) -> impl Iterator<Item = usize> {
         let (x, y) = cell_xy(i);

@@ -33,6 +33,9 @@ rover_node::node_params! {
         lane_half_width_m: f64 [0.1, 2.0] = 0.5,
         /// Lookahead of the path follower, metres.
         lookahead_m: f64 [0.5, 20.0] = 2.5,
+        /// Farther along the path, up to this far, the follower steers straight toward the
+        /// farthest point that a line clear of walls leads to, metres.
+        max_lookahead_m: f64 [0.5, 30.0] = 8.0,
         /// Frames between replans.
         replan_frames: i64 [1, 10000] = 12,
         /// A frontier target counts as reached within this distance, metres.

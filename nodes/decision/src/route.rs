@@ -20,13 +20,20 @@ pub fn path_costs(params: &DecisionParams) -> Costs {
     }
 }
 
-/// The point of `path` the rover steers toward: the first cell at least `lookahead_m` away, after
-/// the cell nearest to the rover; the last cell when all are nearer.
-pub fn lookahead(path: &[usize], at: &Position, lookahead_m: f64) -> Option<(f64, f64)> {
+/// The point of `path` the rover steers toward: the first cell at least `lookahead_m` away after
+/// the cell nearest to the rover (the last cell when all are nearer), or a later one up to
+/// `max_lookahead_m` away while the straight line to it keeps clear of walls: on open ground the
+/// rover cuts the grid path's corners and drives straight.
+pub fn lookahead(grid: &Grid, path: &[usize], at: &Position, params: &DecisionParams) -> Option<(f64, f64)> {
     let distance = |&cell: &usize| at.distance_to(cell_centre_m(cell));
     let nearest = (0..path.len()).min_by(|&a, &b| distance(&path[a]).total_cmp(&distance(&path[b])))?;
     let ahead = &path[nearest..];
-    ahead.iter().find(|cell| distance(cell) >= lookahead_m).or(ahead.last()).map(|&cell| cell_centre_m(cell))
+    let first = ahead.iter().position(|cell| distance(cell) >= params.lookahead_m).unwrap_or(ahead.len() - 1);
+    let straight = ahead[first + 1..]
+        .iter()
+        .take_while(|cell| distance(cell) <= params.max_lookahead_m && grid.clear_line((at.x_m, at.y_m), **cell))
+        .count();
+    Some(cell_centre_m(ahead[first + straight]))
 }
 
 /// A free cell beside `goal` (within `radius_cells`) with a clear line of sight to it on the
@@ -88,7 +95,7 @@ impl Route {
                 .unwrap_or_default();
             self.planned = Some((frame, map_version));
         }
-        let point = lookahead(&self.path, at, params.lookahead_m)?;
+        let point = lookahead(grid, &self.path, at, params)?;
         Some(if at.distance_to(point) < params.lookahead_m { cell_centre_m(self.goal) } else { point })
     }
 }
@@ -120,6 +127,38 @@ mod tests {
         let centre = cell_centre_m(cell);
         assert!(grid.cell(cell) == Cell::Free && centre.0 > 84.0, "beside the goal, past the corner: {centre:?}");
         assert!(grid.line_of_sight(centre, goal, 1));
+    }
+
+    /// An open square 20..60 x 20..60 with a wall block 40..60 x 20..40 in its lower right.
+    fn room_with_a_corner() -> Grid {
+        let mut data = vec![100i8; CELLS];
+        for y in 20..60 {
+            for x in 20..60 {
+                data[cell_at(x, y)] = if x >= 40 && y < 40 { 100 } else { 0 };
+            }
+        }
+        Grid::from_occupancy(&data).unwrap()
+    }
+
+    #[test]
+    fn on_open_ground_the_rover_steers_straight_past_the_grid_paths_kinks_but_not_past_a_corner() {
+        let grid = room_with_a_corner();
+        let params = DecisionParams::default();
+        let rover = at(25.5, 25.5);
+        let path = grid.costs_from(cell_of_point(25.5, 25.5).unwrap(), &path_costs(&params));
+        let diagonal_then_straight = path.path_to(cell_of_point(35.5, 45.5).unwrap()).unwrap();
+        let point = lookahead(&grid, &diagonal_then_straight, &rover, &params).unwrap();
+        let distance = rover.distance_to(point);
+        assert!(
+            distance > params.lookahead_m + 2.0 && distance <= params.max_lookahead_m,
+            "farther than the lookahead: {point:?}"
+        );
+        let around_the_corner = path.path_to(cell_of_point(55.5, 45.5).unwrap()).unwrap();
+        let below_the_corner = at(35.5, 30.5);
+        let point = lookahead(&grid, &around_the_corner, &below_the_corner, &params).unwrap();
+        assert!(point.1 < 42.0 && point.0 < 40.0, "short of the corner at (40, 40): {point:?}");
+        assert!(grid.clear_line((35.5, 30.5), cell_of_point(point.0, point.1).unwrap()));
+        assert!(!grid.clear_line((35.5, 30.5), cell_of_point(45.5, 45.5).unwrap()), "the corner is in the way");
     }
 
     #[test]
