@@ -17,6 +17,8 @@ const EXPLORED_RADIUS_CELLS: usize = 3;
 const OBSTACLE_CROSSING_COST: f32 = 50.0;
 /// Recoveries on the way to one target before it is abandoned.
 const RECOVERIES_PER_TARGET: u32 = 2;
+/// A plan that reaches fewer cells than this is walled in by the map.
+const WALLED_IN_CELLS: usize = 25;
 /// Longest look at the unexplored cells of a reached target, seconds (a half turn takes 4 s).
 const LOOK_S: f64 = 5.0;
 
@@ -128,6 +130,15 @@ impl Explorer {
 
     fn unexplored(&self, grid: &Grid, cell: usize) -> bool {
         grid.cell(cell) != Cell::Free && !self.inspected[cell]
+    }
+
+    /// Whether the last plan reached hardly any cells: the map walls the rover in (it stands in
+    /// or among obstacle cells, e.g. started again next to a rock), so that no frontier says
+    /// anything about the world.
+    pub fn walled_in(&self) -> bool {
+        self.costs
+            .as_ref()
+            .is_some_and(|costs| costs.distance.iter().filter(|d| d.is_finite()).count() < WALLED_IN_CELLS)
     }
 
     /// Starts the current target's clock again after a detour (to a sample): the time away does
@@ -305,7 +316,10 @@ mod tests {
         let waypoint = explorer.waypoint(&grid, 1, &rover, 0, &params).unwrap();
         let target = explorer.target().unwrap();
         assert!((58.0..61.0).contains(&target.0), "target at the frontier: {target:?}");
-        assert!(waypoint.0 > rover.x_m && (params.lookahead_m..=params.max_lookahead_m).contains(&rover.distance_to(waypoint)));
+        assert!(
+            waypoint.0 > rover.x_m
+                && (params.lookahead_m..=params.max_lookahead_m).contains(&rover.distance_to(waypoint))
+        );
         assert!(explorer.cost_to((40.5, 51.5)).is_some() && explorer.cost_to((5.5, 5.5)).is_none());
     }
 

@@ -38,6 +38,9 @@ const STUCK_PROGRESS_M: f64 = 0.3;
 const STUCK_SPEED_MPS: f64 = 0.1;
 /// Moving less than this, whatever the rover is told, counts toward being stalled, metres.
 const STALL_PROGRESS_M: f64 = 1.0;
+/// With no frontier in reach because the map walls the rover in, it backs out up to this many
+/// times before it gives the frontiers up.
+const WALLED_IN_RECOVERIES: u32 = 3;
 /// The modes of the state machine, as published on `rover/mode`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Mode {
@@ -202,6 +205,8 @@ pub struct Machine {
     /// Recalled from an earlier machine: home comes from the mission ([`Machine::resume`]), not
     /// from where the rover happens to stand at this machine's first frame.
     awaits_home: bool,
+    /// Recoveries started since the last frontier because the map walls the rover in.
+    walled_in_recoveries: u32,
 }
 
 impl Machine {
@@ -231,6 +236,7 @@ impl Machine {
             frame: 0,
             tally: SampleTally::default(),
             awaits_home: false,
+            walled_in_recoveries: 0,
         }
     }
 
@@ -458,12 +464,18 @@ impl Machine {
         let p = &self.params.clone();
         match self.explorer.waypoint(&self.planning_map, self.map_version, &obs.position, obs.frame, p) {
             Some(waypoint) => {
+                self.walled_in_recoveries = 0;
                 let bearing = obs.position.bearing_to(waypoint);
                 tracing::trace!(bearing_deg = bearing.to_degrees(), free_ahead = obs.free.toward(0.0), best = ?obs.free.best_toward(bearing as f32, p.clearance_m as f32), "explore");
                 self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, p)
             }
             None if self.map_version == 0 => {
                 self.steering.around_obstacles(0.0, p.max_speed_mps, obs.speed_mps, &obs.free, p)
+            }
+            None if self.explorer.walled_in() && self.walled_in_recoveries < WALLED_IN_RECOVERIES => {
+                self.walled_in_recoveries += 1;
+                self.start_recovery(obs, "walled in by the map (a restart next to a rock?): backing out");
+                Drive::stop(p.brake)
             }
             None if self.forget_stuck_marks() => {
                 tracing::info!("no frontier reachable: the cells where the rover got stuck are free again");
@@ -725,6 +737,21 @@ mod tests {
             assert!(drive.throttle > 0.0, "frame {frame}: {drive:?}");
         }
         assert_eq!(machine.status().mode, Mode::Explore);
+    }
+
+    #[test]
+    fn a_rover_that_the_map_walls_in_backs_out_instead_of_giving_the_frontiers_up() {
+        let params = DecisionParams::default();
+        let mut machine = Machine::new(params.clone());
+        machine.set_map(corridor());
+        let among_rock_cells = observation(1, 110.5, 106.5);
+        machine.step(&among_rock_cells);
+        assert_eq!(machine.status().mode, Mode::Recover, "{:?}", machine.status());
+        assert!(machine.status().reason.contains("walled in"), "{:?}", machine.status());
+        let mut in_the_corridor = Machine::new(params);
+        in_the_corridor.set_map(corridor());
+        in_the_corridor.step(&observation(1, 110.5, 100.5));
+        assert_eq!(in_the_corridor.status().mode, Mode::Explore);
     }
 
     #[test]
