@@ -316,10 +316,8 @@ mod tests {
         let waypoint = explorer.waypoint(&grid, 1, &rover, 0, &params).unwrap();
         let target = explorer.target().unwrap();
         assert!((58.0..61.0).contains(&target.0), "target at the frontier: {target:?}");
-        assert!(
-            waypoint.0 > rover.x_m
-                && (params.lookahead_m..=params.max_lookahead_m).contains(&rover.distance_to(waypoint))
-        );
+        let farthest_m = params.lookahead_m.max(params.max_lookahead_m) + std::f64::consts::SQRT_2;
+        assert!(waypoint.0 > rover.x_m && (params.lookahead_m..=farthest_m).contains(&rover.distance_to(waypoint)));
         assert!(explorer.cost_to((40.5, 51.5)).is_some() && explorer.cost_to((5.5, 5.5)).is_none());
     }
 

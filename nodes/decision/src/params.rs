@@ -34,8 +34,10 @@ rover_node::node_params! {
         /// Lookahead of the path follower, metres.
         lookahead_m: f64 [0.5, 20.0] = 2.5,
         /// Farther along the path, up to this far, the follower steers straight toward the
-        /// farthest point that a line clear of walls leads to, metres.
-        max_lookahead_m: f64 [0.5, 30.0] = 8.0,
+        /// farthest point that a line clear of walls leads to, metres (no farther than
+        /// `lookahead_m`: off; 8 made missions on `map_bw.png` faster in process but not in the
+        /// graph, and procedural ones slower, see the README).
+        max_lookahead_m: f64 [0.5, 30.0] = 2.5,
         /// Frames between replans.
         replan_frames: i64 [1, 10000] = 12,
         /// A frontier target counts as reached within this distance, metres.

@@ -143,7 +143,7 @@ mod tests {
     #[test]
     fn on_open_ground_the_rover_steers_straight_past_the_grid_paths_kinks_but_not_past_a_corner() {
         let grid = room_with_a_corner();
-        let params = DecisionParams::default();
+        let params = DecisionParams { max_lookahead_m: 8.0, ..DecisionParams::default() };
         let rover = at(25.5, 25.5);
         let path = grid.costs_from(cell_of_point(25.5, 25.5).unwrap(), &path_costs(&params));
         let diagonal_then_straight = path.path_to(cell_of_point(35.5, 45.5).unwrap()).unwrap();
