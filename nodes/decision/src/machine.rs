@@ -203,7 +203,8 @@ pub struct Machine {
     frame: u64,
     tally: SampleTally,
     /// Recalled from an earlier machine: home comes from the mission ([`Machine::resume`]), not
-    /// from where the rover happens to stand at this machine's first frame.
+    /// from where the rover happens to stand at this machine's first frame, and until it does
+    /// the machine brakes (its map, rocks and tally may not have caught up with the mission).
     awaits_home: bool,
     /// Recoveries started since the last frontier because the map walls the rover in.
     walled_in_recoveries: u32,
@@ -382,6 +383,9 @@ impl Machine {
     }
 
     fn decide(&mut self, obs: &Observation) -> Drive {
+        if self.awaits_home {
+            return Drive::stop(self.params.brake);
+        }
         let (pickup, done) = (matches!(self.state, State::Pickup { .. }), matches!(self.state, State::Done));
         if !pickup && !done && (obs.picking_up || obs.near_sample) {
             let reason = if obs.picking_up { "the arm is picking up" } else { "sample within reach" };
@@ -501,7 +505,17 @@ impl Machine {
                     self.approach(obs, chase)
                 }
                 None => {
-                    tracing::debug!(rocks = ?self.samples.located(), given_up = ?self.samples.ignored(), "no frontier left");
+                    let (free_cells, obstacle_cells, unknown_cells) = self.received_map.counts();
+                    tracing::info!(
+                        free_cells,
+                        obstacle_cells,
+                        unknown_cells,
+                        map_version = self.map_version,
+                        at = ?(obs.position.x_m, obs.position.y_m),
+                        rocks = ?self.samples.located(),
+                        given_up = ?self.samples.ignored(),
+                        "no frontier left"
+                    );
                     self.enter(State::ReturnHome(None), "no frontier left");
                     self.return_home(obs, None)
                 }
@@ -769,6 +783,26 @@ mod tests {
         assert_eq!(second.recollection(), learnt);
         second.recall(Recollection { stage: Stage::ReturningHome, ..learnt });
         assert_eq!(second.status().mode, Mode::ReturnHome);
+    }
+
+    #[test]
+    fn a_machine_recalled_while_exploring_brakes_until_the_mission_arrives_then_explores() {
+        let params = DecisionParams::default();
+        let mut first = Machine::new(params.clone());
+        first.set_map(corridor());
+        first.step(&observation(1, 100.5, 100.5));
+        let mut second = Machine::new(params.clone());
+        second.recall(first.recollection());
+        second.set_map(corridor());
+        for frame in 100..110 {
+            let drive = second.step(&observation(frame, 104.5, 100.5));
+            assert_eq!((drive.throttle, second.status().mode), (0.0, Mode::Explore), "frame {frame}");
+            assert!(drive.brake > 0.0, "brakes while the mission is unknown");
+        }
+        second.resume(Memory { home: (100.5, 100.5), samples_collected: 2 });
+        let drive = second.step(&observation(110, 104.5, 100.5));
+        let moves = drive.throttle > 0.0 || drive.steering_deg != 0.0;
+        assert!(moves && drive.brake == 0.0 && second.status().mode == Mode::Explore, "explores: {drive:?}");
     }
 
     #[test]
