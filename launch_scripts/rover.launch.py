@@ -64,28 +64,23 @@ def node_names(rover):
 
 def arguments():
     """The launch arguments with their defaults."""
-    return [
-        DeclareLaunchArgument('namespace', default_value='/',
-                              description='ROS namespace of every node, e.g. /rover1'),
-        DeclareLaunchArgument('params_file', default_value=os.path.join(HERE, 'rover_params.yaml'),
-                              description='parameter YAML file given to every node'),
-        DeclareLaunchArgument('rover', default_value=default_rover(),
-                              description='path of the rover executable'),
-        DeclareLaunchArgument('port', default_value='4567',
-                              description="TCP port of the bridge's Socket.IO server"),
-        DeclareLaunchArgument('sim', default_value='false', choices=['true', 'false'],
-                              description='also start the headless simulator (rover sim)'),
-        DeclareLaunchArgument('seed', default_value='0',
-                              description="seed of the headless simulator's world"),
-        DeclareLaunchArgument('log_level', default_value='',
-                              description='log level of every node (default: RUST_LOG, else info)'),
-        DeclareLaunchArgument('respawn', default_value='true', choices=['true', 'false'],
-                              description='start a node that dies again'),
-        DeclareLaunchArgument('state_dir', default_value='',
-                              description="folder of the mapping and decision snapshots (default: a new temporary one)"),
-        DeclareLaunchArgument('use_sim_time', default_value='false', choices=['true', 'false'],
-                              description="stamp every node's messages with the simulated time of /clock"),
+    on_off = ['true', 'false']
+    declared = [
+        # name, default, description, allowed values (None: any)
+        ('namespace', '/', 'ROS namespace of every node, e.g. /rover1', None),
+        ('params_file', os.path.join(HERE, 'rover_params.yaml'), 'parameter YAML file given to every node', None),
+        ('rover', default_rover(), 'path of the rover executable', None),
+        ('port', '4567', "TCP port of the bridge's Socket.IO server", None),
+        ('sim', 'false', 'also start the headless simulator (rover sim)', on_off),
+        ('seed', '0', "seed of the headless simulator's world", None),
+        ('log_level', '', 'log level of every node (default: RUST_LOG, else info)', None),
+        ('respawn', 'true', 'start a node that dies again', on_off),
+        ('state_dir', '', 'folder of the mapping and decision snapshots (default: a new temporary one)', None),
+        ('use_sim_time', 'false', "stamp every node's messages with the simulated time of /clock", on_off),
     ]
+    return [DeclareLaunchArgument(name, default_value=default, description=description,
+                                  **({'choices': choices} if choices else {}))
+            for name, default, description, choices in declared]
 
 
 def node_command(name, value, state_dir):
