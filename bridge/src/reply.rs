@@ -2,10 +2,8 @@
 
 use std::time::{Duration, Instant};
 
+use rover_msgs::body::MAX_STEER_DEG;
 use serde::Serialize;
-
-/// Steering limit of the simulator, degrees.
-pub const MAX_STEERING_DEG: f32 = 15.0;
 
 /// The three values of a `data` command.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,7 +32,7 @@ impl DriveValues {
         Ok(DriveValues {
             throttle: throttle.clamp(-1.0, 1.0),
             brake: brake.max(0.0),
-            steering_deg: steering_deg.clamp(-MAX_STEERING_DEG, MAX_STEERING_DEG),
+            steering_deg: steering_deg.clamp(-MAX_STEER_DEG as f32, MAX_STEER_DEG as f32),
         })
     }
 }

@@ -1,14 +1,11 @@
 //! Teleoperation: a `cmd_vel` twist turned into the simulator's throttle, brake and steering.
 
+use rover_msgs::body::{MAX_STEER_DEG, TURN_IN_PLACE_DPS, WHEELBASE_M, steering_for_wheel_angle_deg};
 use rover_msgs::geometry_msgs::Twist;
 use rover_msgs::validate::Validate as _;
 
-use crate::reply::{DriveValues, MAX_STEERING_DEG};
+use crate::reply::DriveValues;
 
-/// Distance between the front and rear axles of the rover, metres (unity-sim-spec 3.1).
-const WHEELBASE_M: f64 = 0.722;
-/// Yaw rate of a turn in place at full steering, degrees per second (unity-sim-spec 3.3).
-const TURN_IN_PLACE_DEG_PER_S: f64 = 45.0;
 /// Below this speed the rover turns in place rather than steering.
 const TURN_IN_PLACE_BELOW_MPS: f64 = 0.3;
 
@@ -39,14 +36,14 @@ fn drive_controls(twist: &Twist, speed_mps: f64, gains: TeleopGains) -> (f64, f6
     let yaw_rate_dps = twist.angular.z.to_degrees();
     let stopping = target_mps.abs() < 0.05;
     if stopping && speed_mps.abs() < TURN_IN_PLACE_BELOW_MPS {
-        return (0.0, 0.0, (yaw_rate_dps / TURN_IN_PLACE_DEG_PER_S) * MAX_STEERING_DEG as f64);
+        return (0.0, 0.0, (yaw_rate_dps / TURN_IN_PLACE_DPS) * MAX_STEER_DEG);
     }
     if stopping {
         return (0.0, gains.brake, 0.0);
     }
     let throttle = gains.throttle_per_mps * (target_mps - speed_mps);
-    let steering = (twist.angular.z * WHEELBASE_M / target_mps.abs().max(0.1)).atan().to_degrees();
-    (throttle, 0.0, steering)
+    let wheel_deg = (twist.angular.z * WHEELBASE_M / target_mps.abs().max(0.1)).atan().to_degrees();
+    (throttle, 0.0, steering_for_wheel_angle_deg(wheel_deg, speed_mps))
 }
 
 #[cfg(test)]
@@ -87,6 +84,15 @@ mod tests {
                 assert_eq!(drive, DriveValues::brake(10.0), "twist ({linear}, {angular}) at {speed_mps} m/s");
             }
         }
+    }
+
+    #[test]
+    fn the_twists_yaw_rate_is_driven_at_speed_where_the_wheels_turn_less() {
+        let (speed_mps, yaw_rate_rps) = (3.0, 0.3);
+        let drive = twist_to_drive(&twist(speed_mps, yaw_rate_rps), speed_mps, GAINS);
+        let wheel_deg = rover_msgs::body::wheel_angle_deg(drive.steering_deg as f64, speed_mps);
+        let driven_rps = speed_mps * wheel_deg.to_radians().tan() / WHEELBASE_M;
+        assert!((driven_rps - yaw_rate_rps).abs() < 1e-3, "{driven_rps} rad/s from {drive:?}");
     }
 
     #[test]

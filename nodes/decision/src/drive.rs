@@ -1,11 +1,10 @@
 //! Low-level driving: a speed controller, steering toward a bearing, turning in place with
 //! hysteresis, and steering around what the camera sees.
 
+use rover_msgs::body::{MAX_STEER_DEG, WHEELBASE_M, speed_in_turn_mps};
+
 use crate::local::FreeSpace;
 use crate::params::DecisionParams;
-
-/// The simulator's steering limit, degrees.
-pub const MAX_STEER_DEG: f64 = 15.0;
 /// Below this speed the rover counts as stopped, m/s.
 pub const STOPPED_MPS: f64 = 0.05;
 /// Below this speed a turn in place toward a new bearing may start, m/s (the rest of the speed is
@@ -15,9 +14,6 @@ const TURN_IN_PLACE_BELOW_MPS: f64 = 0.2;
 const THROTTLE_PER_MPS: f64 = 0.15;
 /// Speed kept when free ground ahead runs short, m/s.
 const MIN_CRUISE_MPS: f64 = 0.6;
-/// The rover's wheelbase, metres (unity-sim-spec): steering by a wheel angle turns it on a
-/// circle of this over the angle's tangent.
-const WHEELBASE_M: f64 = 0.722;
 /// A turn in place changes side when the goal moves to the other side within this bearing,
 /// degrees; beyond it the bearing may just have wrapped past 180 degrees while turning.
 const SIDE_SWITCH_DEG: f64 = 135.0;
@@ -155,13 +151,13 @@ fn speed_to_stop_within(free_m: f64, params: &DecisionParams) -> f64 {
 }
 
 /// The speed at which steering by `steering_deg` keeps the sideways acceleration at
-/// `turn_accel_mps2`, m/s (unbounded when steering straight).
+/// `turn_accel_mps2`, m/s (the wheels turn less the faster the rover goes).
 fn speed_in_turn(steering_deg: f64, params: &DecisionParams) -> f64 {
-    (params.turn_accel_mps2 * turn_radius_m(steering_deg)).sqrt()
+    speed_in_turn_mps(steering_deg, params.turn_accel_mps2)
 }
 
-/// The radius of the circle the rover drives on when steering by `steering_deg`, metres
-/// (unbounded when steering straight).
+/// The radius of the circle the rover drives on at walking pace when steering by `steering_deg`,
+/// metres (unbounded when steering straight).
 fn turn_radius_m(steering_deg: f64) -> f64 {
     WHEELBASE_M / steering_deg.to_radians().tan().abs()
 }
@@ -265,14 +261,12 @@ mod tests {
         let cruise = p.max_speed_mps;
         let straight = Steering::default().toward(0.0, cruise, cruise, &p);
         assert!(straight.throttle > 0.0 && straight.brake == 0.0, "{straight:?}");
-        let sharp = Steering::default().toward(10f64.to_radians(), cruise, cruise, &p);
-        assert!(sharp.brake > 0.0, "a 10 degree turn at cruising speed brakes: {sharp:?}");
+        let sharp = Steering::default().toward(MAX_STEER_DEG.to_radians(), cruise, cruise, &p);
+        assert!(sharp.brake > 0.0, "a full-lock turn at cruising speed brakes: {sharp:?}");
         assert!(speed_in_turn(5.0, &p) > speed_in_turn(15.0, &p));
-        let lateral_mps2 = |steer_deg: f64| {
-            let v = speed_in_turn(steer_deg, &p);
-            v * v * steer_deg.to_radians().tan() / WHEELBASE_M
-        };
-        assert!((lateral_mps2(15.0) - p.turn_accel_mps2).abs() < 1e-9);
+        let full_lock_mps = speed_in_turn(MAX_STEER_DEG, &p);
+        let lateral_mps2 = rover_msgs::body::lateral_accel_mps2(MAX_STEER_DEG, full_lock_mps);
+        assert!((lateral_mps2 - p.turn_accel_mps2).abs() < 1e-6, "{lateral_mps2} m/s^2 at {full_lock_mps} m/s");
     }
 
     #[test]
