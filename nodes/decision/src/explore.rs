@@ -171,6 +171,15 @@ impl Explorer {
         Costs { obstacle, ..path_costs(params) }
     }
 
+    /// Forgets which cells the camera has seen up close, so that walls seen before count as
+    /// frontiers again (the map may have been wrong there, e.g. an exit mapped as rock); returns
+    /// whether any cell had been seen.
+    pub fn forget_inspected(&mut self) -> bool {
+        let any = self.inspected.iter().any(|&i| i);
+        self.inspected.fill(false);
+        any
+    }
+
     /// Makes every frontier a candidate again; returns whether any had been ruled out.
     pub fn forget_explored(&mut self) -> bool {
         let any = self.explored.iter().any(|&e| e);
@@ -319,6 +328,18 @@ mod tests {
         let farthest_m = params.lookahead_m.max(params.max_lookahead_m) + std::f64::consts::SQRT_2;
         assert!(waypoint.0 > rover.x_m && (params.lookahead_m..=farthest_m).contains(&rover.distance_to(waypoint)));
         assert!(explorer.cost_to((40.5, 51.5)).is_some() && explorer.cost_to((5.5, 5.5)).is_none());
+    }
+
+    #[test]
+    fn with_every_wall_seen_up_close_no_frontier_is_left_until_they_are_forgotten() {
+        let grid = half_explored();
+        let params = DecisionParams::default();
+        let mut explorer = explorer_after_inspecting_the_walls(&params);
+        explorer.inspect(&at(56.5, 51.5), &params);
+        assert_eq!(explorer.waypoint(&grid, 1, &at(25.5, 51.5), 0, &params), None);
+        assert!(explorer.forget_inspected());
+        assert!(explorer.waypoint(&grid, 2, &at(25.5, 51.5), 1, &params).is_some());
+        assert!(!explorer.forget_inspected(), "nothing was seen since");
     }
 
     #[test]

@@ -41,6 +41,10 @@ const STALL_PROGRESS_M: f64 = 1.0;
 /// With no frontier in reach because the map walls the rover in, it backs out up to this many
 /// times before it gives the frontiers up.
 const WALLED_IN_RECOVERIES: u32 = 3;
+/// With no frontier left (given-up ones and paths past obstacles included) while samples are
+/// missing, the explorer forgets the walls it has seen up close and looks again, up to this many
+/// times, before the rover goes home.
+const INSPECTION_RESETS: u32 = 2;
 /// The modes of the state machine, as published on `rover/mode`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Mode {
@@ -208,6 +212,8 @@ pub struct Machine {
     awaits_home: bool,
     /// Recoveries started since the last frontier because the map walls the rover in.
     walled_in_recoveries: u32,
+    /// Times the explorer forgot the cells seen up close because no frontier was left.
+    inspections_forgotten: u32,
 }
 
 impl Machine {
@@ -238,6 +244,7 @@ impl Machine {
             tally: SampleTally::default(),
             awaits_home: false,
             walled_in_recoveries: 0,
+            inspections_forgotten: 0,
         }
     }
 
@@ -495,6 +502,17 @@ impl Machine {
             None if obs.samples_remaining > 0 && self.explorer.look_past_obstacles() => {
                 tracing::info!(
                     "no frontier left, {} samples not found: planning past obstacle cells",
+                    obs.samples_remaining
+                );
+                Drive::stop(p.brake)
+            }
+            None if obs.samples_remaining > 0
+                && self.inspections_forgotten < INSPECTION_RESETS
+                && self.explorer.forget_inspected() =>
+            {
+                self.inspections_forgotten += 1;
+                tracing::info!(
+                    "no frontier left, {} samples not found: looking again at the walls seen before",
                     obs.samples_remaining
                 );
                 Drive::stop(p.brake)
