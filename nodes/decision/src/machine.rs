@@ -803,45 +803,41 @@ mod tests {
         assert_eq!(second.status().mode, Mode::ReturnHome);
     }
 
-    #[test]
-    fn a_machine_recalled_while_exploring_brakes_until_the_mission_arrives_then_explores() {
+    /// A machine recalled at `stage` from one whose home is (100.5, 100.5), on the corridor map,
+    /// that has been stepped for ten frames at (`x_m`, 100.5) before the mission reached it:
+    /// it braked in `mode` on every one.
+    fn recalled_and_braked(stage: Stage, x_m: f64, mode: Mode) -> Machine {
         let params = DecisionParams::default();
         let mut first = Machine::new(params.clone());
         first.set_map(corridor());
         first.step(&observation(1, 100.5, 100.5));
-        let mut second = Machine::new(params.clone());
-        second.recall(first.recollection());
+        let mut second = Machine::new(params);
         second.set_map(corridor());
+        second.recall(Recollection { stage, ..first.recollection() });
         for frame in 100..110 {
-            let drive = second.step(&observation(frame, 104.5, 100.5));
-            assert_eq!((drive.throttle, second.status().mode), (0.0, Mode::Explore), "frame {frame}");
+            let drive = second.step(&observation(frame, x_m, 100.5));
+            assert_eq!((drive.throttle, second.status().mode), (0.0, mode), "frame {frame}");
             assert!(drive.brake > 0.0, "brakes while the mission is unknown");
         }
-        second.resume(Memory { home: (100.5, 100.5), samples_collected: 2 });
-        let drive = second.step(&observation(110, 104.5, 100.5));
+        second
+    }
+
+    #[test]
+    fn a_machine_recalled_while_exploring_brakes_until_the_mission_arrives_then_explores() {
+        let mut machine = recalled_and_braked(Stage::Exploring, 104.5, Mode::Explore);
+        machine.resume(Memory { home: (100.5, 100.5), samples_collected: 2 });
+        let drive = machine.step(&observation(110, 104.5, 100.5));
         let moves = drive.throttle > 0.0 || drive.steering_deg != 0.0;
-        assert!(moves && drive.brake == 0.0 && second.status().mode == Mode::Explore, "explores: {drive:?}");
+        assert!(moves && drive.brake == 0.0 && machine.status().mode == Mode::Explore, "explores: {drive:?}");
     }
 
     #[test]
     fn a_machine_recalled_on_the_way_home_waits_for_the_missions_home_before_it_is_done() {
-        let params = DecisionParams::default();
-        let mut first = Machine::new(params.clone());
-        first.set_map(corridor());
-        first.step(&observation(1, 100.5, 100.5));
-        let learnt = Recollection { stage: Stage::ReturningHome, ..first.recollection() };
-        let mut second = Machine::new(params.clone());
-        second.set_map(corridor());
-        second.recall(learnt);
-        for frame in 100..110 {
-            let drive = second.step(&observation(frame, 110.5, 100.5));
-            assert_eq!((drive.throttle, second.status().mode), (0.0, Mode::ReturnHome), "frame {frame}");
-            assert!(drive.brake > 0.0, "brakes while home is unknown");
-        }
-        second.resume(Memory { home: (100.5, 100.5), samples_collected: 6 });
-        let drive = second.step(&observation(110, 110.5, 100.5));
-        assert_eq!(second.status().mode, Mode::ReturnHome, "10 m from home is not home");
-        assert_eq!(second.status().home, Some((100.5, 100.5)));
+        let mut machine = recalled_and_braked(Stage::ReturningHome, 110.5, Mode::ReturnHome);
+        machine.resume(Memory { home: (100.5, 100.5), samples_collected: 6 });
+        let drive = machine.step(&observation(110, 110.5, 100.5));
+        assert_eq!(machine.status().mode, Mode::ReturnHome, "10 m from home is not home");
+        assert_eq!(machine.status().home, Some((100.5, 100.5)));
         assert!(drive.brake == 0.0, "{drive:?}");
     }
 
