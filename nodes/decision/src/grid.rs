@@ -144,13 +144,8 @@ impl Grid {
     /// `around_cells` from `to` lies on the straight line between them (unknown cells may be
     /// floor and do not block the view).
     pub fn line_of_sight(&self, from: (f64, f64), to: usize, around_cells: usize) -> bool {
-        let target = cell_centre_m(to);
-        let steps = ((target.0 - from.0).hypot(target.1 - from.1) / SIGHT_STEP_M).ceil() as usize;
-        (1..steps).all(|k| {
-            let t = k as f64 / steps as f64;
-            let point = (from.0 + t * (target.0 - from.0), from.1 + t * (target.1 - from.1));
-            cell_of_point(point.0, point.1)
-                .is_none_or(|cell| chebyshev(cell, to) <= around_cells || self.cells[cell] != Cell::Blocked)
+        cells_on_line(from, to).all(|cell| {
+            cell.is_none_or(|cell| chebyshev(cell, to) <= around_cells || self.cells[cell] != Cell::Blocked)
         })
     }
 
@@ -158,13 +153,8 @@ impl Grid {
     /// are neither obstacles nor next to one (the cell of `from` aside).
     pub fn clear_line(&self, from: (f64, f64), to: usize) -> bool {
         let start = cell_of_point(from.0, from.1);
-        let target = cell_centre_m(to);
-        let steps = ((target.0 - from.0).hypot(target.1 - from.1) / SIGHT_STEP_M).ceil() as usize;
-        (1..=steps).all(|k| {
-            let t = k as f64 / steps as f64;
-            let point = (from.0 + t * (target.0 - from.0), from.1 + t * (target.1 - from.1));
-            cell_of_point(point.0, point.1)
-                .is_some_and(|cell| Some(cell) == start || (self.cells[cell] != Cell::Blocked && !self.near_wall[cell]))
+        cells_on_line(from, to).all(|cell| {
+            cell.is_some_and(|cell| Some(cell) == start || (self.cells[cell] != Cell::Blocked && !self.near_wall[cell]))
         })
     }
 
@@ -229,6 +219,17 @@ impl CostMap {
         path.reverse();
         Some(path)
     }
+}
+
+/// The cells under points every `SIGHT_STEP_M` along the straight line from point `from`
+/// (metres, excluded) to the centre of cell `to` (included); `None` for points off the map.
+fn cells_on_line(from: (f64, f64), to: usize) -> impl Iterator<Item = Option<usize>> {
+    let target = cell_centre_m(to);
+    let steps = ((target.0 - from.0).hypot(target.1 - from.1) / SIGHT_STEP_M).ceil() as usize;
+    (1..=steps).map(move |k| {
+        let t = k as f64 / steps as f64;
+        cell_of_point(from.0 + t * (target.0 - from.0), from.1 + t * (target.1 - from.1))
+    })
 }
 
 /// An `f32` ordered for the heap (costs are never NaN).
