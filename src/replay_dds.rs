@@ -33,10 +33,10 @@ pub async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> any
     let mut scans = std::pin::pin!(messages(&terrain_subscription));
     let mut stats = std::pin::pin!(messages(&stats_subscription));
     let discovered = async {
-        camera.wait_for_subscription(node.inner()).await;
-        telemetry.wait_for_subscription(node.inner()).await;
-        terrain_subscription.wait_for_publisher(node.inner()).await;
-        stats_subscription.wait_for_publisher(node.inner()).await;
+        node.subscription_matched(&camera).await;
+        node.subscription_matched(&telemetry).await;
+        node.publisher_matched(&terrain_subscription).await;
+        node.publisher_matched(&stats_subscription).await;
     };
     tokio::time::timeout(DISCOVERY_TIMEOUT, discovered)
         .await

@@ -65,7 +65,7 @@ impl<M: RosMessage> CdrPublisher for Publisher<M> {
     }
 
     fn first_subscription<'a>(&'a self, node: &'a RosNode) -> BoxFuture<'a, ()> {
-        Box::pin(self.wait_for_subscription(node.inner()))
+        Box::pin(node.subscription_matched(self))
     }
 
     fn subscriptions(&self, node: &RosNode) -> usize {

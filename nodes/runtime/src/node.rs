@@ -31,6 +31,10 @@ const MAX_DOMAIN_ID: u16 = 232;
 /// announcement (plus a margin for a loaded machine), every peer receives them in order.
 const FIRST_ANNOUNCEMENT_WAIT: Duration = Duration::from_millis(250);
 
+/// How often a wait for a matched peer reads the match state again. ros2-client wakes such a wait
+/// through an event channel of 8 that drops events when full, so a wait alone can miss its match.
+const MATCH_RECHECK: Duration = Duration::from_millis(200);
+
 /// Reads `ROS_DOMAIN_ID` (default 0), with a clear error for a bad value.
 pub fn domain_id_from_env() -> anyhow::Result<u16> {
     match std::env::var("ROS_DOMAIN_ID") {
@@ -185,6 +189,16 @@ impl RosNode {
             .with_context(|| format!("cannot create a subscription on {}", topic.name))
     }
 
+    /// Resolves once `publisher` has matched a subscription.
+    pub async fn subscription_matched<M: RosMessage>(&self, publisher: &Publisher<M>) {
+        until_resolved(|| publisher.wait_for_subscription(&self.node)).await;
+    }
+
+    /// Resolves once `subscription` has matched a publisher.
+    pub async fn publisher_matched<M: RosMessage>(&self, subscription: &Subscription<M>) {
+        until_resolved(|| subscription.wait_for_publisher(&self.node)).await;
+    }
+
     fn dds_topic<M: RosMessage>(&self, topic: &Topic<M>) -> anyhow::Result<ros2_client::dds::rustdds::Topic> {
         let resolved = self.identity.resolve_topic(topic.name)?;
         let name = Name::parse(&resolved).map_err(|e| anyhow::anyhow!("topic {resolved}: {e}"))?;
@@ -198,6 +212,12 @@ impl Drop for RosNode {
     fn drop(&mut self) {
         crate::logging::unregister_rosout(&self.identity.fully_qualified());
     }
+}
+
+/// Awaits a fresh `wait()` every [`MATCH_RECHECK`] until one resolves: each new wait starts by
+/// reading the match state, so a lost wake-up costs at most one period.
+async fn until_resolved<F: std::future::Future<Output = ()>>(wait: impl Fn() -> F) {
+    while tokio::time::timeout(MATCH_RECHECK, wait()).await.is_err() {}
 }
 
 /// The messages of a subscription as a stream; messages that fail to deserialise are counted,

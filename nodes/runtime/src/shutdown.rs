@@ -1,5 +1,6 @@
 //! Process shutdown on SIGINT or SIGTERM, shared by every node of the process.
 
+use tokio::signal::unix::{Signal, SignalKind, signal};
 use tokio::sync::watch;
 
 /// A cloneable shutdown flag: [`Shutdown::wait`] resolves once shutdown is requested.
@@ -16,15 +17,22 @@ impl Shutdown {
         Shutdown { requested, trigger: std::sync::Arc::new(trigger) }
     }
 
-    /// A flag that is also set on SIGINT (Ctrl-C) or SIGTERM. Needs a tokio runtime.
+    /// A flag that is also set on SIGINT (Ctrl-C) or SIGTERM. Needs a tokio runtime. The handlers
+    /// are in place when it returns, so a signal that arrives at once is not lost (a process started
+    /// in the background of a shell inherits an ignored SIGINT until then).
     pub fn on_signals() -> Self {
         let shutdown = Self::new();
         let on_signal = shutdown.clone();
-        tokio::spawn(async move {
-            let signal = wait_for_signal().await;
-            tracing::info!("received {signal}, shutting down");
-            on_signal.request();
-        });
+        match Signals::install() {
+            Ok(mut signals) => {
+                tokio::spawn(async move {
+                    let signal = signals.next().await;
+                    tracing::info!("received {signal}, shutting down");
+                    on_signal.request();
+                });
+            }
+            Err(e) => tracing::warn!("cannot install signal handlers ({e}); Ctrl-C will kill the process abruptly"),
+        }
         shutdown
     }
 
@@ -51,16 +59,24 @@ impl Default for Shutdown {
     }
 }
 
-async fn wait_for_signal() -> &'static str {
-    use tokio::signal::unix::{SignalKind, signal};
-    let (Ok(mut interrupt), Ok(mut terminate)) = (signal(SignalKind::interrupt()), signal(SignalKind::terminate()))
-    else {
-        tracing::warn!("cannot install signal handlers; Ctrl-C will kill the process abruptly");
-        return std::future::pending().await;
-    };
-    tokio::select! {
-        _ = interrupt.recv() => "SIGINT",
-        _ = terminate.recv() => "SIGTERM",
+/// The SIGINT and SIGTERM streams of the process.
+struct Signals {
+    interrupt: Signal,
+    terminate: Signal,
+}
+
+impl Signals {
+    /// Installs the handlers of both signals.
+    fn install() -> std::io::Result<Self> {
+        Ok(Signals { interrupt: signal(SignalKind::interrupt())?, terminate: signal(SignalKind::terminate())? })
+    }
+
+    /// The name of the next signal that arrives.
+    async fn next(&mut self) -> &'static str {
+        tokio::select! {
+            _ = self.interrupt.recv() => "SIGINT",
+            _ = self.terminate.recv() => "SIGTERM",
+        }
     }
 }
 
@@ -77,5 +93,12 @@ mod tests {
         shutdown.request();
         tokio::time::timeout(std::time::Duration::from_secs(1), task).await.unwrap().unwrap();
         assert!(shutdown.is_requested());
+    }
+
+    #[tokio::test]
+    async fn a_sigint_at_once_after_the_handlers_are_made_requests_shutdown() {
+        let shutdown = Shutdown::on_signals();
+        nix::sys::signal::raise(nix::sys::signal::Signal::SIGINT).expect("raise SIGINT");
+        tokio::time::timeout(std::time::Duration::from_secs(2), shutdown.wait()).await.expect("shutdown requested");
     }
 }
