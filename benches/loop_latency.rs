@@ -59,7 +59,7 @@ impl Replay {
 impl Simulation for Replay {
     fn telemetry_json(&mut self) -> String {
         let frame = &self.frames[self.sent.len() % self.frames.len()];
-        let json = telemetry_json(frame, frame.frame.x_m);
+        let json = telemetry_json(frame, frame.frame.state.x_m);
         self.sent.push(Instant::now());
         json
     }

@@ -5,24 +5,15 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use rover_bridge::telemetry::SimTelemetry;
+use rover_msgs::unity::ReportedState;
 
 /// One recorded frame.
 #[derive(Debug, Clone)]
 pub struct RecordedFrame {
     /// The image file.
     pub image: PathBuf,
-    /// Speed, m/s.
-    pub speed_mps: f64,
-    /// Position x, metres.
-    pub x_m: f64,
-    /// Position y, metres.
-    pub y_m: f64,
-    /// Pitch, degrees as logged (0..360, positive nose down).
-    pub pitch_deg: f64,
-    /// Yaw, degrees counter-clockwise from +x.
-    pub yaw_deg: f64,
-    /// Roll, degrees as logged (0..360).
-    pub roll_deg: f64,
+    /// The recorded controls and pose.
+    pub state: ReportedState,
 }
 
 impl RecordedFrame {
@@ -31,18 +22,10 @@ impl RecordedFrame {
         std::fs::read(&self.image).with_context(|| format!("cannot read {}", self.image.display()))
     }
 
-    /// The frame as the simulator would send it, with the image `jpeg`, standing, no samples.
+    /// The frame as the simulator would send it, with the image `jpeg`, no samples.
     pub fn sim_telemetry(&self, jpeg: Vec<u8>) -> SimTelemetry {
         SimTelemetry {
-            steering_angle_deg: 0.0,
-            throttle: 0.0,
-            brake: 0.0,
-            speed_mps: self.speed_mps,
-            x_m: self.x_m,
-            y_m: self.y_m,
-            pitch_deg: self.pitch_deg,
-            yaw_deg: self.yaw_deg,
-            roll_deg: self.roll_deg,
+            state: self.state,
             near_sample: false,
             picking_up: false,
             sample_count: 0,
@@ -99,15 +82,18 @@ fn parse_row(dir: &Path, line: &str) -> anyhow::Result<RecordedFrame> {
     };
     let file =
         Path::new(cells[0].trim()).file_name().with_context(|| format!("no image file name in {:?}", cells[0]))?;
-    Ok(RecordedFrame {
-        image: dir.join("IMG").join(file),
+    let state = ReportedState {
+        steering_angle_deg: number(1, "SteerAngle")?,
+        throttle: number(2, "Throttle")?,
+        brake: number(3, "Brake")?,
         speed_mps: number(4, "Speed")?,
         x_m: number(5, "X_Position")?,
         y_m: number(6, "Y_Position")?,
         pitch_deg: number(7, "Pitch")?,
         yaw_deg: number(8, "Yaw")?,
         roll_deg: number(9, "Roll")?,
-    })
+    };
+    Ok(RecordedFrame { image: dir.join("IMG").join(file), state })
 }
 
 #[cfg(test)]
@@ -126,7 +112,7 @@ mod tests {
         let frames = read_log(&dir).unwrap();
         assert_eq!(frames.len(), 1);
         assert_eq!(frames[0].image, dir.join("IMG/a.jpg"));
-        assert_eq!(frames[0].yaw_deg, 56.82555);
+        assert_eq!(frames[0].state.yaw_deg, 56.82555);
         assert!(frames[0].time_ns().unwrap_err().to_string().contains("a.jpg"));
         std::fs::write(dir.join("robot_log.csv"), "header\na.jpg;0;0;1;fast;1;2;3;4;5\n").unwrap();
         let error = format!("{:#}", read_log(&dir).unwrap_err());

@@ -79,11 +79,11 @@ pub fn scan_grid<'a>(geometry: &ScanGeometry, cells: &'a [u8]) -> ScanGrid<'a> {
 /// The pose of a recorded frame in REP-103 angles, converted like the bridge converts telemetry.
 pub fn frame_pose(frame: &RecordedFrame) -> Pose {
     Pose {
-        x_m: frame.x_m,
-        y_m: frame.y_m,
-        yaw_rad: wrapped_rad(frame.yaw_deg),
-        pitch_rad: wrapped_rad(frame.pitch_deg),
-        roll_rad: rep103_roll_rad(frame.roll_deg),
+        x_m: frame.state.x_m,
+        y_m: frame.state.y_m,
+        yaw_rad: wrapped_rad(frame.state.yaw_deg),
+        pitch_rad: wrapped_rad(frame.state.pitch_deg),
+        roll_rad: rep103_roll_rad(frame.state.roll_deg),
     }
 }
 

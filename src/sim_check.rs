@@ -271,11 +271,11 @@ pub fn summarize(frames: &[FrameCheck]) -> CheckSummary {
 pub fn body_pose(frame: &RecordedFrame, ground_m: f64) -> BodyPose {
     let signed = |deg: f64| if deg > 180.0 { deg - 360.0 } else { deg };
     BodyPose {
-        x_m: frame.x_m,
-        y_m: frame.y_m,
-        yaw_deg: frame.yaw_deg,
-        pitch_deg: signed(frame.pitch_deg),
-        roll_deg: -signed(frame.roll_deg),
+        x_m: frame.state.x_m,
+        y_m: frame.state.y_m,
+        yaw_deg: frame.state.yaw_deg,
+        pitch_deg: signed(frame.state.pitch_deg),
+        roll_deg: -signed(frame.state.roll_deg),
         ground_m,
     }
 }
@@ -310,7 +310,7 @@ pub fn check_world(
     for (index, frame) in frames.iter().enumerate() {
         let real = rover_imaging::decode_jpeg(&frame.jpeg()?, width, height)
             .with_context(|| frame.image.display().to_string())?;
-        let pose = body_pose(frame, world.ground_height(frame.x_m, frame.y_m) as f64);
+        let pose = body_pose(frame, world.ground_height(frame.state.x_m, frame.state.y_m) as f64);
         renderer.render(world, &[], &pose, &mut rendered);
         rover_imaging::encode_jpeg_into(&rendered, UNITY_JPEG_QUALITY, &mut jpeg)?;
         let simulated = rover_imaging::decode_jpeg(&jpeg, rendered.width, rendered.height)?;
@@ -422,6 +422,7 @@ pub fn table(report: &CheckReport) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rover_msgs::unity::ReportedState;
 
     #[test]
     fn iou_counts_only_in_view_pixels_and_empty_masks_agree() {
@@ -455,15 +456,9 @@ mod tests {
 
     #[test]
     fn logged_angles_become_signed_body_angles() {
-        let frame = RecordedFrame {
-            image: PathBuf::new(),
-            speed_mps: 0.0,
-            x_m: 1.0,
-            y_m: 2.0,
-            pitch_deg: 359.5,
-            yaw_deg: 30.0,
-            roll_deg: 2.0,
-        };
+        let state =
+            ReportedState { x_m: 1.0, y_m: 2.0, pitch_deg: 359.5, yaw_deg: 30.0, roll_deg: 2.0, ..Default::default() };
+        let frame = RecordedFrame { image: PathBuf::new(), state };
         let pose = body_pose(&frame, 0.1);
         assert!((pose.pitch_deg + 0.5).abs() < 1e-9 && (pose.roll_deg + 2.0).abs() < 1e-9);
         assert_eq!((pose.x_m, pose.y_m, pose.yaw_deg, pose.ground_m), (1.0, 2.0, 30.0, 0.1));

@@ -77,15 +77,15 @@ pub fn telemetry_message(t: &SimTelemetry, frame: u64, header: Header) -> Teleme
     Telemetry {
         header,
         frame,
-        x_m: t.x_m,
-        y_m: t.y_m,
-        yaw_rad: wrapped_rad(t.yaw_deg) as f32,
-        pitch_rad: wrapped_rad(t.pitch_deg) as f32,
-        roll_rad: rep103_roll_rad(t.roll_deg) as f32,
-        speed_mps: t.speed_mps as f32,
-        throttle: t.throttle as f32,
-        brake: t.brake as f32,
-        steering_angle_deg: t.steering_angle_deg as f32,
+        x_m: t.state.x_m,
+        y_m: t.state.y_m,
+        yaw_rad: wrapped_rad(t.state.yaw_deg) as f32,
+        pitch_rad: wrapped_rad(t.state.pitch_deg) as f32,
+        roll_rad: rep103_roll_rad(t.state.roll_deg) as f32,
+        speed_mps: t.state.speed_mps as f32,
+        throttle: t.state.throttle as f32,
+        brake: t.state.brake as f32,
+        steering_angle_deg: t.state.steering_angle_deg as f32,
         near_sample: t.near_sample,
         picking_up: t.picking_up,
         samples_remaining: t.sample_count.min(u8::MAX as u32) as u8,
@@ -94,11 +94,11 @@ pub fn telemetry_message(t: &SimTelemetry, frame: u64, header: Header) -> Teleme
 
 fn body_pose(t: &SimTelemetry) -> Pose {
     Pose {
-        position: Point { x: t.x_m, y: t.y_m, z: 0.0 },
+        position: Point { x: t.state.x_m, y: t.state.y_m, z: 0.0 },
         orientation: Quaternion::from_rpy(
-            rep103_roll_rad(t.roll_deg),
-            wrapped_rad(t.pitch_deg),
-            wrapped_rad(t.yaw_deg),
+            rep103_roll_rad(t.state.roll_deg),
+            wrapped_rad(t.state.pitch_deg),
+            wrapped_rad(t.state.yaw_deg),
         ),
     }
 }
@@ -110,7 +110,7 @@ pub fn odometry_message(t: &SimTelemetry, header: Header) -> Odometry {
         child_frame_id: frame_ids::BASE_LINK.to_string(),
         pose: PoseWithCovariance { pose: body_pose(t), covariance: Default::default() },
         twist: TwistWithCovariance {
-            twist: Twist { linear: Vector3 { x: t.speed_mps, y: 0.0, z: 0.0 }, angular: Vector3::default() },
+            twist: Twist { linear: Vector3 { x: t.state.speed_mps, y: 0.0, z: 0.0 }, angular: Vector3::default() },
             covariance: Default::default(),
         },
     }

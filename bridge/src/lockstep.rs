@@ -210,7 +210,7 @@ impl<S: FrameSink> LockStep<S> {
             frame,
             near_sample: telemetry.near_sample,
             picking_up: telemetry.picking_up,
-            speed_mps: telemetry.speed_mps,
+            speed_mps: telemetry.state.speed_mps,
         };
         FrameState::Waiting(Waiting { published_at: Instant::now(), receiver, facts })
     }

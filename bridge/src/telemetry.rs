@@ -2,29 +2,14 @@
 //! text with either decimal separator, `position` is `x;y` and the sample lists are `;`-separated.
 
 use base64::Engine as _;
+use rover_msgs::unity::ReportedState;
 use serde_json::{Map, Value};
 
 /// One parsed telemetry frame, in the simulator's own units (degrees, Unity angle ranges).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimTelemetry {
-    /// Steering angle the simulator applied, degrees, positive left.
-    pub steering_angle_deg: f64,
-    /// Throttle the simulator applied.
-    pub throttle: f64,
-    /// Brake the simulator applied.
-    pub brake: f64,
-    /// Signed speed, m/s.
-    pub speed_mps: f64,
-    /// Position x, metres.
-    pub x_m: f64,
-    /// Position y (Unity z), metres.
-    pub y_m: f64,
-    /// Pitch, degrees in [0, 360), positive nose down.
-    pub pitch_deg: f64,
-    /// Yaw, degrees counter-clockwise from +x.
-    pub yaw_deg: f64,
-    /// Roll, degrees in [0, 360).
-    pub roll_deg: f64,
+    /// Controls and pose.
+    pub state: ReportedState,
     /// A sample is within reach.
     pub near_sample: bool,
     /// The arm is picking up a sample.
@@ -165,7 +150,7 @@ fn parse_fields(fields: &Map<String, Value>) -> Result<SimTelemetry, TelemetryEr
     if samples_x.len() != samples_y.len() {
         return Err(TelemetryError::SampleListsDiffer { x: samples_x.len(), y: samples_y.len() });
     }
-    Ok(SimTelemetry {
+    let state = ReportedState {
         steering_angle_deg: number("steering_angle")?,
         throttle: number("throttle")?,
         brake: number("brake")?,
@@ -175,6 +160,9 @@ fn parse_fields(fields: &Map<String, Value>) -> Result<SimTelemetry, TelemetryEr
         pitch_deg: number("pitch")?,
         yaw_deg: number("yaw")?,
         roll_deg: number("roll")?,
+    };
+    Ok(SimTelemetry {
+        state,
         near_sample: number("near_sample")? != 0.0,
         picking_up: number("picking_up")? != 0.0,
         sample_count: number("sample_count")?.max(0.0) as u32,
@@ -269,9 +257,9 @@ pub(crate) mod tests {
     #[test]
     fn parses_every_field() {
         let t = parse(&sample_payload()).unwrap().unwrap();
-        assert_eq!(t.steering_angle_deg, -4.3722);
-        assert_eq!((t.x_m, t.y_m), (99.67, 85.589));
-        assert_eq!(t.pitch_deg, 359.5);
+        assert_eq!(t.state.steering_angle_deg, -4.3722);
+        assert_eq!((t.state.x_m, t.state.y_m), (99.67, 85.589));
+        assert_eq!(t.state.pitch_deg, 359.5);
         assert!(!t.near_sample && t.picking_up);
         assert_eq!(t.sample_count, 6);
         assert_eq!(t.samples, vec![(97.44, 74.65), (122.28, 51.66)]);
@@ -287,7 +275,7 @@ pub(crate) mod tests {
         fields.insert("position".into(), "99,6700;85,5890".into());
         fields.insert("samples_x".into(), "97,44;122,28".into());
         let t = parse(&fields).unwrap().unwrap();
-        assert_eq!((t.x_m, t.y_m), (99.67, 85.589));
+        assert_eq!((t.state.x_m, t.state.y_m), (99.67, 85.589));
         assert_eq!(t.samples[1].0, 122.28);
     }
 
@@ -404,9 +392,17 @@ pub(crate) mod tests {
         /// An accepted frame has finite numbers and one (x, y) per sample.
         fn check(payload: &str) -> Result<(), TestCaseError> {
             if let Ok(Some(t)) = parse_telemetry(payload, 1 << 20) {
-                let numbers =
-                    [t.steering_angle_deg, t.throttle, t.brake, t.speed_mps, t.x_m, t.y_m, t.pitch_deg, t.yaw_deg];
-                prop_assert!(numbers.iter().chain([&t.roll_deg]).all(|v| v.is_finite()));
+                let numbers = [
+                    t.state.steering_angle_deg,
+                    t.state.throttle,
+                    t.state.brake,
+                    t.state.speed_mps,
+                    t.state.x_m,
+                    t.state.y_m,
+                    t.state.pitch_deg,
+                    t.state.yaw_deg,
+                ];
+                prop_assert!(numbers.iter().chain([&t.state.roll_deg]).all(|v| v.is_finite()));
                 prop_assert!(t.samples.iter().all(|(x, y)| x.is_finite() && y.is_finite()));
             }
             Ok(())

@@ -1,6 +1,7 @@
 //! The rover's body as the nodes assume it (unity-sim-spec 4): where the camera sits, how far the
 //! arm reaches, and how far the rock evidence of one sample spreads. The one definition of these
-//! facts for every node that needs them; the simulator keeps its own model of the true rover.
+//! facts for every node that needs them. The simulator takes Unity's steering facts from here and
+//! keeps its own model of the rest of the true rover.
 
 /// The camera's mounting on the body.
 #[derive(Debug, Clone, Copy, PartialEq)]

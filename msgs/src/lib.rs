@@ -9,7 +9,8 @@
 //!
 //! Beside the messages, the facts the nodes share about what the messages carry: [`map_grid`]
 //! (the map's cells), [`body`] (the camera mount, the arm's reach), [`frame_ids`] (the coordinate
-//! frames) and [`tally`] (samples counted from telemetry).
+//! frames), [`tally`] (samples counted from telemetry) and [`unity`] (the rover's state as the
+//! simulator reports it).
 
 pub mod body;
 pub mod frame_ids;
@@ -17,6 +18,7 @@ pub mod frames;
 pub mod idl;
 pub mod map_grid;
 pub mod tally;
+pub mod unity;
 pub mod validate;
 #[macro_use]
 mod macros;

@@ -1,25 +1,21 @@
 //! The rover's dynamics (unity-sim-spec 3 and 5.4): throttle, brake and speed caps, steering that
-//! shrinks with speed, turning in place, collisions, body pitch and roll, the sample pickup.
+//! shrinks with speed, turning in place, collisions, body pitch and roll, the sample pickup. The
+//! steering facts are Unity's, shared with the nodes through `rover_msgs::body`.
 
 use nalgebra::Vector2;
+use rover_msgs::body::{MAX_FORWARD_MPS, MAX_STEER_DEG, TURN_IN_PLACE_DPS, WHEELBASE_M, wheel_angle_deg};
+use rover_msgs::unity::ReportedState;
 
 use crate::terrain::TERRAIN_STEP_M;
 use crate::wire::command::Command;
 use crate::world::{Sample, World};
 
-/// Forward speed cap, m/s.
-pub const MAX_FORWARD_MPS: f64 = 5.0;
 /// Reverse speed cap, m/s.
 pub const MAX_REVERSE_MPS: f64 = 2.0;
-/// Steering limit, degrees.
-pub const MAX_STEER_DEG: f64 = 15.0;
-/// Yaw rate of a turn in place at full steering, degrees per second.
-pub const TURN_IN_PLACE_DPS: f64 = 45.0;
 /// Duration of a pickup, seconds.
 pub const PICKUP_SECONDS: f64 = 10.0;
 /// Physics step of the Unity project, seconds.
 pub const PHYSICS_STEP_S: f64 = 0.02;
-const WHEELBASE_M: f64 = 0.722;
 /// Distance between the left and right wheels, metres.
 const TRACK_M: f64 = 0.64;
 /// Drive acceleration per unit throttle and speed damping under throttle (fit to robot_log.csv).
@@ -137,6 +133,21 @@ impl Rover {
         }
     }
 
+    /// What Unity reports of this rover: its roll positive with the right side up.
+    pub fn reported_state(&self) -> ReportedState {
+        ReportedState {
+            steering_angle_deg: self.steer_deg,
+            throttle: self.throttle,
+            brake: self.brake,
+            speed_mps: self.speed_mps,
+            x_m: self.x_m,
+            y_m: self.y_m,
+            pitch_deg: self.pitch_deg,
+            yaw_deg: self.yaw_deg,
+            roll_deg: -self.roll_deg,
+        }
+    }
+
     fn motor_input(&self) -> bool {
         self.throttle != 0.0 || self.brake != 0.0
     }
@@ -249,8 +260,7 @@ impl Rover {
             self.speed_mps = 0.0;
             TURN_IN_PLACE_DPS * self.steer_deg / MAX_STEER_DEG
         } else {
-            let fraction = (1.0 - self.speed_mps.abs() / MAX_FORWARD_MPS).clamp(0.0, 1.0);
-            let mut wheel_deg = (5.0 + 10.0 * fraction) * self.steer_deg / MAX_STEER_DEG;
+            let mut wheel_deg = wheel_angle_deg(self.steer_deg, self.speed_mps);
             if self.reversing {
                 wheel_deg *= 2.0;
             }

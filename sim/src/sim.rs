@@ -204,15 +204,7 @@ impl Simulator {
         self.report.frames += 1;
         let positions: Vec<(f64, f64)> = self.samples.iter().map(|s| (s.x_m, s.y_m)).collect();
         TelemetryValues {
-            steering_angle_deg: self.rover.steer_deg,
-            throttle: self.rover.throttle,
-            brake: self.rover.brake,
-            speed_mps: self.rover.speed_mps,
-            x_m: self.rover.x_m,
-            y_m: self.rover.y_m,
-            pitch_deg: self.rover.pitch_deg,
-            yaw_deg: self.rover.yaw_deg,
-            roll_deg: -self.rover.roll_deg,
+            state: self.rover.reported_state(),
             near_sample: self.rover.near_sample,
             picking_up: self.rover.picking_up,
             samples: &positions,

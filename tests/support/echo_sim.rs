@@ -4,6 +4,7 @@
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
+use rover_msgs::unity::ReportedState;
 use rover_sim::wire::client::{ClientConfig, ClientStats, Simulation, run_client};
 use rover_sim::wire::command::Command;
 use rover_sim::wire::telemetry::TelemetryValues;
@@ -29,15 +30,7 @@ pub fn recorded_frames() -> Vec<LoadedFrame> {
 pub fn telemetry_json(loaded: &LoadedFrame, x_m: f64) -> String {
     let frame = &loaded.frame;
     TelemetryValues {
-        steering_angle_deg: 0.0,
-        throttle: 0.0,
-        brake: 0.0,
-        speed_mps: frame.speed_mps,
-        x_m,
-        y_m: frame.y_m,
-        pitch_deg: frame.pitch_deg,
-        yaw_deg: frame.yaw_deg,
-        roll_deg: frame.roll_deg,
+        state: ReportedState { x_m, ..frame.state },
         near_sample: false,
         picking_up: false,
         samples: &[(97.44, 74.65), (122.28, 51.66)],

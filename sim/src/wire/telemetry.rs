@@ -4,28 +4,13 @@
 use std::fmt::Write as _;
 
 use base64::Engine as _;
+use rover_msgs::unity::ReportedState;
 
 /// The values of one telemetry event, in the simulator's conventions.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TelemetryValues<'a> {
-    /// Steering angle applied, degrees, positive left.
-    pub steering_angle_deg: f64,
-    /// Last accepted throttle.
-    pub throttle: f64,
-    /// Last accepted brake.
-    pub brake: f64,
-    /// Signed speed, m/s.
-    pub speed_mps: f64,
-    /// Position x, metres.
-    pub x_m: f64,
-    /// Position y (Unity z), metres.
-    pub y_m: f64,
-    /// Pitch, degrees, positive nose down (reported in [0, 360)).
-    pub pitch_deg: f64,
-    /// Yaw, degrees counter-clockwise from +x (reported in [0, 360)).
-    pub yaw_deg: f64,
-    /// Roll as Unity reports it: degrees in [0, 360), positive with the right side up.
-    pub roll_deg: f64,
+    /// Controls and pose.
+    pub state: ReportedState,
     /// A sample is within reach.
     pub near_sample: bool,
     /// A pickup is running.
@@ -81,14 +66,14 @@ impl TelemetryValues<'_> {
             json.push(if json.is_empty() { '{' } else { ',' });
             let _ = write!(json, "\"{key}\":\"{value}\"");
         };
-        field("steering_angle", &n4(self.steering_angle_deg));
-        field("throttle", &n4(self.throttle));
-        field("brake", &n4(self.brake));
-        field("speed", &n4(self.speed_mps));
-        field("position", &format!("{};{}", n4(self.x_m), n4(self.y_m)));
-        field("pitch", &n4(unity_degrees(self.pitch_deg)));
-        field("yaw", &n4(unity_degrees(self.yaw_deg)));
-        field("roll", &n4(unity_degrees(self.roll_deg)));
+        field("steering_angle", &n4(self.state.steering_angle_deg));
+        field("throttle", &n4(self.state.throttle));
+        field("brake", &n4(self.state.brake));
+        field("speed", &n4(self.state.speed_mps));
+        field("position", &format!("{};{}", n4(self.state.x_m), n4(self.state.y_m)));
+        field("pitch", &n4(unity_degrees(self.state.pitch_deg)));
+        field("yaw", &n4(unity_degrees(self.state.yaw_deg)));
+        field("roll", &n4(unity_degrees(self.state.roll_deg)));
         field("near_sample", if self.near_sample { "1" } else { "0" });
         field("picking_up", if self.picking_up { "1" } else { "0" });
         field("sample_count", &self.samples.len().to_string());
@@ -129,15 +114,13 @@ mod tests {
     fn json_has_every_key_as_a_string_in_unity_order() {
         let samples = [(97.44, 74.65), (122.28, 51.66)];
         let values = TelemetryValues {
-            steering_angle_deg: 0.0,
-            throttle: 0.0,
-            brake: 0.0,
-            speed_mps: 0.0,
-            x_m: 99.67,
-            y_m: 85.589,
-            pitch_deg: -0.5,
-            yaw_deg: 56.8255,
-            roll_deg: 0.0,
+            state: ReportedState {
+                x_m: 99.67,
+                y_m: 85.589,
+                pitch_deg: -0.5,
+                yaw_deg: 56.8255,
+                ..ReportedState::default()
+            },
             near_sample: false,
             picking_up: false,
             samples: &samples,
