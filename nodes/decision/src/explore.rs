@@ -6,7 +6,7 @@ use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_at, cell_centre_m, cell_of_po
 use crate::grid::{Cell, CostMap, Costs, Grid};
 use crate::params::DecisionParams;
 use crate::pose::Position;
-use crate::route::{GOAL_SLACK_CELLS, lookahead, path_costs, replan_due};
+use crate::route::{GOAL_SLACK_CELLS, PlanStart, lookahead, path_costs};
 
 /// A frontier needs enough unknown cells within this many cells.
 const FRONTIER_RADIUS_CELLS: usize = 2;
@@ -188,15 +188,9 @@ impl Explorer {
     }
 
     /// The point to steer toward, or `None` when no frontier is left (or the rover is off the map).
-    pub fn waypoint(
-        &mut self,
-        grid: &Grid,
-        map_version: u64,
-        at: &Position,
-        frame: u64,
-        params: &DecisionParams,
-    ) -> Option<(f64, f64)> {
-        let start = cell_of_point(at.x_m, at.y_m)?;
+    pub fn waypoint(&mut self, from: &PlanStart) -> Option<(f64, f64)> {
+        let PlanStart { map, at, frame, params } = *from;
+        let (grid, start) = (&map.grid, cell_of_point(at.x_m, at.y_m)?);
         if let Some(point) = self.look_point(grid, frame) {
             return Some(point);
         }
@@ -215,9 +209,9 @@ impl Explorer {
                 self.abandon_target();
             }
         }
-        if self.target.is_none() || replan_due(self.planned, frame, map_version, params) {
+        if self.target.is_none() || from.replan_due(self.planned) {
             self.replan(grid, start, at, frame, params);
-            self.planned = Some((frame, map_version));
+            self.planned = Some((frame, map.version));
         }
         lookahead(grid, &self.target.as_ref()?.path, at, params)
     }
@@ -293,7 +287,7 @@ mod tests {
     use rover_msgs::map_grid::{CELLS, cell_at};
 
     use super::*;
-    use crate::test_maps::{at, half_explored};
+    use crate::test_maps::{at, half_explored, plan_from, planning};
 
     /// An explorer that has looked at both walls of the known corridor from close by.
     fn explorer_after_inspecting_the_walls(params: &DecisionParams) -> Explorer {
@@ -311,7 +305,7 @@ mod tests {
         let grid = half_explored();
         let params = DecisionParams::default();
         let mut explorer = Explorer::default();
-        explorer.waypoint(&grid, 1, &at(25.5, 51.5), 0, &params);
+        explorer.waypoint(&plan_from(&planning(&grid, 1), &at(25.5, 51.5), 0, &params));
         let target = explorer.target().unwrap();
         assert!(target.0 < 40.0, "the near walls are not inspected yet: {target:?}");
     }
@@ -322,7 +316,7 @@ mod tests {
         let params = DecisionParams::default();
         let mut explorer = explorer_after_inspecting_the_walls(&params);
         let rover = at(25.5, 51.5);
-        let waypoint = explorer.waypoint(&grid, 1, &rover, 0, &params).unwrap();
+        let waypoint = explorer.waypoint(&plan_from(&planning(&grid, 1), &rover, 0, &params)).unwrap();
         let target = explorer.target().unwrap();
         assert!((58.0..61.0).contains(&target.0), "target at the frontier: {target:?}");
         let farthest_m = params.lookahead_m.max(params.max_lookahead_m) + std::f64::consts::SQRT_2;
@@ -336,9 +330,9 @@ mod tests {
         let params = DecisionParams::default();
         let mut explorer = explorer_after_inspecting_the_walls(&params);
         explorer.inspect(&at(56.5, 51.5), &params);
-        assert_eq!(explorer.waypoint(&grid, 1, &at(25.5, 51.5), 0, &params), None);
+        assert_eq!(explorer.waypoint(&plan_from(&planning(&grid, 1), &at(25.5, 51.5), 0, &params)), None);
         assert!(explorer.forget_inspected());
-        assert!(explorer.waypoint(&grid, 2, &at(25.5, 51.5), 1, &params).is_some());
+        assert!(explorer.waypoint(&plan_from(&planning(&grid, 2), &at(25.5, 51.5), 1, &params)).is_some());
         assert!(!explorer.forget_inspected(), "nothing was seen since");
     }
 
@@ -347,14 +341,14 @@ mod tests {
         let grid = half_explored();
         let params = DecisionParams::default();
         let mut explorer = explorer_after_inspecting_the_walls(&params);
-        explorer.waypoint(&grid, 1, &at(25.5, 51.5), 0, &params);
+        explorer.waypoint(&plan_from(&planning(&grid, 1), &at(25.5, 51.5), 0, &params));
         let first = explorer.target().unwrap();
         let facing_back = Position { x_m: first.0, y_m: first.1, yaw_rad: std::f64::consts::PI };
-        let look = explorer.waypoint(&grid, 1, &facing_back, 1, &params).unwrap();
+        let look = explorer.waypoint(&plan_from(&planning(&grid, 1), &facing_back, 1, &params)).unwrap();
         assert!(look.0 > first.0, "looks at the unknown cells behind the rover: {look:?} from {first:?}");
         assert_eq!(explorer.target(), Some(first), "the target stays while looking");
         let look_end = params.frames(LOOK_S) + 1;
-        explorer.waypoint(&grid, 1, &facing_back, look_end, &params);
+        explorer.waypoint(&plan_from(&planning(&grid, 1), &facing_back, look_end, &params));
         let second = explorer.target();
         assert!(
             second.is_none_or(|s| (s.0 - first.0).abs() + (s.1 - first.1).abs() > 3.0),
@@ -368,13 +362,13 @@ mod tests {
         let grid = half_explored();
         let params = DecisionParams::default();
         let mut explorer = explorer_after_inspecting_the_walls(&params);
-        explorer.waypoint(&grid, 1, &at(25.5, 51.5), 0, &params);
+        explorer.waypoint(&plan_from(&planning(&grid, 1), &at(25.5, 51.5), 0, &params));
         let target = explorer.target();
         let back = params.frames(params.target_timeout_s) + 10;
         explorer.resume_after_detour(back);
-        explorer.waypoint(&grid, 1, &at(26.5, 51.5), back + 1, &params);
+        explorer.waypoint(&plan_from(&planning(&grid, 1), &at(26.5, 51.5), back + 1, &params));
         assert_eq!(explorer.target(), target, "still the target after a detour longer than its timeout");
-        explorer.waypoint(&grid, 1, &at(26.5, 51.5), 2 * back, &params);
+        explorer.waypoint(&plan_from(&planning(&grid, 1), &at(26.5, 51.5), 2 * back, &params));
         assert_ne!(explorer.target(), target, "it times out on its own clock");
     }
 
@@ -397,9 +391,13 @@ mod tests {
             explorer.inspect(&Position { x_m: 22.0, y_m: 52.0, yaw_rad: yaw_deg.to_radians() }, &params);
         }
         let rover = at(22.0, 52.0);
-        assert_eq!(explorer.waypoint(&grid, 1, &rover, 0, &params), None, "the far side is walled off");
+        assert_eq!(
+            explorer.waypoint(&plan_from(&planning(&grid, 1), &rover, 0, &params)),
+            None,
+            "the far side is walled off"
+        );
         assert!(explorer.look_past_obstacles() && !explorer.look_past_obstacles());
-        explorer.waypoint(&grid, 2, &rover, 1, &params);
+        explorer.waypoint(&plan_from(&planning(&grid, 2), &rover, 1, &params));
         assert!(explorer.target().is_some_and(|t| t.0 > 26.0), "{:?}", explorer.target());
     }
 }

@@ -11,7 +11,7 @@ use crate::grid::Grid;
 use crate::local::FreeSpace;
 use crate::params::DecisionParams;
 use crate::pose::Position;
-use crate::route::{Route, staging_cell};
+use crate::route::{PlanStart, PlanningMap, Route, staging_cell};
 use crate::samples::SampleMemory;
 use crate::stuck::{ProgressWatch, StuckMarks};
 
@@ -195,8 +195,7 @@ pub struct Machine {
     status: Status,
     changed: bool,
     received_map: Grid,
-    planning_map: Grid,
-    map_version: u64,
+    planning: PlanningMap,
     samples: SampleMemory,
     explorer: Explorer,
     steering: Steering,
@@ -231,8 +230,7 @@ impl Machine {
             },
             changed: true,
             received_map: Grid::unknown(),
-            planning_map: Grid::unknown(),
-            map_version: 0,
+            planning: PlanningMap { grid: Grid::unknown(), version: 0 },
             samples: SampleMemory::default(),
             explorer: Explorer::default(),
             steering: Steering::default(),
@@ -303,8 +301,8 @@ impl Machine {
     }
 
     fn apply_stuck_marks(&mut self) {
-        self.planning_map = self.stuck_marks.applied_to(&self.received_map);
-        self.map_version += 1;
+        self.planning =
+            PlanningMap { grid: self.stuck_marks.applied_to(&self.received_map), version: self.planning.version + 1 };
     }
 
     /// Forgets the cells marked where the rover got stuck; returns whether there were any.
@@ -473,14 +471,15 @@ impl Machine {
             return self.approach(obs, chase);
         }
         let p = &self.params.clone();
-        match self.explorer.waypoint(&self.planning_map, self.map_version, &obs.position, obs.frame, p) {
+        match self.explorer.waypoint(&PlanStart { map: &self.planning, at: &obs.position, frame: obs.frame, params: p })
+        {
             Some(waypoint) => {
                 self.walled_in_recoveries = 0;
                 let bearing = obs.position.bearing_to(waypoint);
                 tracing::trace!(bearing_deg = bearing.to_degrees(), free_ahead = obs.free.toward(0.0), best = ?obs.free.best_toward(bearing as f32, p.clearance_m as f32), "explore");
                 self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, p)
             }
-            None if self.map_version == 0 => {
+            None if self.planning.version == 0 => {
                 self.steering.around_obstacles(0.0, p.max_speed_mps, obs.speed_mps, &obs.free, p)
             }
             None if self.explorer.walled_in() && self.walled_in_recoveries < WALLED_IN_RECOVERIES => {
@@ -528,7 +527,7 @@ impl Machine {
                         free_cells,
                         obstacle_cells,
                         unknown_cells,
-                        map_version = self.map_version,
+                        map_version = self.planning.version,
                         at = ?(obs.position.x_m, obs.position.y_m),
                         rocks = ?self.samples.located(),
                         given_up = ?self.samples.ignored(),
@@ -555,7 +554,7 @@ impl Machine {
                 .filter(|failed| !failed.is_empty())
                 .and_then(|failed| {
                     let area = (STAGING_RADIUS_CELLS, STAGING_AWAY_M);
-                    staging_cell(&self.planning_map, at, &obs.position, area, &failed, p)
+                    staging_cell(&self.planning.grid, at, &obs.position, area, &failed, p)
                 })
                 .map(cell_centre_m),
             unseen_since: None,
@@ -611,7 +610,7 @@ impl Machine {
         let in_view = (CHECK_RANGE_M.0..=CHECK_RANGE_M.1).contains(&distance_m)
             && bearing.abs() <= CHECK_BEARING_DEG.to_radians()
             && cell_of_point(chase.at.0, chase.at.1)
-                .is_some_and(|cell| self.planning_map.line_of_sight((obs.position.x_m, obs.position.y_m), cell, 0));
+                .is_some_and(|cell| self.planning.grid.line_of_sight((obs.position.x_m, obs.position.y_m), cell, 0));
         chase.unseen_since = (in_view && obs.rock.is_none()).then(|| chase.unseen_since.unwrap_or(obs.frame));
         if chase.unseen_since.is_some_and(|since| obs.frame >= since + p.frames(UNSEEN_S)) {
             self.note_failed_approach(chase.at, obs);
@@ -650,7 +649,7 @@ impl Machine {
         let route = chase.route.as_mut()?;
         Some(
             route
-                .waypoint(&self.planning_map, self.map_version, &obs.position, obs.frame, &self.params)
+                .waypoint(&PlanStart { map: &self.planning, at: &obs.position, frame: obs.frame, params: &self.params })
                 .unwrap_or(goal),
         )
     }
@@ -710,7 +709,9 @@ impl Machine {
         let mut route = route.or_else(|| Route::to(home));
         let waypoint = route
             .as_mut()
-            .and_then(|r| r.waypoint(&self.planning_map, self.map_version, &obs.position, obs.frame, &p))
+            .and_then(|r| {
+                r.waypoint(&PlanStart { map: &self.planning, at: &obs.position, frame: obs.frame, params: &p })
+            })
             .unwrap_or(home);
         let bearing = obs.position.bearing_to(waypoint);
         let cruise = p.max_speed_mps.min(distance_m.max(p.approach_speed_mps));
@@ -749,6 +750,13 @@ mod tests {
     }
 
     /// A corridor along y = 100 from x = 90 to 130, unknown beyond x = 130.
+    /// A machine with the default parameters that has received `map`.
+    fn machine_on(map: Grid) -> Machine {
+        let mut machine = Machine::new(DecisionParams::default());
+        machine.set_map(map);
+        machine
+    }
+
     fn corridor() -> Grid {
         let mut data = vec![100i8; CELLS];
         for y in 98..103 {
@@ -762,8 +770,7 @@ mod tests {
     #[test]
     fn a_map_without_free_cells_does_not_end_the_exploration() {
         let params = DecisionParams::default();
-        let mut machine = Machine::new(params.clone());
-        machine.set_map(Grid::unknown());
+        let mut machine = machine_on(Grid::unknown());
         for frame in 1..params.frames(params.stuck_s) {
             let drive = machine.step(&observation(frame, 100.5, 100.5));
             assert!(drive.throttle > 0.0, "frame {frame}: {drive:?}");
@@ -774,8 +781,7 @@ mod tests {
     #[test]
     fn a_rover_that_the_map_walls_in_backs_out_instead_of_giving_the_frontiers_up() {
         let params = DecisionParams::default();
-        let mut machine = Machine::new(params.clone());
-        machine.set_map(corridor());
+        let mut machine = machine_on(corridor());
         let among_rock_cells = observation(1, 110.5, 106.5);
         machine.step(&among_rock_cells);
         assert_eq!(machine.status().mode, Mode::Recover, "{:?}", machine.status());
@@ -789,8 +795,7 @@ mod tests {
     #[test]
     fn a_recalled_machine_keeps_what_the_exploration_learnt_and_the_way_home() {
         let params = DecisionParams::default();
-        let mut first = Machine::new(params.clone());
-        first.set_map(corridor());
+        let mut first = machine_on(corridor());
         for frame in 1..50 {
             first.step(&observation(frame, 100.5 + frame as f64 * 0.1, 100.5));
         }
@@ -808,8 +813,7 @@ mod tests {
     /// it braked in `mode` on every one.
     fn recalled_and_braked(stage: Stage, x_m: f64, mode: Mode) -> Machine {
         let params = DecisionParams::default();
-        let mut first = Machine::new(params.clone());
-        first.set_map(corridor());
+        let mut first = machine_on(corridor());
         first.step(&observation(1, 100.5, 100.5));
         let mut second = Machine::new(params);
         second.set_map(corridor());
@@ -844,8 +848,7 @@ mod tests {
     #[test]
     fn a_rover_that_turns_on_one_spot_for_long_recovers() {
         let params = DecisionParams::default();
-        let mut machine = Machine::new(params.clone());
-        machine.set_map(corridor());
+        let mut machine = machine_on(corridor());
         let facing_away = |frame| {
             let mut obs = observation(frame, 100.5, 100.5);
             obs.position.yaw_rad = std::f64::consts::PI;
@@ -886,8 +889,7 @@ mod tests {
     fn a_sample_ahead_is_approached_as_fast_as_braking_leaves_it_in_reach() {
         let params = DecisionParams::default();
         let speed_toward = |distance_m: f64, speed_mps: f64| {
-            let mut machine = Machine::new(params.clone());
-            machine.set_map(corridor());
+            let mut machine = machine_on(corridor());
             let mut obs = observation(1, 100.5, 100.5);
             (obs.rock, obs.speed_mps) = (Some(Sighting { bearing_rad: 0.0, distance_m }), speed_mps);
             machine.step(&obs)
@@ -906,8 +908,7 @@ mod tests {
     #[test]
     fn a_remembered_sample_that_the_camera_does_not_see_from_close_by_is_given_up_for_a_while() {
         let params = DecisionParams::default();
-        let mut machine = Machine::new(params.clone());
-        machine.set_map(corridor());
+        let mut machine = machine_on(corridor());
         machine.set_rocks(vec![(102.5, 100.5)]);
         machine.step(&observation(1, 100.5, 100.5));
         let mut not_there = 0;
@@ -939,32 +940,30 @@ mod tests {
     #[test]
     fn stuck_twice_at_one_spot_makes_the_cell_ahead_an_obstacle_until_nothing_else_is_left() {
         let params = DecisionParams::default();
-        let mut machine = Machine::new(params.clone());
-        machine.set_map(corridor());
+        let mut machine = machine_on(corridor());
         let ahead = cell_of_point(101.4, 100.5).unwrap();
         machine.mark_if_stuck_again(&observation(10, 100.5, 100.5));
-        assert_eq!(machine.planning_map.cell(ahead), Cell::Free, "stuck once: nothing marked");
+        assert_eq!(machine.planning.grid.cell(ahead), Cell::Free, "stuck once: nothing marked");
         machine.mark_if_stuck_again(&observation(200, 100.7, 100.4));
-        assert_eq!(machine.planning_map.cell(ahead), Cell::Blocked, "stuck again here: the cell ahead is an obstacle");
+        assert_eq!(machine.planning.grid.cell(ahead), Cell::Blocked, "stuck again here: the cell ahead is an obstacle");
         assert_eq!(machine.received_map.cell(ahead), Cell::Free, "the map itself is kept");
         machine.set_map(corridor());
-        assert_eq!(machine.planning_map.cell(ahead), Cell::Blocked, "and stays marked in the next map");
-        assert!(machine.forget_stuck_marks() && machine.planning_map.cell(ahead) == Cell::Free);
+        assert_eq!(machine.planning.grid.cell(ahead), Cell::Blocked, "and stays marked in the next map");
+        assert!(machine.forget_stuck_marks() && machine.planning.grid.cell(ahead) == Cell::Free);
         machine.mark_if_stuck_again(&observation(300, 100.5, 100.5));
         machine.frame = 300 + params.frames(STUCK_MARK_S) - 1;
         machine.set_map(corridor());
-        assert_eq!(machine.planning_map.cell(ahead), Cell::Blocked, "marked again");
+        assert_eq!(machine.planning.grid.cell(ahead), Cell::Blocked, "marked again");
         machine.frame += 1;
         machine.set_map(corridor());
-        assert_eq!(machine.planning_map.cell(ahead), Cell::Free, "until the mark expires");
+        assert_eq!(machine.planning.grid.cell(ahead), Cell::Free, "until the mark expires");
     }
 
     /// A machine that started its mission at (100.5, 100.5) in [`corridor`], and the frame of its
     /// mission deadline.
     fn started_at_home_in_the_corridor() -> (Machine, u64) {
         let params = DecisionParams::default();
-        let mut machine = Machine::new(params.clone());
-        machine.set_map(corridor());
+        let mut machine = machine_on(corridor());
         machine.step(&observation(1, 100.5, 100.5));
         (machine, params.frames(params.mission_deadline_s))
     }

@@ -60,6 +60,38 @@ pub fn staging_cell(
         .min_by(|&a, &b| costs.distance[a].total_cmp(&costs.distance[b]))
 }
 
+/// The map that plans are made on, and its version: a new map is a reason to plan again.
+#[derive(Debug, Clone)]
+pub struct PlanningMap {
+    /// The map.
+    pub grid: Grid,
+    /// Goes up by one with every new map.
+    pub version: u64,
+}
+
+/// Where a plan on the map starts this frame.
+#[derive(Debug, Clone, Copy)]
+pub struct PlanStart<'a> {
+    /// The map to plan on.
+    pub map: &'a PlanningMap,
+    /// The rover.
+    pub at: &'a Position,
+    /// The current frame.
+    pub frame: u64,
+    /// The decision's parameters.
+    pub params: &'a DecisionParams,
+}
+
+impl PlanStart<'_> {
+    /// Whether a plan made at `planned` (frame, map version) is due to be made again: never made,
+    /// made on another map, or `replan_frames` old.
+    pub(crate) fn replan_due(&self, planned: Option<(u64, u64)>) -> bool {
+        planned.is_none_or(|(at_frame, version)| {
+            version != self.map.version || self.frame >= at_frame + self.params.replan_frames as u64
+        })
+    }
+}
+
 /// A path to one goal, replanned every few frames.
 #[derive(Debug, Clone)]
 pub struct Route {
@@ -78,30 +110,20 @@ impl Route {
     /// `replan_frames` or the map changed; the goal itself once the path's end is within the
     /// lookahead (a path that ends next to a goal on an obstacle cell would otherwise leave the
     /// rover circling its own cell); `None` when the goal cannot be reached on the map.
-    pub fn waypoint(
-        &mut self,
-        grid: &Grid,
-        map_version: u64,
-        at: &Position,
-        frame: u64,
-        params: &DecisionParams,
-    ) -> Option<(f64, f64)> {
-        let start = cell_of_point(at.x_m, at.y_m)?;
-        if replan_due(self.planned, frame, map_version, params) {
+    pub fn waypoint(&mut self, from: &PlanStart) -> Option<(f64, f64)> {
+        let PlanStart { map, at, frame, params } = *from;
+        let (grid, start) = (&map.grid, cell_of_point(at.x_m, at.y_m)?);
+        if from.replan_due(self.planned) {
             let costs = grid.costs_from(start, &path_costs(params));
             self.path = costs
                 .reachable_near(self.goal, GOAL_SLACK_CELLS)
                 .and_then(|cell| costs.path_to(cell))
                 .unwrap_or_default();
-            self.planned = Some((frame, map_version));
+            self.planned = Some((frame, map.version));
         }
         let point = lookahead(grid, &self.path, at, params)?;
         Some(if at.distance_to(point) < params.lookahead_m { cell_centre_m(self.goal) } else { point })
     }
-}
-
-pub(crate) fn replan_due(planned: Option<(u64, u64)>, frame: u64, map_version: u64, params: &DecisionParams) -> bool {
-    planned.is_none_or(|(at_frame, version)| version != map_version || frame >= at_frame + params.replan_frames as u64)
 }
 
 #[cfg(test)]
@@ -109,7 +131,7 @@ mod tests {
     use rover_msgs::map_grid::{CELLS, cell_at};
 
     use super::*;
-    use crate::test_maps::{at, half_explored};
+    use crate::test_maps::{at, half_explored, plan_from, planning};
 
     #[test]
     fn a_staging_cell_sees_the_goal_past_the_wall_corner() {
@@ -166,17 +188,17 @@ mod tests {
         let grid = half_explored();
         let params = DecisionParams::default();
         let mut route = Route::to((55.5, 52.5)).unwrap();
-        let waypoint = route.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params).unwrap();
+        let waypoint = route.waypoint(&plan_from(&planning(&grid, 1), &at(21.5, 51.5), 0, &params)).unwrap();
         assert!(waypoint.0 > 21.5 && (50.0..54.0).contains(&waypoint.1));
         let mut nowhere = Route::to((5.5, 5.5)).unwrap();
-        assert_eq!(nowhere.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params), None);
+        assert_eq!(nowhere.waypoint(&plan_from(&planning(&grid, 1), &at(21.5, 51.5), 0, &params)), None);
         assert!(Route::to((-1.0, 0.0)).is_none());
         let mut into_the_wall = Route::to((40.5, 55.5)).unwrap();
-        let waypoint = into_the_wall.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params).unwrap();
+        let waypoint = into_the_wall.waypoint(&plan_from(&planning(&grid, 1), &at(21.5, 51.5), 0, &params)).unwrap();
         assert!(waypoint.0 > 21.5 && (50.0..54.0).contains(&waypoint.1), "a sample by the wall: {waypoint:?}");
-        let near_the_end = into_the_wall.waypoint(&grid, 1, &at(39.5, 52.5), 100, &params);
+        let near_the_end = into_the_wall.waypoint(&plan_from(&planning(&grid, 1), &at(39.5, 52.5), 100, &params));
         assert_eq!(near_the_end, Some((40.5, 55.5)), "the goal itself once the path's end is in reach");
         let mut deep_in_the_wall = Route::to((40.5, 58.5)).unwrap();
-        assert_eq!(deep_in_the_wall.waypoint(&grid, 1, &at(21.5, 51.5), 0, &params), None);
+        assert_eq!(deep_in_the_wall.waypoint(&plan_from(&planning(&grid, 1), &at(21.5, 51.5), 0, &params)), None);
     }
 }
