@@ -132,11 +132,11 @@ fn vector(field: &str, vector: &Vector3) -> Result<(), InvalidField> {
 
 /// The frame number and pose that telemetry and terrain scans share: a frame number, a position
 /// and finite angles.
-fn frame_and_pose(frame_number: u64, x_m: f64, y_m: f64, angles_rad: [(&str, f32); 3]) -> Result<(), InvalidField> {
+fn frame_and_pose(frame_number: u64, (x_m, y_m): (f64, f64), [yaw, pitch, roll]: [f32; 3]) -> Result<(), InvalidField> {
     frame(frame_number)?;
     position_m("x_m", x_m)?;
     position_m("y_m", y_m)?;
-    all_finite(&angles_rad)
+    all_finite(&[("yaw_rad", yaw), ("pitch_rad", pitch), ("roll_rad", roll)])
 }
 
 /// Every one of `fields` (name, value) is finite.
@@ -146,8 +146,7 @@ fn all_finite(fields: &[(&str, f32)]) -> Result<(), InvalidField> {
 
 impl Validate for Telemetry {
     fn validate(&self) -> Result<(), InvalidField> {
-        let angles = [("yaw_rad", self.yaw_rad), ("pitch_rad", self.pitch_rad), ("roll_rad", self.roll_rad)];
-        frame_and_pose(self.frame, self.x_m, self.y_m, angles)?;
+        frame_and_pose(self.frame, (self.x_m, self.y_m), [self.yaw_rad, self.pitch_rad, self.roll_rad])?;
         all_finite(&[
             ("speed_mps", self.speed_mps),
             ("throttle", self.throttle),
@@ -159,8 +158,7 @@ impl Validate for Telemetry {
 
 impl Validate for TerrainScan {
     fn validate(&self) -> Result<(), InvalidField> {
-        let angles = [("yaw_rad", self.yaw_rad), ("pitch_rad", self.pitch_rad), ("roll_rad", self.roll_rad)];
-        frame_and_pose(self.frame, self.x_m, self.y_m, angles)?;
+        frame_and_pose(self.frame, (self.x_m, self.y_m), [self.yaw_rad, self.pitch_rad, self.roll_rad])?;
         all_finite(&[
             ("navigable_bearing_rad", self.navigable_bearing_rad),
             ("navigable_distance_m", self.navigable_distance_m),

@@ -253,29 +253,21 @@ fn log_malformed<M: RosMessage>(malformed: &mut u64, error: &dyn std::fmt::Debug
 
 /// Spawns a task that calls `handler` for every message of `subscription` until the stream ends.
 /// Messages that fail to deserialise are logged and skipped.
-pub fn spawn_subscriber<M, F>(
+pub fn spawn_subscriber<M: RosMessage>(
     subscription: Subscription<M>,
     span: tracing::Span,
-    mut handler: F,
-) -> tokio::task::JoinHandle<()>
-where
-    M: RosMessage,
-    F: FnMut(M) + Send + 'static,
-{
+    mut handler: impl FnMut(M) + Send + 'static,
+) -> tokio::task::JoinHandle<()> {
     spawn_subscriber_with_info(subscription, span, move |message, _info| handler(message))
 }
 
 /// [`spawn_subscriber`] whose handler also gets each message's [`MessageInfo`] (source and
 /// reception time, publisher).
-pub fn spawn_subscriber_with_info<M, F>(
+pub fn spawn_subscriber_with_info<M: RosMessage>(
     subscription: Subscription<M>,
     span: tracing::Span,
-    mut handler: F,
-) -> tokio::task::JoinHandle<()>
-where
-    M: RosMessage,
-    F: FnMut(M, MessageInfo) + Send + 'static,
-{
+    mut handler: impl FnMut(M, MessageInfo) + Send + 'static,
+) -> tokio::task::JoinHandle<()> {
     tokio::spawn(tracing::Instrument::instrument(
         async move {
             let mut stream = std::pin::pin!(subscription.async_stream());

@@ -25,33 +25,34 @@ impl<K: PartialEq, A, B> Pairer<K, A, B> {
 
     /// Adds a message of the first stream; returns the pair if its partner is already here.
     pub fn push_first(&mut self, key: K, message: A) -> Option<(A, B)> {
-        match self.second.iter().position(|(k, _)| *k == key) {
-            Some(index) => self.second.remove(index).map(|(_, partner)| (message, partner)),
-            None => {
-                Self::keep(&mut self.first, (key, message), self.capacity, &mut self.dropped);
-                None
-            }
-        }
+        pair_or_keep(&mut self.second, &mut self.first, (key, message), self.capacity, &mut self.dropped)
     }
 
     /// Adds a message of the second stream; returns the pair if its partner is already here.
     pub fn push_second(&mut self, key: K, message: B) -> Option<(A, B)> {
-        match self.first.iter().position(|(k, _)| *k == key) {
-            Some(index) => self.first.remove(index).map(|(_, partner)| (partner, message)),
-            None => {
-                Self::keep(&mut self.second, (key, message), self.capacity, &mut self.dropped);
-                None
-            }
-        }
+        let pair = pair_or_keep(&mut self.first, &mut self.second, (key, message), self.capacity, &mut self.dropped);
+        pair.map(|(message, partner)| (partner, message))
     }
+}
 
-    fn keep<T>(queue: &mut VecDeque<(K, T)>, item: (K, T), capacity: usize, dropped: &mut u64) {
-        if queue.len() == capacity {
-            queue.pop_front();
-            *dropped += 1;
-        }
-        queue.push_back(item);
+/// Takes the partner of the keyed `message` out of `partners` and returns both; without one,
+/// keeps the message in `waiting` (at most `capacity`, the oldest dropped and counted in `dropped`).
+fn pair_or_keep<K: PartialEq, T, P>(
+    partners: &mut VecDeque<(K, P)>,
+    waiting: &mut VecDeque<(K, T)>,
+    (key, message): (K, T),
+    capacity: usize,
+    dropped: &mut u64,
+) -> Option<(T, P)> {
+    if let Some(index) = partners.iter().position(|(k, _)| *k == key) {
+        return partners.remove(index).map(|(_, partner)| (message, partner));
     }
+    if waiting.len() == capacity {
+        waiting.pop_front();
+        *dropped += 1;
+    }
+    waiting.push_back((key, message));
+    None
 }
 
 #[cfg(test)]
