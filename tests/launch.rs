@@ -6,12 +6,11 @@
 
 mod support;
 
-use std::os::unix::process::CommandExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::Duration;
 
-use nix::sys::signal::{SigHandler, Signal};
+use nix::sys::signal::Signal;
 use rover::graph::send_signal;
 use rover::nodes::Node;
 use rover_msgs::msg::{DriveCommand, Telemetry};
@@ -33,18 +32,22 @@ struct Watcher {
     telemetry: Latest<Telemetry>,
     drive: Latest<DriveCommand>,
     _node: RosNode,
+    /// Its tasks go before the DDS participant they use.
+    _tokio: tokio::runtime::Runtime,
     _runtime: Runtime,
 }
 
 impl Watcher {
     fn start(domain: &Domain, namespace: &str) -> Watcher {
+        let tokio = tokio::runtime::Runtime::new().expect("a tokio runtime");
+        let _entered = tokio.enter();
         let remap = Remap { node: None, from: "__ns".into(), to: namespace.into() };
         let ros_args = RosArgs { remaps: vec![remap], ..RosArgs::default() };
         let runtime = Runtime::on_domain(domain.id, ros_args, Shutdown::new()).expect("the test's DDS participant");
         let (mut node, _) = runtime.node::<NoParams>("launch_watcher").expect("create the watcher node");
         let telemetry = Latest::subscribe(&mut node, &topics::TELEMETRY);
         let drive = Latest::subscribe(&mut node, &topics::DRIVE_CMD);
-        Watcher { telemetry, drive, _node: node, _runtime: runtime }
+        Watcher { telemetry, drive, _node: node, _runtime: runtime, _tokio: tokio }
     }
 
     /// Waits until frames flow and the decision node answers them.
@@ -60,19 +63,12 @@ struct Launcher {
 }
 
 impl Launcher {
-    /// Starts `command` with SIGINT at its default action: a test run started in the background
-    /// inherits SIGINT ignored, and Python (`ros2 launch`) then never sees the Ctrl-C the test sends.
+    /// Starts `command` with SIGINT at its default action (see [`support::with_default_sigint`]).
     fn start(command: &mut Command, what: &str) -> Launcher {
         let output = std::env::temp_dir().join(format!("rover-launch-{what}-{}.out", std::process::id()));
         let file = std::fs::File::create(&output).expect("create the launcher's output file");
         let stderr = file.try_clone().expect("share the output file");
-        // SAFETY: between fork and exec the child only calls sigaction, which is async-signal-safe.
-        unsafe {
-            command.pre_exec(|| {
-                nix::sys::signal::signal(Signal::SIGINT, SigHandler::SigDfl).map(drop).map_err(std::io::Error::from)
-            });
-        }
-        let child = command
+        let child = support::with_default_sigint(command)
             .stdin(Stdio::null())
             .stdout(file)
             .stderr(stderr)
@@ -83,6 +79,18 @@ impl Launcher {
 
     fn output(&self) -> String {
         std::fs::read_to_string(&self.output).unwrap_or_default()
+    }
+
+    /// Sends SIGINT and checks that the launcher exits with 0; returns its output.
+    fn interrupt_cleanly(&mut self) -> String {
+        let status = self.interrupt();
+        let output = self.output();
+        assert_eq!(
+            status.and_then(|s| s.code()),
+            Some(0),
+            "rover-graph's exit on SIGINT: {status:?}; output:\n{output}"
+        );
+        output
     }
 
     /// Sends SIGINT and waits up to 30 s; returns how the launcher exited, if it did.
@@ -139,6 +147,16 @@ fn rover_graph(domain: &Domain, namespace: &str, log_dir: &Path, options: &[&str
     command
 }
 
+/// `rover-graph` with the simulator on world seed `sim_seed` under `namespace`, its logs in a fresh folder
+/// named after `name`, once the test's watcher sees its frames.
+fn watched_graph(domain: &Domain, namespace: &str, name: &str, sim_seed: &str) -> (Watcher, PathBuf, Launcher) {
+    let watcher = Watcher::start(domain, namespace);
+    let log_dir = std::env::temp_dir().join(format!("{name}-test-{}", std::process::id()));
+    let launcher = Launcher::start(&mut rover_graph(domain, namespace, &log_dir, &["--sim", sim_seed]), name);
+    assert!(watcher.graph_runs(), "no frames on {namespace}/rover/telemetry; launcher output:\n{}", launcher.output());
+    (watcher, log_dir, launcher)
+}
+
 /// The pid of the running process `name` of `started`, the last one started under that name.
 fn pid_of(started: &[(String, u32, PathBuf)], name: &str) -> u32 {
     started.iter().rev().find(|(n, _, _)| n == name).unwrap_or_else(|| panic!("{name} was started")).1
@@ -147,13 +165,8 @@ fn pid_of(started: &[(String, u32, PathBuf)], name: &str) -> u32 {
 #[test]
 fn rover_graph_runs_the_graph_with_the_simulator_and_stops_every_process_on_sigint() {
     support::assert_isolated();
-    let tokio = tokio::runtime::Runtime::new().expect("a tokio runtime");
-    let _entered = tokio.enter();
     let domain = Domain::reserve();
-    let watcher = Watcher::start(&domain, "/plain");
-    let log_dir = std::env::temp_dir().join(format!("rover-graph-test-{}", std::process::id()));
-    let mut launcher = Launcher::start(&mut rover_graph(&domain, "/plain", &log_dir, &["--sim", "4"]), "rover-graph");
-    assert!(watcher.graph_runs(), "no frames on /plain/rover/telemetry; launcher output:\n{}", launcher.output());
+    let (_watcher, log_dir, mut launcher) = watched_graph(&domain, "/plain", "rover-graph", "4");
 
     let output = launcher.output();
     assert!(output.contains(&format!("logs in {}", log_dir.display())), "{output}");
@@ -174,9 +187,7 @@ fn rover_graph_runs_the_graph_with_the_simulator_and_stops_every_process_on_sigi
         }
     }
 
-    let status = launcher.interrupt();
-    let output = launcher.output();
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "rover-graph's exit on SIGINT: {status:?}; output:\n{output}");
+    let output = launcher.interrupt_cleanly();
     for (name, pid, _) in &started {
         assert!(
             output.contains(&format!("rover-graph: {name:<10} exited: 0")),
@@ -189,14 +200,8 @@ fn rover_graph_runs_the_graph_with_the_simulator_and_stops_every_process_on_sigi
 #[test]
 fn rover_graph_starts_a_killed_node_again_and_mapping_carries_on_from_its_snapshot() {
     support::assert_isolated();
-    let tokio = tokio::runtime::Runtime::new().expect("a tokio runtime");
-    let _entered = tokio.enter();
     let domain = Domain::reserve();
-    let watcher = Watcher::start(&domain, "/respawn");
-    let log_dir = std::env::temp_dir().join(format!("rover-graph-respawn-test-{}", std::process::id()));
-    let command = &mut rover_graph(&domain, "/respawn", &log_dir, &["--sim", "2"]);
-    let mut launcher = Launcher::start(command, "rover-graph-respawn");
-    assert!(watcher.graph_runs(), "no frames on /respawn/rover/telemetry; launcher output:\n{}", launcher.output());
+    let (watcher, log_dir, mut launcher) = watched_graph(&domain, "/respawn", "rover-graph-respawn", "2");
     let snapshot = log_dir.join("state").join("mapping.snapshot");
     assert!(eventually(Duration::from_secs(10), || snapshot.exists()), "no snapshot at {}", snapshot.display());
     let mapping = pid_of(&started_processes(&launcher.output()), "mapping");
@@ -221,9 +226,7 @@ fn rover_graph_starts_a_killed_node_again_and_mapping_carries_on_from_its_snapsh
         "frames flow after the restart"
     );
 
-    let status = launcher.interrupt();
-    let output = launcher.output();
-    assert_eq!(status.and_then(|s| s.code()), Some(0), "rover-graph's exit on SIGINT: {status:?}; output:\n{output}");
+    let output = launcher.interrupt_cleanly();
     for (name, pid, _) in started_processes(&output).iter().filter(|(_, pid, _)| *pid != mapping) {
         assert!(!is_running(*pid), "{name} (pid {pid}) still runs");
     }
@@ -311,8 +314,6 @@ fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint
     if !support::ros2_cli_or_skip() {
         return;
     }
-    let tokio = tokio::runtime::Runtime::new().expect("a tokio runtime");
-    let _entered = tokio.enter();
     let domain = Domain::reserve();
     let watcher = Watcher::start(&domain, "/launched");
     let mut command = Command::new(support::ros2_cli());

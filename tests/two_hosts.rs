@@ -14,14 +14,11 @@ use rover::graph::send_signal;
 
 const ONE_WAY_DELAY_MS: f64 = 10.0;
 
-/// `tools/two-hosts` with `args`, SIGINT at its default as under a terminal: a shell that starts
-/// with SIGINT ignored (as anything started in the background of a script does, such as this test
-/// under `.ci/run &`) cannot trap it.
+/// `tools/two-hosts` with `args`, SIGINT at its default as under a terminal (a shell started with
+/// SIGINT ignored cannot trap it; see [`support::with_default_sigint`]).
 fn two_hosts(args: &[&str]) -> Command {
-    let mut command = Command::new("env");
-    command
-        .arg("--default-signal=INT")
-        .arg(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tools/two-hosts"))
+    let mut command = Command::new(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tools/two-hosts"));
+    support::with_default_sigint(&mut command)
         .args(args)
         .env("ROVER", support::rover())
         .env("LINK_EMULATOR", env!("CARGO_BIN_EXE_link_emulator"))

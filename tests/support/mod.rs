@@ -232,3 +232,18 @@ pub fn percentiles(samples: &[Duration]) -> Percentiles {
     let at = |q: f64| ms.get(((ms.len().max(1) - 1) as f64 * q).round() as usize).copied().unwrap_or(f64::NAN);
     Percentiles { p50_ms: at(0.5), p99_ms: at(0.99), max_ms: at(1.0) }
 }
+
+/// Gives `command`'s process SIGINT at its default action, as a terminal does: anything started in
+/// the background of a script (such as a test run under `.ci/run &`) inherits SIGINT ignored, and
+/// then neither a shell's trap nor Python (`ros2 launch`) sees the Ctrl-C a test sends.
+pub fn with_default_sigint(command: &mut Command) -> &mut Command {
+    use std::os::unix::process::CommandExt as _;
+    // SAFETY: between fork and exec the child only calls sigaction, which is async-signal-safe.
+    unsafe {
+        command.pre_exec(|| {
+            nix::sys::signal::signal(nix::sys::signal::Signal::SIGINT, nix::sys::signal::SigHandler::SigDfl)
+                .map(drop)
+                .map_err(std::io::Error::from)
+        })
+    }
+}
