@@ -11,7 +11,7 @@ use rover_msgs::nav_msgs::OccupancyGrid;
 use rover_msgs::std_msgs::Header;
 use rover_node::pairing::Pairer;
 use rover_node::snapshot::SnapshotFile;
-use rover_node::{Publisher, Rejections, Runtime, messages, topics};
+use rover_node::{Publisher, Rejections, Runtime, topics};
 use tracing::Instrument as _;
 
 use crate::checked_observation;
@@ -170,16 +170,11 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         frames: 0,
         rejections: Rejections::default(),
     };
-    let telemetry_subscription = node.subscription(&topics::TELEMETRY)?;
-    let terrain_subscription = node.subscription(&topics::TERRAIN)?;
-    let map_subscription = node.subscription(&topics::MAP)?;
-    let rocks_subscription = node.subscription(&topics::ROCKS)?;
-    let stats_subscription = node.subscription(&topics::MAP_STATS)?;
-    let mut telemetry = std::pin::pin!(messages(&telemetry_subscription));
-    let mut scans = std::pin::pin!(messages(&terrain_subscription));
-    let mut maps = std::pin::pin!(messages(&map_subscription));
-    let mut rocks = std::pin::pin!(messages(&rocks_subscription));
-    let mut stats = std::pin::pin!(messages(&stats_subscription));
+    let mut telemetry = std::pin::pin!(node.messages(&topics::TELEMETRY)?);
+    let mut scans = std::pin::pin!(node.messages(&topics::TERRAIN)?);
+    let mut maps = std::pin::pin!(node.messages(&topics::MAP)?);
+    let mut rocks = std::pin::pin!(node.messages(&topics::ROCKS)?);
+    let mut stats = std::pin::pin!(node.messages(&topics::MAP_STATS)?);
     let mut pairs: Pairer<u64, Telemetry, TerrainScan> = Pairer::new(PAIRING_BACKLOG);
     let mut snapshot_file = SnapshotFile::new(&decision.machine.params().state_dir, snapshot::FILE_NAME);
     decision.recall(&snapshot_file);

@@ -13,7 +13,7 @@ use rover_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
 use rover_msgs::sensor_msgs::Image;
 use rover_msgs::std_msgs::Header;
 use rover_node::snapshot::SnapshotFile;
-use rover_node::{Publisher, Runtime, messages, topics};
+use rover_node::{Publisher, Runtime, topics};
 use tracing::Instrument as _;
 
 use crate::image::{InsetStats, map_inset};
@@ -159,12 +159,9 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         published_at: Instant::now(),
         started: Instant::now(),
     };
-    let terrain_subscription = node.subscription(&topics::TERRAIN)?;
-    let telemetry_subscription = node.subscription(&topics::TELEMETRY)?;
-    let truth_subscription = node.subscription(&topics::SAMPLE_TRUTH)?;
-    let mut scans = std::pin::pin!(messages(&terrain_subscription));
-    let mut telemetry = std::pin::pin!(messages(&telemetry_subscription));
-    let mut truth = std::pin::pin!(messages(&truth_subscription));
+    let mut scans = std::pin::pin!(node.messages(&topics::TERRAIN)?);
+    let mut telemetry = std::pin::pin!(node.messages(&topics::TELEMETRY)?);
+    let mut truth = std::pin::pin!(node.messages(&topics::SAMPLE_TRUTH)?);
     let mut changes = params.watch();
     let shutdown = runtime.shutdown();
     outputs.publish(&mut mapping, node.header(frame_ids::MAP));

@@ -8,7 +8,7 @@ use rover_msgs::msg::{Telemetry, TerrainScan};
 use rover_msgs::sensor_msgs::{CompressedImage, Image};
 use rover_msgs::std_msgs::Header;
 use rover_node::pairing::Pairer;
-use rover_node::{Publisher, Rejections, Runtime, messages, topics};
+use rover_node::{Publisher, Rejections, Runtime, topics};
 
 use crate::classify::{RockRule, Thresholds};
 use crate::scan::{ScanGeometry, vision_image};
@@ -116,10 +116,8 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         frames: 0,
         rejections: Rejections::default(),
     };
-    let telemetry_subscription = node.subscription(&topics::TELEMETRY)?;
-    let camera_subscription = node.subscription(&topics::CAMERA_COMPRESSED)?;
-    let mut telemetry = std::pin::pin!(messages(&telemetry_subscription));
-    let mut camera = std::pin::pin!(messages(&camera_subscription));
+    let mut telemetry = std::pin::pin!(node.messages(&topics::TELEMETRY)?);
+    let mut camera = std::pin::pin!(node.messages(&topics::CAMERA_COMPRESSED)?);
     let mut pairs: Pairer<Time, CompressedImage, Telemetry> = Pairer::new(PAIRING_BACKLOG);
     let shutdown = runtime.shutdown();
     loop {

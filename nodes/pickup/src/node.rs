@@ -4,7 +4,7 @@ use futures::StreamExt;
 use rover_msgs::frame_ids;
 use rover_msgs::msg::PickupRequest;
 use rover_msgs::std_msgs::Header;
-use rover_node::{Rejections, Runtime, messages, topics};
+use rover_node::{Rejections, Runtime, topics};
 use tracing::Instrument as _;
 
 use crate::{Pickup, PickupParams, checked_arm_input};
@@ -14,8 +14,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let (mut node, params) = runtime.node::<PickupParams>("pickup")?;
     let span = node.span();
     let requests = node.publisher(&topics::PICKUP)?;
-    let telemetry_subscription = node.subscription(&topics::TELEMETRY)?;
-    let mut telemetry = std::pin::pin!(messages(&telemetry_subscription));
+    let mut telemetry = std::pin::pin!(node.messages(&topics::TELEMETRY)?);
     let mut changes = params.watch();
     let mut settings = params.get();
     let mut pickup = Pickup::default();

@@ -189,6 +189,23 @@ impl RosNode {
             .with_context(|| format!("cannot create a subscription on {}", topic.name))
     }
 
+    /// The messages of `topic` as a stream that owns its subscription; messages that fail to
+    /// deserialise are counted, logged (the 1st, 2nd, 4th...) and skipped.
+    pub fn messages<M: RosMessage>(
+        &mut self,
+        topic: &Topic<M>,
+    ) -> anyhow::Result<impl futures::Stream<Item = M> + Send + 'static> {
+        let subscription = self.subscription(topic)?;
+        Ok(futures::stream::unfold((subscription, 0u64), |(subscription, mut malformed)| async move {
+            loop {
+                match subscription.async_take().await {
+                    Ok((message, _info)) => return Some((message, (subscription, malformed))),
+                    Err(e) => log_malformed::<M>(&mut malformed, &e),
+                }
+            }
+        }))
+    }
+
     /// Resolves once `publisher` has matched a subscription.
     pub async fn subscription_matched<M: RosMessage>(&self, publisher: &Publisher<M>) {
         until_resolved(|| publisher.wait_for_subscription(&self.node)).await;
