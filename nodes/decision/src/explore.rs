@@ -287,89 +287,110 @@ mod tests {
     use rover_msgs::map_grid::{CELLS, cell_at};
 
     use super::*;
-    use crate::test_maps::{at, half_explored, plan_from, planning};
+    use crate::route::PlanningMap;
+    use crate::test_maps::{at, half_explored, planning};
 
-    /// An explorer that has looked at both walls of the known corridor from close by.
-    fn explorer_after_inspecting_the_walls(params: &DecisionParams) -> Explorer {
-        let mut explorer = Explorer::default();
-        for x in (18..57).step_by(2) {
-            for yaw_rad in [std::f64::consts::FRAC_PI_2, -std::f64::consts::FRAC_PI_2] {
-                explorer.inspect(&Position { x_m: x as f64, y_m: 52.0, yaw_rad }, params);
+    /// An explorer of a test on `map`, with the default parameters.
+    struct Probe {
+        explorer: Explorer,
+        map: PlanningMap,
+        params: DecisionParams,
+    }
+
+    impl Probe {
+        /// On the half-explored corridor, nothing inspected yet.
+        fn in_the_corridor() -> Self {
+            Probe {
+                explorer: Explorer::default(),
+                map: planning(&half_explored(), 1),
+                params: DecisionParams::default(),
             }
         }
-        explorer
+
+        /// On the corridor, both of its walls looked at from close by.
+        fn with_the_walls_inspected() -> Self {
+            let mut probe = Probe::in_the_corridor();
+            for x in (18..57).step_by(2) {
+                for yaw_rad in [std::f64::consts::FRAC_PI_2, -std::f64::consts::FRAC_PI_2] {
+                    probe.explorer.inspect(&Position { x_m: x as f64, y_m: 52.0, yaw_rad }, &probe.params);
+                }
+            }
+            probe
+        }
+
+        /// The explorer's waypoint from `at` at `frame`.
+        fn waypoint(&mut self, at: Position, frame: u64) -> Option<(f64, f64)> {
+            self.explorer.waypoint(&PlanStart { map: &self.map, at: &at, frame, params: &self.params })
+        }
+
+        /// A new version of the same map.
+        fn new_map_version(&mut self) {
+            self.map.version += 1;
+        }
     }
 
     #[test]
     fn walls_seen_only_from_afar_are_frontiers() {
-        let grid = half_explored();
-        let params = DecisionParams::default();
-        let mut explorer = Explorer::default();
-        explorer.waypoint(&plan_from(&planning(&grid, 1), &at(25.5, 51.5), 0, &params));
-        let target = explorer.target().unwrap();
+        let mut probe = Probe::in_the_corridor();
+        probe.waypoint(at(25.5, 51.5), 0);
+        let target = probe.explorer.target().unwrap();
         assert!(target.0 < 40.0, "the near walls are not inspected yet: {target:?}");
     }
 
     #[test]
     fn the_explorer_heads_for_the_unknown_end_of_the_corridor() {
-        let grid = half_explored();
-        let params = DecisionParams::default();
-        let mut explorer = explorer_after_inspecting_the_walls(&params);
+        let mut probe = Probe::with_the_walls_inspected();
         let rover = at(25.5, 51.5);
-        let waypoint = explorer.waypoint(&plan_from(&planning(&grid, 1), &rover, 0, &params)).unwrap();
-        let target = explorer.target().unwrap();
+        let waypoint = probe.waypoint(rover, 0).unwrap();
+        let target = probe.explorer.target().unwrap();
         assert!((58.0..61.0).contains(&target.0), "target at the frontier: {target:?}");
+        let params = &probe.params;
         let farthest_m = params.lookahead_m.max(params.max_lookahead_m) + std::f64::consts::SQRT_2;
         assert!(waypoint.0 > rover.x_m && (params.lookahead_m..=farthest_m).contains(&rover.distance_to(waypoint)));
-        assert!(explorer.cost_to((40.5, 51.5)).is_some() && explorer.cost_to((5.5, 5.5)).is_none());
+        assert!(probe.explorer.cost_to((40.5, 51.5)).is_some() && probe.explorer.cost_to((5.5, 5.5)).is_none());
     }
 
     #[test]
     fn with_every_wall_seen_up_close_no_frontier_is_left_until_they_are_forgotten() {
-        let grid = half_explored();
-        let params = DecisionParams::default();
-        let mut explorer = explorer_after_inspecting_the_walls(&params);
-        explorer.inspect(&at(56.5, 51.5), &params);
-        assert_eq!(explorer.waypoint(&plan_from(&planning(&grid, 1), &at(25.5, 51.5), 0, &params)), None);
-        assert!(explorer.forget_inspected());
-        assert!(explorer.waypoint(&plan_from(&planning(&grid, 2), &at(25.5, 51.5), 1, &params)).is_some());
-        assert!(!explorer.forget_inspected(), "nothing was seen since");
+        let mut probe = Probe::with_the_walls_inspected();
+        probe.explorer.inspect(&at(56.5, 51.5), &probe.params);
+        assert_eq!(probe.waypoint(at(25.5, 51.5), 0), None);
+        assert!(probe.explorer.forget_inspected());
+        probe.new_map_version();
+        assert!(probe.waypoint(at(25.5, 51.5), 1).is_some());
+        assert!(!probe.explorer.forget_inspected(), "nothing was seen since");
     }
 
     #[test]
     fn reached_targets_are_looked_at_then_not_chosen_again() {
-        let grid = half_explored();
-        let params = DecisionParams::default();
-        let mut explorer = explorer_after_inspecting_the_walls(&params);
-        explorer.waypoint(&plan_from(&planning(&grid, 1), &at(25.5, 51.5), 0, &params));
-        let first = explorer.target().unwrap();
+        let mut probe = Probe::with_the_walls_inspected();
+        probe.waypoint(at(25.5, 51.5), 0);
+        let first = probe.explorer.target().unwrap();
         let facing_back = Position { x_m: first.0, y_m: first.1, yaw_rad: std::f64::consts::PI };
-        let look = explorer.waypoint(&plan_from(&planning(&grid, 1), &facing_back, 1, &params)).unwrap();
+        let look = probe.waypoint(facing_back, 1).unwrap();
         assert!(look.0 > first.0, "looks at the unknown cells behind the rover: {look:?} from {first:?}");
-        assert_eq!(explorer.target(), Some(first), "the target stays while looking");
-        let look_end = params.frames(LOOK_S) + 1;
-        explorer.waypoint(&plan_from(&planning(&grid, 1), &facing_back, look_end, &params));
-        let second = explorer.target();
+        assert_eq!(probe.explorer.target(), Some(first), "the target stays while looking");
+        let look_end = probe.params.frames(LOOK_S) + 1;
+        probe.waypoint(facing_back, look_end);
+        let second = probe.explorer.target();
         assert!(
             second.is_none_or(|s| (s.0 - first.0).abs() + (s.1 - first.1).abs() > 3.0),
             "{first:?} then {second:?}"
         );
-        assert!(explorer.forget_explored());
+        assert!(probe.explorer.forget_explored());
     }
 
     #[test]
     fn a_detour_does_not_count_against_the_target() {
-        let grid = half_explored();
-        let params = DecisionParams::default();
-        let mut explorer = explorer_after_inspecting_the_walls(&params);
-        explorer.waypoint(&plan_from(&planning(&grid, 1), &at(25.5, 51.5), 0, &params));
-        let target = explorer.target();
-        let back = params.frames(params.target_timeout_s) + 10;
-        explorer.resume_after_detour(back);
-        explorer.waypoint(&plan_from(&planning(&grid, 1), &at(26.5, 51.5), back + 1, &params));
-        assert_eq!(explorer.target(), target, "still the target after a detour longer than its timeout");
-        explorer.waypoint(&plan_from(&planning(&grid, 1), &at(26.5, 51.5), 2 * back, &params));
-        assert_ne!(explorer.target(), target, "it times out on its own clock");
+        let mut probe = Probe::with_the_walls_inspected();
+        probe.waypoint(at(25.5, 51.5), 0);
+        let target = probe.explorer.target();
+        let back = probe.params.frames(probe.params.target_timeout_s) + 10;
+        probe.explorer.resume_after_detour(back);
+        probe.waypoint(at(26.5, 51.5), back + 1);
+        assert_eq!(probe.explorer.target(), target, "still the target after a detour longer than its timeout");
+        probe.waypoint(at(26.5, 51.5), 2 * back);
+        assert_ne!(probe.explorer.target(), target, "it times out on its own clock");
     }
 
     #[test]
@@ -384,20 +405,14 @@ mod tests {
                 };
             }
         }
-        let grid = Grid::from_occupancy(&data).unwrap();
-        let params = DecisionParams::default();
-        let mut explorer = Explorer::default();
+        let mut probe = Probe { map: planning(&Grid::from_occupancy(&data).unwrap(), 1), ..Probe::in_the_corridor() };
         for yaw_deg in [0.0f64, 90.0, 180.0, 270.0] {
-            explorer.inspect(&Position { x_m: 22.0, y_m: 52.0, yaw_rad: yaw_deg.to_radians() }, &params);
+            probe.explorer.inspect(&Position { x_m: 22.0, y_m: 52.0, yaw_rad: yaw_deg.to_radians() }, &probe.params);
         }
-        let rover = at(22.0, 52.0);
-        assert_eq!(
-            explorer.waypoint(&plan_from(&planning(&grid, 1), &rover, 0, &params)),
-            None,
-            "the far side is walled off"
-        );
-        assert!(explorer.look_past_obstacles() && !explorer.look_past_obstacles());
-        explorer.waypoint(&plan_from(&planning(&grid, 2), &rover, 1, &params));
-        assert!(explorer.target().is_some_and(|t| t.0 > 26.0), "{:?}", explorer.target());
+        assert_eq!(probe.waypoint(at(22.0, 52.0), 0), None, "the far side is walled off");
+        assert!(probe.explorer.look_past_obstacles() && !probe.explorer.look_past_obstacles());
+        probe.new_map_version();
+        probe.waypoint(at(22.0, 52.0), 1);
+        assert!(probe.explorer.target().is_some_and(|t| t.0 > 26.0), "{:?}", probe.explorer.target());
     }
 }

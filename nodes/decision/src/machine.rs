@@ -2,36 +2,20 @@
 //! home, done. One [`Machine::step`] per frame turns an observation into a drive command.
 
 use rover_msgs::body::ARM_REACH_M;
-use rover_msgs::map_grid::{cell_centre_m, cell_of_point};
+use rover_msgs::map_grid::cell_centre_m;
 use rover_msgs::tally::SampleTally;
 
+use crate::approach::{Aim, Chase};
 use crate::drive::{Drive, STOPPED_MPS, Steering, speed_to_stop_in};
 use crate::explore::{Explorer, ExplorerMemory};
 use crate::grid::Grid;
 use crate::local::FreeSpace;
 use crate::params::DecisionParams;
 use crate::pose::Position;
-use crate::route::{PlanStart, PlanningMap, Route, staging_cell};
+use crate::route::{PlanStart, PlanningMap, Route};
 use crate::samples::SampleMemory;
 use crate::stuck::{ProgressWatch, StuckMarks};
 
-/// Farther than this the rover drives to a sample along the map and around obstacles; closer, it
-/// drives straight at it (samples lie by the walls, where little ground counts as free).
-const ROUTE_APPROACH_M: f64 = 4.0;
-/// After a failed approach the next one starts from a free cell this close to the sample, cells...
-const STAGING_RADIUS_CELLS: usize = 2;
-/// ...at least this far from where the failed ones ended, metres...
-const STAGING_AWAY_M: f64 = 1.5;
-/// ...reached within this distance, metres.
-const STAGING_REACHED_M: f64 = 0.7;
-/// A remembered sample between these distances ahead, metres (nearer, it is below the camera's
-/// view)...
-const CHECK_RANGE_M: (f64, f64) = (1.2, 3.0);
-/// ...and within this bearing, degrees, with no obstacle of the map in between...
-const CHECK_BEARING_DEG: f64 = 20.0;
-/// ...that the camera does not see for this long, seconds, is not there (an echo of a sample
-/// seen from afar, or one picked up already).
-const UNSEEN_S: f64 = 1.0;
 /// Moving less than this while driving counts toward being stuck, metres...
 const STUCK_PROGRESS_M: f64 = 0.3;
 /// ...when the rover has come to a stop, m/s (a slow approach is not stuck).
@@ -175,16 +159,6 @@ enum State {
     },
     ReturnHome(Option<Route>),
     Done,
-}
-
-/// A sample being approached.
-#[derive(Debug, Clone)]
-struct Chase {
-    at: (f64, f64),
-    give_up_frame: u64,
-    route: Option<Route>,
-    staging: Option<(f64, f64)>,
-    unseen_since: Option<u64>,
 }
 
 /// The decision state machine.
@@ -546,18 +520,9 @@ impl Machine {
             return None;
         }
         let p = &self.params;
-        let new = |(at, way_m): ((f64, f64), f64)| Chase {
-            at,
-            give_up_frame: obs.frame + p.frames(p.sample_timeout_s + way_m / p.max_speed_mps),
-            route: None,
-            staging: Some(self.samples.failed_from(at))
-                .filter(|failed| !failed.is_empty())
-                .and_then(|failed| {
-                    let area = (STAGING_RADIUS_CELLS, STAGING_AWAY_M);
-                    staging_cell(&self.planning.grid, at, &obs.position, area, &failed, p)
-                })
-                .map(cell_centre_m),
-            unseen_since: None,
+        let new = |(at, way_m): ((f64, f64), f64)| {
+            let give_up_frame = obs.frame + p.frames(p.sample_timeout_s + way_m / p.max_speed_mps);
+            Chase::new(at, give_up_frame, (&self.planning.grid, &obs.position), &self.samples.failed_from(at), p)
         };
         let seen = obs
             .rock
@@ -605,53 +570,26 @@ impl Machine {
             self.enter(State::Explore, "sample not reached in time");
             return Drive::stop(p.brake);
         }
-        let distance_m = obs.position.distance_to(chase.at);
-        let bearing = obs.position.bearing_to(chase.at);
-        let in_view = (CHECK_RANGE_M.0..=CHECK_RANGE_M.1).contains(&distance_m)
-            && bearing.abs() <= CHECK_BEARING_DEG.to_radians()
-            && cell_of_point(chase.at.0, chase.at.1)
-                .is_some_and(|cell| self.planning.grid.line_of_sight((obs.position.x_m, obs.position.y_m), cell, 0));
-        chase.unseen_since = (in_view && obs.rock.is_none()).then(|| chase.unseen_since.unwrap_or(obs.frame));
-        if chase.unseen_since.is_some_and(|since| obs.frame >= since + p.frames(UNSEEN_S)) {
+        let from = PlanStart { map: &self.planning, at: &obs.position, frame: obs.frame, params: &p };
+        if chase.missing(&from, obs.rock.is_some()) {
             self.note_failed_approach(chase.at, obs);
             self.enter(State::Explore, "sample not where remembered");
             return Drive::stop(p.brake);
         }
-        if chase.staging.is_some_and(|point| obs.position.distance_to(point) < STAGING_REACHED_M) {
-            (chase.staging, chase.route) = (None, None);
-        }
+        let distance_m = obs.position.distance_to(chase.at);
         let speed = speed_to_stop_in(distance_m - ARM_REACH_M, &p).clamp(p.approach_speed_mps, p.max_speed_mps);
-        let drive = match self.approach_waypoint(obs, &mut chase, distance_m) {
-            Some(waypoint) if distance_m > ROUTE_APPROACH_M => {
-                let bearing = obs.position.bearing_to(waypoint);
+        let drive = match chase.aim(&from) {
+            Aim::AroundObstacles(point) => {
+                let bearing = obs.position.bearing_to(point);
                 self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, &p)
             }
-            Some(waypoint) => {
-                let (bearing, distance_m) = (obs.position.bearing_to(waypoint), obs.position.distance_to(waypoint));
+            Aim::Straight(point) => {
+                let (bearing, distance_m) = (obs.position.bearing_to(point), obs.position.distance_to(point));
                 self.steering.toward_point(bearing, distance_m, speed, obs.speed_mps, &p)
             }
-            None => self.steering.toward_point(bearing, distance_m, speed, obs.speed_mps, &p),
         };
         self.state = State::Approach(chase);
         drive
-    }
-
-    /// Where to steer on the way to a sample: along a route on the map while it is far or while a
-    /// staging cell is still ahead; `None` to drive straight at it.
-    fn approach_waypoint(&self, obs: &Observation, chase: &mut Chase, distance_m: f64) -> Option<(f64, f64)> {
-        let goal = chase.staging.unwrap_or(chase.at);
-        if distance_m <= ROUTE_APPROACH_M && chase.staging.is_none() {
-            return None;
-        }
-        if chase.route.is_none() {
-            chase.route = Route::to(goal);
-        }
-        let route = chase.route.as_mut()?;
-        Some(
-            route
-                .waypoint(&PlanStart { map: &self.planning, at: &obs.position, frame: obs.frame, params: &self.params })
-                .unwrap_or(goal),
-        )
     }
 
     fn pickup(&mut self, obs: &Observation, since_frame: u64, arm_seen: bool) -> Drive {
@@ -724,8 +662,9 @@ impl Machine {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rover_msgs::map_grid::{CELLS, cell_at};
+    use rover_msgs::map_grid::{CELLS, cell_at, cell_of_point};
 
+    use crate::approach::UNSEEN_S;
     use crate::grid::Cell;
     use crate::samples::APPROACHES_PER_ROCK;
     use crate::stuck::STUCK_MARK_S;
