@@ -135,73 +135,85 @@ pub struct BandColours {
     pub band: String,
     /// Pixels in the band over all frames.
     pub pixels: u64,
-    /// Median colour of the real pixels.
-    pub real_median_rgb: [u8; 3],
-    /// Median colour of the simulated pixels.
-    pub sim_median_rgb: [u8; 3],
-    /// Fraction of the real pixels the perception's colour rule calls navigable.
-    pub real_navigable: f64,
-    /// The same for the simulated pixels.
-    pub sim_navigable: f64,
+    /// The real pixels.
+    pub real: ColourSummary,
+    /// The simulated pixels.
+    pub sim: ColourSummary,
 }
 
-/// Colour histograms of the bands, filled frame by frame.
+/// The colours of one band in one kind of image.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct ColourSummary {
+    /// Median colour.
+    pub median_rgb: [u8; 3],
+    /// Fraction of the pixels that the perception's colour rule calls navigable.
+    pub navigable: f64,
+}
+
+/// Colour histograms of the bands of one kind of image (real or simulated), filled frame by frame.
+struct ColourTally {
+    histograms: Vec<[[u64; 256]; 3]>,
+    navigable: Vec<u64>,
+}
+
+impl ColourTally {
+    fn new() -> Self {
+        ColourTally { histograms: vec![[[0; 256]; 3]; BANDS.len()], navigable: vec![0; BANDS.len()] }
+    }
+
+    fn add(&mut self, band: usize, rgb: [u8; 3], thresholds: &Thresholds) {
+        for (k, &channel) in rgb.iter().enumerate() {
+            self.histograms[band][k][channel as usize] += 1;
+        }
+        self.navigable[band] += thresholds.is_navigable(rgb) as u64;
+    }
+
+    /// The summary of band `band`, which holds `pixels` pixels.
+    fn summary(&self, band: usize, pixels: u64) -> ColourSummary {
+        let median = [0, 1, 2].map(|k| {
+            let mut running = 0;
+            self.histograms[band][k]
+                .iter()
+                .position(|&n| {
+                    running += n;
+                    running * 2 >= pixels
+                })
+                .unwrap_or(0) as u8
+        });
+        ColourSummary { median_rgb: median, navigable: self.navigable[band] as f64 / pixels as f64 }
+    }
+}
+
+/// The colours of the bands in the real and the simulated images.
 struct BandTally {
-    real: Vec<[[u64; 256]; 3]>,
-    sim: Vec<[[u64; 256]; 3]>,
-    real_navigable: Vec<u64>,
-    sim_navigable: Vec<u64>,
+    real: ColourTally,
+    sim: ColourTally,
     pixels: Vec<u64>,
 }
 
 impl BandTally {
     fn new() -> Self {
-        BandTally {
-            real: vec![[[0; 256]; 3]; BANDS.len()],
-            sim: vec![[[0; 256]; 3]; BANDS.len()],
-            real_navigable: vec![0; BANDS.len()],
-            sim_navigable: vec![0; BANDS.len()],
-            pixels: vec![0; BANDS.len()],
-        }
+        BandTally { real: ColourTally::new(), sim: ColourTally::new(), pixels: vec![0; BANDS.len()] }
     }
 
     fn add(&mut self, hits: &[Hit], real: &RgbImage, simulated: &RgbImage, thresholds: &Thresholds) {
         for (index, hit) in hits.iter().enumerate() {
             let Some(band) = band_of(hit) else { continue };
             let (x, y) = (index % real.width, index / real.width);
-            let (r, s) = (real.pixel(x, y), simulated.pixel(x, y));
-            for k in 0..3 {
-                self.real[band][k][r[k] as usize] += 1;
-                self.sim[band][k][s[k] as usize] += 1;
-            }
-            self.real_navigable[band] += thresholds.is_navigable(r) as u64;
-            self.sim_navigable[band] += thresholds.is_navigable(s) as u64;
+            self.real.add(band, real.pixel(x, y), thresholds);
+            self.sim.add(band, simulated.pixel(x, y), thresholds);
             self.pixels[band] += 1;
         }
     }
 
     fn colours(&self) -> Vec<BandColours> {
-        let median = |histogram: &[[u64; 256]; 3], total: u64| {
-            [0, 1, 2].map(|k| {
-                let mut running = 0;
-                histogram[k]
-                    .iter()
-                    .position(|&n| {
-                        running += n;
-                        running * 2 >= total
-                    })
-                    .unwrap_or(0) as u8
-            })
-        };
         (0..BANDS.len())
             .filter(|&b| self.pixels[b] > 0)
             .map(|b| BandColours {
                 band: BANDS[b].to_string(),
                 pixels: self.pixels[b],
-                real_median_rgb: median(&self.real[b], self.pixels[b]),
-                sim_median_rgb: median(&self.sim[b], self.pixels[b]),
-                real_navigable: self.real_navigable[b] as f64 / self.pixels[b] as f64,
-                sim_navigable: self.sim_navigable[b] as f64 / self.pixels[b] as f64,
+                real: self.real.summary(b, self.pixels[b]),
+                sim: self.sim.summary(b, self.pixels[b]),
             })
             .collect()
     }
@@ -410,10 +422,10 @@ pub fn table(report: &CheckReport) -> String {
             "{:<26} {:>9}   {}      {}      {:>7.3}  {:>7.3}\n",
             band.band,
             band.pixels,
-            rgb(band.real_median_rgb),
-            rgb(band.sim_median_rgb),
-            band.real_navigable,
-            band.sim_navigable
+            rgb(band.real.median_rgb),
+            rgb(band.sim.median_rgb),
+            band.real.navigable,
+            band.sim.navigable
         );
     }
     text

@@ -310,11 +310,7 @@ fn the_launch_file_is_valid_python() {
 
 #[test]
 fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint_leaves_no_process_behind() {
-    support::assert_isolated();
-    if !support::ros2_cli_or_skip() {
-        return;
-    }
-    let domain = Domain::reserve();
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
     let watcher = Watcher::start(&domain, "/launched");
     let mut command = Command::new(support::ros2_cli());
     command.arg("launch").arg(launch_scripts().join("rover.launch.py"));

@@ -100,12 +100,8 @@ impl Drop for Daemon<'_> {
 
 #[test]
 fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it() {
-    support::assert_isolated();
-    if !support::ros2_cli_or_skip() {
-        return;
-    }
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
     let started = Instant::now();
-    let domain = Domain::reserve();
     let daemon = Daemon::start(&domain);
 
     let graph_script = Path::new(env!("CARGO_MANIFEST_DIR")).join("launch_scripts/rover-graph");
@@ -242,10 +238,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
 
 #[test]
 fn the_ros2_command_line_shows_the_rover_interfaces() {
-    if !support::ros2_cli_or_skip() {
-        return;
-    }
-    let domain = Domain::reserve();
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
     let (ok, shown) = ros2(&domain, Duration::from_secs(30), &["interface", "show", "rover_msgs/msg/DriveCommand"]);
     assert!(ok, "{shown}");
     assert_contains(

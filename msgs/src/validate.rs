@@ -144,27 +144,24 @@ fn all_finite(fields: &[(&str, f32)]) -> Result<(), InvalidField> {
     fields.iter().try_for_each(|&(field, value)| finite(field, value))
 }
 
+/// The named `f32` fields of `message` are finite.
+macro_rules! finite_fields {
+    ($message:ident: $($field:ident),+) => {
+        all_finite(&[$((stringify!($field), $message.$field)),+])
+    };
+}
+
 impl Validate for Telemetry {
     fn validate(&self) -> Result<(), InvalidField> {
         frame_and_pose(self.frame, (self.x_m, self.y_m), [self.yaw_rad, self.pitch_rad, self.roll_rad])?;
-        all_finite(&[
-            ("speed_mps", self.speed_mps),
-            ("throttle", self.throttle),
-            ("brake", self.brake),
-            ("steering_angle_deg", self.steering_angle_deg),
-        ])
+        finite_fields!(self: speed_mps, throttle, brake, steering_angle_deg)
     }
 }
 
 impl Validate for TerrainScan {
     fn validate(&self) -> Result<(), InvalidField> {
         frame_and_pose(self.frame, (self.x_m, self.y_m), [self.yaw_rad, self.pitch_rad, self.roll_rad])?;
-        all_finite(&[
-            ("navigable_bearing_rad", self.navigable_bearing_rad),
-            ("navigable_distance_m", self.navigable_distance_m),
-            ("rock_bearing_rad", self.rock_bearing_rad),
-            ("rock_distance_m", self.rock_distance_m),
-        ])?;
+        finite_fields!(self: navigable_bearing_rad, navigable_distance_m, rock_bearing_rad, rock_distance_m)?;
         cell_size_m("resolution_m", self.resolution_m)?;
         position_m("origin_x_m", self.origin_x_m)?;
         position_m("origin_y_m", self.origin_y_m)?;

@@ -188,9 +188,16 @@ pub fn ros2_cli() -> PathBuf {
     std::env::var_os("ROVER_ROS2").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("ros2"))
 }
 
+/// A domain for a test of the `ros2` command line, in the isolated namespace; `None` when the test
+/// is to be skipped (see [`ros2_cli_or_skip`]).
+pub fn ros2_domain_or_skip() -> Option<Domain> {
+    assert_isolated();
+    ros2_cli_or_skip().then(Domain::reserve)
+}
+
 /// Whether the `ros2` command line runs (`ros2 --help`). Without it the test skips only when its
 /// wheels (`../shared/ros2-python`) are absent and `ROVER_REQUIRE_ROS` is unset; otherwise it fails.
-pub fn ros2_cli_or_skip() -> bool {
+fn ros2_cli_or_skip() -> bool {
     let ros2 = ros2_cli();
     let runs = Command::new(&ros2)
         .arg("--help")

@@ -245,25 +245,24 @@ mod tests {
         MappingCore::new(MappingParams::default(), None)
     }
 
+    /// The frames mapped and the scans rejected as out of order after the scans `(frame, stamp
+    /// seconds)` in this order, all taken at one place.
+    fn mapped_and_out_of_order(scans: &[(u64, i32)]) -> (u64, u64) {
+        let mut mapping = core();
+        for &(frame, sec) in scans {
+            mapping.add_scan(&rock_scan(frame, sec, (100.0, 100.0)));
+        }
+        (mapping.frames_mapped(), mapping.rejections().count("out_of_order"))
+    }
+
     #[test]
     fn scans_out_of_order_are_skipped_and_counted() {
-        let mut mapping = core();
-        mapping.add_scan(&rock_scan(10, 5, (100.0, 100.0)));
-        mapping.add_scan(&rock_scan(9, 5, (100.0, 100.0)));
-        mapping.add_scan(&rock_scan(10, 5, (100.0, 100.0)));
-        mapping.add_scan(&rock_scan(11, 4, (100.0, 100.0)));
-        assert_eq!(mapping.frames_mapped(), 1);
-        assert_eq!(mapping.rejections().count("out_of_order"), 3);
+        assert_eq!(mapped_and_out_of_order(&[(10, 5), (9, 5), (10, 5), (11, 4)]), (1, 3));
     }
 
     #[test]
     fn a_new_bridge_numbering_frames_from_one_again_is_mapped() {
-        let mut mapping = core();
-        mapping.add_scan(&rock_scan(5000, 200, (100.0, 100.0)));
-        mapping.add_scan(&rock_scan(1, 201, (100.0, 100.0)));
-        mapping.add_scan(&rock_scan(2, 201, (100.0, 100.0)));
-        assert_eq!(mapping.frames_mapped(), 3);
-        assert_eq!(mapping.rejections().count("out_of_order"), 0);
+        assert_eq!(mapped_and_out_of_order(&[(5000, 200), (1, 201), (2, 201)]), (3, 0));
     }
 
     #[test]
