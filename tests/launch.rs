@@ -329,6 +329,12 @@ fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint
     assert!(respawned, "ros2 launch did not start the killed mapping node again:\n{}", launcher.output());
     let launched = launched_processes(&launcher.output());
     assert_eq!(launched.last().map(|(name, _)| name.as_str()), Some("mapping"), "{}", launcher.output());
+    // The new mapping node handles SIGINT once it is up: its memory read, restored or not.
+    let memory_read = |line: &str| {
+        line.starts_with("[mapping-") && (line.contains("no snapshot at") || line.contains("restored the map from"))
+    };
+    let up = eventually(Duration::from_secs(15), || launcher.output().lines().filter(|l| memory_read(l)).count() >= 2);
+    assert!(up, "the new mapping node did not start:\n{}", launcher.output());
 
     let interrupted = std::time::Instant::now();
     let status = launcher.interrupt();
