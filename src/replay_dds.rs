@@ -30,8 +30,6 @@ pub async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> any
     let camera = node.publisher(&topics::CAMERA_COMPRESSED)?;
     let terrain_subscription = node.subscription(&topics::TERRAIN)?;
     let stats_subscription = node.subscription(&topics::MAP_STATS)?;
-    let mut scans = std::pin::pin!(messages(&terrain_subscription));
-    let mut stats = std::pin::pin!(messages(&stats_subscription));
     let discovered = async {
         node.subscription_matched(&camera).await;
         node.subscription_matched(&telemetry).await;
@@ -41,6 +39,8 @@ pub async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> any
     tokio::time::timeout(DISCOVERY_TIMEOUT, discovered)
         .await
         .map_err(|_| anyhow::anyhow!("no perception and mapping nodes answered within {DISCOVERY_TIMEOUT:?}"))?;
+    let mut scans = std::pin::pin!(messages(terrain_subscription));
+    let mut stats = std::pin::pin!(messages(stats_subscription));
     let (mut round_trips, mut lost, mut latest) = (Vec::new(), 0usize, None::<MapStats>);
     for (index, frame) in frames.iter().enumerate() {
         let number = index as u64 + 1;

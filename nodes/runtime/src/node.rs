@@ -189,21 +189,12 @@ impl RosNode {
             .with_context(|| format!("cannot create a subscription on {}", topic.name))
     }
 
-    /// The messages of `topic` as a stream that owns its subscription; messages that fail to
-    /// deserialise are counted, logged (the 1st, 2nd, 4th...) and skipped.
+    /// The messages of `topic` as a stream (see [`messages`]).
     pub fn messages<M: RosMessage>(
         &mut self,
         topic: &Topic<M>,
     ) -> anyhow::Result<impl futures::Stream<Item = M> + Send + 'static> {
-        let subscription = self.subscription(topic)?;
-        Ok(futures::stream::unfold((subscription, 0u64), |(subscription, mut malformed)| async move {
-            loop {
-                match subscription.async_take().await {
-                    Ok((message, _info)) => return Some((message, (subscription, malformed))),
-                    Err(e) => log_malformed::<M>(&mut malformed, &e),
-                }
-            }
-        }))
+        Ok(messages(self.subscription(topic)?))
     }
 
     /// Resolves once `publisher` has matched a subscription.
@@ -237,19 +228,16 @@ async fn until_resolved<F: std::future::Future<Output = ()>>(wait: impl Fn() -> 
     while tokio::time::timeout(MATCH_RECHECK, wait()).await.is_err() {}
 }
 
-/// The messages of a subscription as a stream; messages that fail to deserialise are counted,
-/// logged (the 1st, 2nd, 4th...) and skipped.
-pub fn messages<M: RosMessage>(subscription: &Subscription<M>) -> impl futures::Stream<Item = M> + '_ {
-    let mut malformed = 0;
-    subscription.async_stream().filter_map(move |received| {
-        let message = match received {
-            Ok((message, _info)) => Some(message),
-            Err(e) => {
-                log_malformed::<M>(&mut malformed, &e);
-                None
+/// The messages of `subscription` as a stream that owns it; messages that fail to deserialise are
+/// counted, logged (the 1st, 2nd, 4th...) and skipped.
+pub fn messages<M: RosMessage>(subscription: Subscription<M>) -> impl futures::Stream<Item = M> + Send + 'static {
+    futures::stream::unfold((subscription, 0u64), |(subscription, mut malformed)| async move {
+        loop {
+            match subscription.async_take().await {
+                Ok((message, _info)) => return Some((message, (subscription, malformed))),
+                Err(e) => log_malformed::<M>(&mut malformed, &e),
             }
-        };
-        async move { message }
+        }
     })
 }
 
