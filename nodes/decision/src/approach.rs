@@ -108,8 +108,7 @@ impl Chase {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::route::PlanningMap;
-    use crate::test_maps::{at, half_explored, planning};
+    use crate::test_maps::{at, half_explored, plan_from, planning};
 
     const SAMPLE: (f64, f64) = (30.5, 51.5);
 
@@ -117,31 +116,29 @@ mod tests {
         Chase::new(SAMPLE, 1000, (&half_explored(), &at(25.5, 51.5)), &[], &DecisionParams::default())
     }
 
-    fn from<'a>(map: &'a PlanningMap, rover: &'a Position, frame: u64, params: &'a DecisionParams) -> PlanStart<'a> {
-        PlanStart { map, at: rover, frame, params }
-    }
-
     #[test]
     fn a_sample_in_view_that_the_camera_does_not_see_for_a_second_is_missing() {
         let (map, params, rover) = (planning(&half_explored(), 1), DecisionParams::default(), at(28.5, 51.5));
         let unseen_frames = params.frames(UNSEEN_S);
         let mut seen = chase();
-        assert!((1..3 * unseen_frames).all(|frame| !seen.missing(&from(&map, &rover, frame, &params), true)));
+        assert!((1..3 * unseen_frames).all(|frame| !seen.missing(&plan_from(&map, &rover, frame, &params), true)));
         let mut unseen = chase();
         let missing_at =
-            (1..3 * unseen_frames).find(|&frame| unseen.missing(&from(&map, &rover, frame, &params), false));
+            (1..3 * unseen_frames).find(|&frame| unseen.missing(&plan_from(&map, &rover, frame, &params), false));
         assert_eq!(missing_at, Some(1 + unseen_frames));
         let behind = Position { yaw_rad: std::f64::consts::PI, ..rover };
         let mut out_of_view = chase();
-        assert!((1..3 * unseen_frames).all(|frame| !out_of_view.missing(&from(&map, &behind, frame, &params), false)));
+        assert!(
+            (1..3 * unseen_frames).all(|frame| !out_of_view.missing(&plan_from(&map, &behind, frame, &params), false))
+        );
     }
 
     #[test]
     fn a_far_sample_is_aimed_at_along_the_route_a_near_one_straight() {
         let (map, params) = (planning(&half_explored(), 1), DecisionParams::default());
         let mut chase = chase();
-        let far = chase.aim(&from(&map, &at(20.5, 51.5), 0, &params));
+        let far = chase.aim(&plan_from(&map, &at(20.5, 51.5), 0, &params));
         assert!(matches!(far, Aim::AroundObstacles(point) if point.0 > 20.5 && point.0 <= SAMPLE.0), "{far:?}");
-        assert_eq!(chase.aim(&from(&map, &at(28.5, 51.5), 1, &params)), Aim::Straight(SAMPLE));
+        assert_eq!(chase.aim(&plan_from(&map, &at(28.5, 51.5), 1, &params)), Aim::Straight(SAMPLE));
     }
 }

@@ -688,7 +688,6 @@ mod tests {
         }
     }
 
-    /// A corridor along y = 100 from x = 90 to 130, unknown beyond x = 130.
     /// A machine with the default parameters that has received `map`.
     fn machine_on(map: Grid) -> Machine {
         let mut machine = Machine::new(DecisionParams::default());
@@ -696,6 +695,7 @@ mod tests {
         machine
     }
 
+    /// A corridor along y = 100 from x = 90 to 130, unknown beyond x = 130.
     fn corridor() -> Grid {
         let mut data = vec![100i8; CELLS];
         for y in 98..103 {
@@ -751,11 +751,9 @@ mod tests {
     /// that has been stepped for ten frames at (`x_m`, 100.5) before the mission reached it:
     /// it braked in `mode` on every one.
     fn recalled_and_braked(stage: Stage, x_m: f64, mode: Mode) -> Machine {
-        let params = DecisionParams::default();
         let mut first = machine_on(corridor());
         first.step(&observation(1, 100.5, 100.5));
-        let mut second = Machine::new(params);
-        second.set_map(corridor());
+        let mut second = machine_on(corridor());
         second.recall(Recollection { stage, ..first.recollection() });
         for frame in 100..110 {
             let drive = second.step(&observation(frame, x_m, 100.5));
