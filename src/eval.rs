@@ -18,6 +18,7 @@ use crate::mission::{NodeSettings, Progress, Replies, run_in_process};
 use crate::mission_map::{MissionMap, write_mission_png};
 use crate::nodes::Node;
 use crate::time_by_mode::{self, TimeByMode};
+use crate::timeline::Timeline;
 
 /// Options of `rover eval`.
 #[derive(Debug, Clone, clap::Args)]
@@ -121,6 +122,9 @@ pub struct RunResult {
     /// Simulated seconds by activity: the decision's modes, and picking up, turning in place and
     /// standing still apart from them.
     pub time_by_mode_s: TimeByMode,
+    /// When samples were collected and how the mapped share grew.
+    #[serde(flatten)]
+    pub timeline: Timeline,
     /// How the bridge answered (all zero in process): late frames change the course of a graph
     /// mission on a loaded machine or a slow link.
     #[serde(flatten)]
@@ -155,6 +159,7 @@ impl RunResult {
             final_mode: progress.mode.clone(),
             distance_m: report.distance_m,
             time_by_mode_s: progress.time_by_mode.clone(),
+            timeline: progress.timeline.clone(),
             replies: progress.replies,
         }
     }
@@ -290,22 +295,23 @@ const ACTIVITIES: [(&str, &str); 7] = [
     (time_by_mode::STOPPED, "stopped"),
 ];
 
-/// Where each mission's time went, simulated seconds by activity, the distance driven, and the
-/// frames whose drive command came too late for the bridge.
+/// Where each mission's time went, simulated seconds by activity, when the last sample was
+/// collected, the distance driven, and the frames whose drive command came too late for the bridge.
 pub fn time_table(results: &[RunResult]) -> String {
     let mut out = String::from("seed");
     for (_, title) in ACTIVITIES {
         out += &format!("  {title:>8}");
     }
-    out += "  distance m  late frames  brakes  reply p50 ms  p99 ms\n";
+    out += "  last sample s  distance m  late frames  brakes  reply p50 ms  p99 ms\n";
     for r in results {
         out += &format!("{:>4}", r.seed);
         for (activity, _) in ACTIVITIES {
             out += &format!("  {:>8.0}", r.time_by_mode_s.seconds(activity));
         }
         let replies = &r.replies;
+        let last_sample = r.timeline.collected_at_s.last().map_or("-".to_string(), |s| format!("{s:.0}"));
         out += &format!(
-            "  {:>10.0}  {:>11}  {:>6}  {:>12.2}  {:>6.2}\n",
+            "  {last_sample:>13}  {:>10.0}  {:>11}  {:>6}  {:>12.2}  {:>6.2}\n",
             r.distance_m, replies.deadline_misses, replies.silence_brakes, replies.reply_p50_ms, replies.reply_p99_ms
         );
     }

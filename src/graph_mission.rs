@@ -24,6 +24,7 @@ use crate::graph::{Graph, GraphConfig};
 use crate::mission::{Progress, Replies};
 use crate::mission_map::{MissionMap, sample_marks};
 use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
+use crate::timeline::Timeline;
 
 /// How often the progress callback runs, wall clock.
 const PROGRESS_PERIOD: Duration = Duration::from_millis(500);
@@ -77,6 +78,7 @@ impl Evaluator {
             collected: 0,
             mode: "starting".to_string(),
             time_by_mode: TimeByMode::default(),
+            timeline: Timeline::default(),
             replies: Replies::default(),
         };
         let mission_map = MissionMap {
@@ -118,6 +120,12 @@ impl Evaluator {
         self.progress.located = self.located.count();
     }
 
+    /// Adds the progress so far to the timeline.
+    fn note_timeline(&mut self) {
+        let Progress { sim_seconds, mapped_pct, collected, .. } = self.progress;
+        self.progress.timeline.note(sim_seconds, mapped_pct, collected);
+    }
+
     fn on_diagnostics(&mut self, diagnostics: &DiagnosticArray) {
         let replies = &mut self.progress.replies;
         update_from(&mut replies.deadline_misses, diagnostics, DEADLINE_MISSES_KEY);
@@ -131,6 +139,7 @@ impl Evaluator {
         self.progress.sim_seconds = frame as f64 * step_s;
         self.clock.on_frame(frame, activity_of(&self.progress.mode, telemetry), step_s);
         self.progress.collected = self.samples.saturating_sub(telemetry.samples_remaining as usize);
+        self.note_timeline();
         self.mission_map.path.record(telemetry.x_m, telemetry.y_m);
         self.last_frame_at = Instant::now();
     }
@@ -191,6 +200,7 @@ pub async fn run_graph_mission(
     let mut evaluator = evaluator.lock().expect("evaluator lock");
     evaluator.progress.sim_seconds = report.sim_seconds;
     evaluator.progress.collected = report.samples_collected;
+    evaluator.note_timeline();
     let mission_map = MissionMap { samples: sample_marks(&simulator), ..std::mem::take(&mut evaluator.mission_map) };
     Ok(GraphOutcome { report, progress: evaluator.snapshot(), mission_map, unclean_nodes })
 }

@@ -17,3 +17,4 @@ pub mod replay;
 pub mod replay_dds;
 pub mod sim_check;
 pub mod time_by_mode;
+pub mod timeline;

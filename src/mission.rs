@@ -26,6 +26,7 @@ use serde::Serialize;
 use crate::mission_map::{DrivenPath, MissionMap, sample_marks};
 use crate::nodes::Node;
 use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
+use crate::timeline::Timeline;
 
 /// The largest telemetry payload accepted, bytes (as the bridge's default).
 const MAX_TELEMETRY_BYTES: usize = 4 << 20;
@@ -72,6 +73,8 @@ pub struct Progress {
     pub mode: String,
     /// Simulated seconds by activity so far.
     pub time_by_mode: TimeByMode,
+    /// When samples were collected and how the mapped share grew.
+    pub timeline: Timeline,
     /// How the bridge answered the simulator (all zero without a bridge).
     pub replies: Replies,
 }
@@ -125,19 +128,23 @@ pub fn run_in_process(
     let mut located = LocatedSamples::new(samples);
     let mut clock = ModeClock::default();
     let mut path = DrivenPath::default();
-    let snapshot = |sim: &Simulator, map: &WorldMap, located: &LocatedSamples, mode: Mode, clock: &ModeClock| {
-        let scores = map.scores(&truth);
-        Progress {
-            sim_seconds: sim.report().sim_seconds,
-            mapped_pct: scores.mapped_pct,
-            fidelity_pct: scores.fidelity_pct,
-            located: located.count(),
-            collected: sim.report().samples_collected,
-            mode: mode.name().to_string(),
-            time_by_mode: clock.times().clone(),
-            replies: Replies::default(),
-        }
-    };
+    let (mut timeline, mut mapped_pct) = (Timeline::default(), 0.0);
+    let snapshot =
+        |sim: &Simulator, map: &WorldMap, located: &LocatedSamples, mode: Mode, timing: (&ModeClock, &Timeline)| {
+            let (clock, timeline) = timing;
+            let scores = map.scores(&truth);
+            Progress {
+                sim_seconds: sim.report().sim_seconds,
+                mapped_pct: scores.mapped_pct,
+                fidelity_pct: scores.fidelity_pct,
+                located: located.count(),
+                collected: sim.report().samples_collected,
+                mode: mode.name().to_string(),
+                time_by_mode: clock.times().clone(),
+                timeline: timeline.clone(),
+                replies: Replies::default(),
+            }
+        };
     let started = Instant::now();
     for frame in 1.. {
         if shutdown.is_requested() {
@@ -157,6 +164,7 @@ pub fn run_in_process(
             let grid = Grid::from_occupancy(&mapping.map().occupancy()).expect("the map has the cells of map_grid");
             machine.set_map(grid);
             machine.set_rocks(mapping.rocks());
+            mapped_pct = mapping.map().scores(&truth).mapped_pct;
         }
         let drive = machine.step(&rover_decision::observation(&message, &scan, &mut rays));
         let arm = checked_arm_input(&message, &mut pickup_rejections);
@@ -166,16 +174,17 @@ pub fn run_in_process(
             Command::Drive { steering_deg: drive.steering_deg, throttle: drive.throttle, brake: drive.brake }
         };
         sim.step(command);
+        timeline.note(sim.report().sim_seconds, mapped_pct, sim.report().samples_collected);
         let mode = machine.status().mode;
         if frame % progress_every_frames.max(1) == 0 {
-            on_progress(&snapshot(&sim, mapping.map(), &located, mode, &clock));
+            on_progress(&snapshot(&sim, mapping.map(), &located, mode, (&clock, &timeline)));
         }
         if mode == Mode::Done || sim.report().sim_seconds >= max_sim_seconds {
             break;
         }
     }
     tracing::debug!("mission took {:.1} s", started.elapsed().as_secs_f64());
-    let progress = snapshot(&sim, mapping.map(), &located, machine.status().mode, &clock);
+    let progress = snapshot(&sim, mapping.map(), &located, machine.status().mode, (&clock, &timeline));
     let start = sim.world().start;
     let mission_map = MissionMap {
         occupancy: mapping.map().occupancy(),

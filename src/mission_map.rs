@@ -242,6 +242,7 @@ mod tests {
             final_mode: rover_decision::machine::Mode::Done.name().to_string(),
             distance_m: 900.0,
             time_by_mode_s: TimeByMode::default(),
+            timeline: Default::default(),
             replies: Replies::default(),
         }
     }

@@ -114,6 +114,10 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
         );
         assert!(drop <= MAPPED_DROP_LIMIT_PCT, "the mapped share dropped {drop:.2} points after {kill:?}");
     }
+    let timeline = &result.timeline;
+    assert_eq!(timeline.collected_at_s.len(), result.collected, "a time for each collection: {timeline:?}");
+    assert!(timeline.collected_at_s.windows(2).all(|w| w[0] <= w[1]), "in order: {timeline:?}");
+    assert_eq!(timeline.mapped_pct_by_100_s.len(), (result.sim_seconds / 100.0) as usize, "{timeline:?}");
     assert!(
         result.complete(),
         "the mission completed (map, every sample, home, in time): {result:?}\ndecision log:\n{}",
