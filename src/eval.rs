@@ -319,8 +319,46 @@ pub fn time_table(results: &[RunResult]) -> String {
 }
 
 #[cfg(test)]
+impl RunResult {
+    /// A run for tests: seed 3, 725 s, five of six samples, the last collected at 700 s.
+    pub(crate) fn example() -> Self {
+        RunResult {
+            seed: 3,
+            mapped_pct: 91.5,
+            fidelity_pct: 88.0,
+            located: 6,
+            collected: 5,
+            samples: 6,
+            home_distance_m: 1.2,
+            sim_seconds: 725.0,
+            wall_seconds: 60.0,
+            frames_per_second: 300.0,
+            final_mode: Mode::Done.name().to_string(),
+            distance_m: 900.0,
+            time_by_mode_s: TimeByMode::default(),
+            timeline: Timeline {
+                collected_at_s: vec![40.0, 180.0, 320.0, 510.0, 700.0],
+                mapped_pct_by_100_s: vec![20.0, 35.0, 50.0, 62.0, 75.0, 84.0, 91.0],
+            },
+            replies: Replies::default(),
+        }
+    }
+}
+
+#[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_time_table_shows_when_the_last_sample_came() {
+        let run = RunResult::example();
+        let none = RunResult { timeline: Timeline::default(), seed: 4, ..run.clone() };
+        let table = time_table(&[run, none]);
+        let row = |seed: &str| table.lines().find(|l| l.split_whitespace().next() == Some(seed)).unwrap().to_string();
+        assert!(table.lines().next().unwrap().contains("last sample s"), "{table}");
+        assert_eq!(row("3").split_whitespace().nth(8), Some("700"), "{table}");
+        assert_eq!(row("4").split_whitespace().nth(8), Some("-"), "{table}");
+    }
 
     #[test]
     fn seed_ranges() {

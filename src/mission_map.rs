@@ -224,28 +224,6 @@ fn draw_legend(image: &mut RgbImage, left: usize, lines: &[String]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mission::Replies;
-    use crate::time_by_mode::TimeByMode;
-
-    fn result() -> RunResult {
-        RunResult {
-            seed: 3,
-            mapped_pct: 91.5,
-            fidelity_pct: 88.0,
-            located: 6,
-            collected: 5,
-            samples: 6,
-            home_distance_m: 1.2,
-            sim_seconds: 725.0,
-            wall_seconds: 60.0,
-            frames_per_second: 300.0,
-            final_mode: rover_decision::machine::Mode::Done.name().to_string(),
-            distance_m: 900.0,
-            time_by_mode_s: TimeByMode::default(),
-            timeline: Default::default(),
-            replies: Replies::default(),
-        }
-    }
 
     fn mission() -> MissionMap {
         let mut path = DrivenPath::default();
@@ -272,7 +250,7 @@ mod tests {
 
     #[test]
     fn draws_the_map_at_four_pixels_a_cell_and_the_legend_beside_it() {
-        let image = draw_mission(&mission(), &result());
+        let image = draw_mission(&mission(), &RunResult::example());
         assert_eq!(image.height, 800);
         assert!(image.width > 800 + text_width_px("GROUND MAPPED AS OBSTACLE", TEXT_SCALE), "{}", image.width);
         let (x, y) = (10 * PX_PER_CELL + 1, (SIDE_CELLS - 11) * PX_PER_CELL + 1);
@@ -284,7 +262,7 @@ mod tests {
 
     #[test]
     fn draws_the_path_home_and_the_samples_where_they_are() {
-        let image = draw_mission(&mission(), &result());
+        let image = draw_mission(&mission(), &RunResult::example());
         assert_eq!(image.pixel(440, 400), PATH, "the path from x = 100 m to 120 m along y = 100 m");
         assert_eq!(image.pixel(400 + HOME_RADIUS_PX as usize, 400), HOME, "the home ring");
         assert_eq!(image.pixel(200, 600), SAMPLE_COLLECTED, "a collected sample is a disc");
@@ -304,7 +282,7 @@ mod tests {
 
     #[test]
     fn the_legend_gives_the_scores_in_words() {
-        let lines = legend_lines(&result());
+        let lines = legend_lines(&RunResult::example());
         assert_eq!(
             lines[1..6],
             ["MAPPED 91.5 %", "FIDELITY 88.0 %", "SAMPLES COLLECTED 5 OF 6", "TIME 725 S", "HOME 1.2 M AWAY"]
