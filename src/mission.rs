@@ -129,22 +129,25 @@ pub fn run_in_process(
     let mut clock = ModeClock::default();
     let mut path = DrivenPath::default();
     let (mut timeline, mut mapped_pct) = (Timeline::default(), 0.0);
-    let snapshot =
-        |sim: &Simulator, map: &WorldMap, located: &LocatedSamples, mode: Mode, timing: (&ModeClock, &Timeline)| {
-            let (clock, timeline) = timing;
-            let scores = map.scores(&truth);
-            Progress {
-                sim_seconds: sim.report().sim_seconds,
-                mapped_pct: scores.mapped_pct,
-                fidelity_pct: scores.fidelity_pct,
-                located: located.count(),
-                collected: sim.report().samples_collected,
-                mode: mode.name().to_string(),
-                time_by_mode: clock.times().clone(),
-                timeline: timeline.clone(),
-                replies: Replies::default(),
-            }
-        };
+    let snapshot = |sim: &Simulator,
+                    map: &WorldMap,
+                    located: &LocatedSamples,
+                    mode: Mode,
+                    clock: &ModeClock,
+                    timeline: &Timeline| {
+        let scores = map.scores(&truth);
+        Progress {
+            sim_seconds: sim.report().sim_seconds,
+            mapped_pct: scores.mapped_pct,
+            fidelity_pct: scores.fidelity_pct,
+            located: located.count(),
+            collected: sim.report().samples_collected,
+            mode: mode.name().to_string(),
+            time_by_mode: clock.times().clone(),
+            timeline: timeline.clone(),
+            replies: Replies::default(),
+        }
+    };
     let started = Instant::now();
     for frame in 1.. {
         if shutdown.is_requested() {
@@ -177,14 +180,14 @@ pub fn run_in_process(
         timeline.note(sim.report().sim_seconds, mapped_pct, sim.report().samples_collected);
         let mode = machine.status().mode;
         if frame % progress_every_frames.max(1) == 0 {
-            on_progress(&snapshot(&sim, mapping.map(), &located, mode, (&clock, &timeline)));
+            on_progress(&snapshot(&sim, mapping.map(), &located, mode, &clock, &timeline));
         }
         if mode == Mode::Done || sim.report().sim_seconds >= max_sim_seconds {
             break;
         }
     }
     tracing::debug!("mission took {:.1} s", started.elapsed().as_secs_f64());
-    let progress = snapshot(&sim, mapping.map(), &located, machine.status().mode, (&clock, &timeline));
+    let progress = snapshot(&sim, mapping.map(), &located, machine.status().mode, &clock, &timeline);
     let start = sim.world().start;
     let mission_map = MissionMap {
         occupancy: mapping.map().occupancy(),
