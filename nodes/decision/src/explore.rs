@@ -7,6 +7,7 @@ use crate::grid::{Cell, CostMap, Costs, Grid};
 use crate::params::DecisionParams;
 use crate::pose::Position;
 use crate::route::{GOAL_SLACK_CELLS, PlanStart, lookahead, path_costs};
+use crate::tour;
 
 /// A frontier needs enough unknown cells within this many cells.
 const FRONTIER_RADIUS_CELLS: usize = 2;
@@ -187,8 +188,9 @@ impl Explorer {
         any
     }
 
-    /// The point to steer toward, or `None` when no frontier is left (or the rover is off the map).
-    pub fn waypoint(&mut self, from: &PlanStart) -> Option<(f64, f64)> {
+    /// The point to steer toward, or `None` when no frontier is left (or the rover is off the map);
+    /// new targets are the first stops of tours that end at `home`.
+    pub fn waypoint(&mut self, from: &PlanStart, home: Option<(f64, f64)>) -> Option<(f64, f64)> {
         let PlanStart { map, at, frame, params } = *from;
         let (grid, start) = (&map.grid, cell_of_point(at.x_m, at.y_m)?);
         if let Some(point) = self.look_point(grid, frame) {
@@ -210,7 +212,8 @@ impl Explorer {
             }
         }
         if self.target.is_none() || from.replan_due(self.planned) {
-            self.replan(grid, start, at, frame, params);
+            let home = home.and_then(|(x, y)| cell_of_point(x, y));
+            self.replan(grid, (start, home), at, frame, params);
             self.planned = Some((frame, map.version));
         }
         lookahead(grid, &self.target.as_ref()?.path, at, params)
@@ -232,19 +235,29 @@ impl Explorer {
         Some((unexplored.iter().map(|p| p.0).sum::<f64>() / count, unexplored.iter().map(|p| p.1).sum::<f64>() / count))
     }
 
-    fn replan(&mut self, grid: &Grid, start: usize, at: &Position, frame: u64, params: &DecisionParams) {
+    /// Plans from cell `start` again, keeping the target while it is still a frontier, else
+    /// choosing a new one on the way to cell `home`.
+    fn replan(
+        &mut self,
+        grid: &Grid,
+        (start, home): (usize, Option<usize>),
+        at: &Position,
+        frame: u64,
+        params: &DecisionParams,
+    ) {
         let costs = grid.costs_from(start, &self.costs(params));
         let keep = self.target.as_ref().is_some_and(|t| self.is_candidate(grid, &costs, t.cell, params));
         if !keep {
-            self.target = self.best_frontier(grid, &costs, at, params).map(|cell| Target {
+            self.target = self.best_frontier(grid, &costs, (at, home), params).map(|cell| Target {
                 cell,
                 chosen_frame: frame,
                 path: Vec::new(),
                 recoveries: 0,
             });
             if let Some(target) = &self.target {
-                let cost = costs.distance[target.cell];
-                tracing::debug!(frame, at = ?(at.x_m, at.y_m), target = ?cell_centre_m(target.cell), cost, "new frontier target");
+                let (cost, centre) = (costs.distance[target.cell], cell_centre_m(target.cell));
+                let bearing_deg = at.bearing_to(centre).to_degrees().round();
+                tracing::debug!(frame, at = ?(at.x_m, at.y_m), target = ?centre, cost, bearing_deg, "new frontier target");
             }
         }
         if let Some(target) = self.target.as_mut() {
@@ -261,16 +274,30 @@ impl Explorer {
                 >= params.frontier_min_unknown as usize
     }
 
-    fn best_frontier(&self, grid: &Grid, costs: &CostMap, at: &Position, params: &DecisionParams) -> Option<usize> {
+    /// The frontier to head for from `at`: the cheapest (its path cost plus a penalty for the turn
+    /// toward it), or, with `frontier_tour`, the first stop of a tour of the frontier clusters
+    /// that ends at cell `home`.
+    fn best_frontier(
+        &self,
+        grid: &Grid,
+        costs: &CostMap,
+        (at, home): (&Position, Option<usize>),
+        params: &DecisionParams,
+    ) -> Option<usize> {
         let score = |cell: usize| {
             let turn = at.bearing_to(cell_centre_m(cell)).abs() / std::f64::consts::PI;
             costs.distance[cell] as f64 + params.turn_penalty_m * turn
         };
-        grid.frontiers(|n| self.unexplored(grid, n))
+        let candidates = grid
+            .frontiers(|n| self.unexplored(grid, n))
             .into_iter()
             .filter(|&cell| self.is_candidate(grid, costs, cell, params))
-            .filter(|&cell| at.distance_to(cell_centre_m(cell)) >= params.frontier_reached_m)
-            .min_by(|&a, &b| score(a).total_cmp(&score(b)))
+            .filter(|&cell| at.distance_to(cell_centre_m(cell)) >= params.frontier_reached_m);
+        if !params.frontier_tour {
+            return candidates.min_by(|&a, &b| score(a).total_cmp(&score(b)));
+        }
+        let anchors = tour::cluster_anchors(candidates.collect(), costs);
+        tour::first_stop(grid, &anchors, score, home, &self.costs(params))
     }
 
     fn abandon_target(&mut self) {
@@ -320,7 +347,7 @@ mod tests {
 
         /// The explorer's waypoint from `at` at `frame`.
         fn waypoint(&mut self, at: Position, frame: u64) -> Option<(f64, f64)> {
-            self.explorer.waypoint(&PlanStart { map: &self.map, at: &at, frame, params: &self.params })
+            self.explorer.waypoint(&PlanStart { map: &self.map, at: &at, frame, params: &self.params }, None)
         }
 
         /// A new version of the same map.

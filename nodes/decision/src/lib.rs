@@ -18,6 +18,7 @@ pub mod snapshot;
 pub mod stuck;
 #[cfg(test)]
 mod test_maps;
+mod tour;
 
 use rover_msgs::msg::{Telemetry, TerrainScan};
 use rover_node::{Rejections, topics};

@@ -445,8 +445,10 @@ impl Machine {
             return self.approach(obs, chase);
         }
         let p = &self.params.clone();
-        match self.explorer.waypoint(&PlanStart { map: &self.planning, at: &obs.position, frame: obs.frame, params: p })
-        {
+        match self.explorer.waypoint(
+            &PlanStart { map: &self.planning, at: &obs.position, frame: obs.frame, params: p },
+            self.status.home,
+        ) {
             Some(waypoint) => {
                 self.walled_in_recoveries = 0;
                 let bearing = obs.position.bearing_to(waypoint);
@@ -787,7 +789,7 @@ mod tests {
         let params = DecisionParams::default();
         let mut machine = machine_on(corridor());
         let facing_away = |frame| {
-            let mut obs = observation(frame, 100.5, 100.5);
+            let mut obs = observation(frame, 91.5, 100.5);
             obs.position.yaw_rad = std::f64::consts::PI;
             obs
         };
@@ -848,13 +850,15 @@ mod tests {
         let mut machine = machine_on(corridor());
         machine.set_rocks(vec![(102.5, 100.5)]);
         machine.step(&observation(1, 100.5, 100.5));
-        let mut not_there = 0;
+        let mut given_up = Vec::new();
         for frame in 2..10 * params.frames(UNSEEN_S) {
             machine.step(&observation(frame, 100.5, 100.5));
-            not_there += (machine.take_change() && machine.status().reason == "sample not where remembered") as usize;
+            if machine.take_change() && machine.status().reason == "sample not where remembered" {
+                given_up.push((machine.status().mode, machine.is_ignored((102.5, 100.5))));
+            }
         }
-        assert_eq!(not_there, APPROACHES_PER_ROCK, "approached and not seen, then given up");
-        assert!(machine.status().mode == Mode::Explore && machine.is_ignored((102.5, 100.5)));
+        assert_eq!(given_up.len(), APPROACHES_PER_ROCK, "approached and not seen, then given up: {given_up:?}");
+        assert_eq!(given_up.last(), Some(&(Mode::Explore, true)), "back to exploring, the sample ignored");
         machine.frame += params.frames(params.sample_retry_s);
         assert!(!machine.is_ignored((102.5, 100.5)), "tried again later");
     }

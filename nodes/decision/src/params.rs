@@ -51,6 +51,9 @@ rover_node::node_params! {
         inspect_half_angle_deg: f64 [1.0, 90.0] = 45.0,
         /// Extra cost, metres, of a frontier straight behind the rover (scaled by the turn).
         turn_penalty_m: f64 [0.0, 100.0] = 8.0,
+        /// Choose each new frontier target as the first stop of a tour through the frontier
+        /// clusters that ends at home (false: the cheapest frontier).
+        frontier_tour: bool = true,
         /// Extra path cost of unknown cells.
         unknown_cost: f64 [0.0, 100.0] = 1.5,
         /// Extra path cost of cells next to obstacles.
