@@ -14,7 +14,7 @@ use crate::params::DecisionParams;
 use crate::pose::Position;
 use crate::route::{PlanStart, PlanningMap, Route};
 use crate::samples::SampleMemory;
-use crate::stuck::{ProgressWatch, StuckMarks};
+use crate::stuck::{DrivingWatch, ProgressWatch, StuckMarks};
 
 /// Moving less than this while driving counts toward being stuck, metres...
 const STUCK_PROGRESS_M: f64 = 0.3;
@@ -173,7 +173,7 @@ pub struct Machine {
     samples: SampleMemory,
     explorer: Explorer,
     steering: Steering,
-    stuck_watch: ProgressWatch,
+    stuck_watch: DrivingWatch,
     stall_watch: ProgressWatch,
     stuck_marks: StuckMarks,
     last_drive: Drive,
@@ -208,7 +208,7 @@ impl Machine {
             samples: SampleMemory::default(),
             explorer: Explorer::default(),
             steering: Steering::default(),
-            stuck_watch: ProgressWatch::default(),
+            stuck_watch: DrivingWatch::default(),
             stall_watch: ProgressWatch::default(),
             stuck_marks: StuckMarks::default(),
             last_drive: Drive::stop(0.0),
@@ -397,15 +397,12 @@ impl Machine {
         obs.pitch_rad.abs() > limit || obs.roll_rad.abs() > limit
     }
 
-    /// Whether the rover has been told to drive for a while without getting anywhere.
+    /// Whether the rover, told to drive, has stopped at a spot where it was told to drive for a
+    /// while without getting anywhere (turns in place in between included).
     fn stuck(&mut self, obs: &Observation) -> bool {
-        if !self.last_drive.drives() {
-            self.stuck_watch.reset();
-            return false;
-        }
-        self.stuck_watch.frames_within(&obs.position, obs.frame, STUCK_PROGRESS_M)
-            >= self.params.frames(self.params.stuck_s)
-            && obs.speed_mps.abs() < STUCK_SPEED_MPS
+        let driving = self.last_drive.drives();
+        let frames = self.stuck_watch.driving_frames_within(&obs.position, obs.frame, STUCK_PROGRESS_M, driving);
+        driving && frames >= self.params.frames(self.params.stuck_s) && obs.speed_mps.abs() < STUCK_SPEED_MPS
     }
 
     /// Whether the rover has stayed in one spot for long, turning or not (a goal that the camera
@@ -876,6 +873,22 @@ mod tests {
         let watch = params.frames(params.stuck_s) + 2;
         assert!((1..watch).all(|frame| !machine.stuck(&slow(frame, 0.15))), "0.15 m/s, less than 0.3 m in 1.5 s");
         assert!((watch..2 * watch).any(|frame| machine.stuck(&slow(frame, 0.0))), "stopped");
+    }
+
+    #[test]
+    fn a_rover_that_pushes_against_a_rock_and_turns_in_between_is_stuck() {
+        let params = DecisionParams::default();
+        let mut machine = Machine::new(params.clone());
+        let (push, turn) = (Drive { throttle: 1.0, brake: 0.0, steering_deg: 0.0 }, Drive::turn_in_place(true));
+        let stuck_at = (1..20 * params.frames(params.stuck_s)).find(|&frame| {
+            machine.last_drive = if frame % 8 < 4 { push } else { turn };
+            machine.stuck(&observation(frame, 100.0, 100.5))
+        });
+        let stuck_at = stuck_at.expect("stuck while alternating pushes and turns");
+        assert!(
+            stuck_at <= 2 * params.frames(params.stuck_s) + 8,
+            "stuck after {stuck_at} frames: about twice the time of a push"
+        );
     }
 
     #[test]

@@ -42,6 +42,32 @@ impl ProgressWatch {
     }
 }
 
+/// Watches how long the rover has been told to drive without leaving one spot. Frames in which it
+/// was told to stand or turn in place do not count, but they do not start the watch again either:
+/// a rover that pushes against a rock and turns a little in between is stuck all the same.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DrivingWatch {
+    spot: ProgressWatch,
+    driving_frames: u64,
+}
+
+impl DrivingWatch {
+    /// Frames in which the rover was told to drive (`driving` for this one) since it last left a
+    /// circle of `radius_m`, as of `frame`, the rover being `at`.
+    pub fn driving_frames_within(&mut self, at: &Position, frame: u64, radius_m: f64, driving: bool) -> u64 {
+        if self.spot.frames_within(at, frame, radius_m) == 0 {
+            self.driving_frames = 0;
+        }
+        self.driving_frames += u64::from(driving);
+        self.driving_frames
+    }
+
+    /// Forgets the spot and the frames counted there.
+    pub fn reset(&mut self) {
+        *self = DrivingWatch::default();
+    }
+}
+
 /// Where the rover got stuck lately, and the cells marked as obstacles for planning.
 #[derive(Debug, Clone, Default)]
 pub struct StuckMarks {
@@ -99,6 +125,17 @@ mod tests {
         assert_eq!(watch.frames_within(&at(12.0, 10.0), 40, 1.0), 0, "moved away: anchored again");
         watch.reset();
         assert_eq!(watch.frames_within(&at(12.0, 10.0), 50, 1.0), 0);
+    }
+
+    #[test]
+    fn a_driving_watch_counts_only_the_frames_told_to_drive_and_starts_again_once_the_rover_moves() {
+        let mut watch = DrivingWatch::default();
+        let counts: Vec<u64> =
+            (0..6).map(|frame| watch.driving_frames_within(&at(10.0, 10.0), frame, 0.3, frame % 2 == 0)).collect();
+        assert_eq!(counts, [1, 1, 2, 2, 3, 3], "turning in between neither counts nor starts again");
+        assert_eq!(watch.driving_frames_within(&at(10.5, 10.0), 6, 0.3, true), 1, "moved away: counted anew");
+        watch.reset();
+        assert_eq!(watch.driving_frames_within(&at(10.5, 10.0), 7, 0.3, false), 0);
     }
 
     #[test]
