@@ -25,8 +25,9 @@ rover_node::node_params! {
         /// In a turn, the speed keeps the sideways acceleration below this, m/s^2 (the body rolls
         /// with it, and the mapping skips frames tilted beyond its `max_tilt_deg`).
         turn_accel_mps2: f64 [0.1, 10.0] = 1.5,
-        /// Beyond this bearing the rover stops and turns in place, degrees.
-        turn_in_place_deg: f64 [10.0, 180.0] = 50.0,
+        /// Beyond this bearing the rover stops and turns in place, degrees (short of it, it turns
+        /// on the move at up to full lock).
+        turn_in_place_deg: f64 [10.0, 180.0] = 65.0,
         /// A turn in place ends below this bearing, degrees.
         turn_done_deg: f64 [1.0, 90.0] = 12.0,
         /// Half width of the lanes checked for free ground, metres.
@@ -47,8 +48,8 @@ rover_node::node_params! {
         /// Cells up to this far in front of the camera count as inspected, metres.
         inspect_range_m: f64 [0.5, 20.0] = 5.0,
         /// Cells up to this angle either side of the heading count as inspected, degrees (the
-        /// camera's ground view spans about 45 degrees either side).
-        inspect_half_angle_deg: f64 [1.0, 90.0] = 45.0,
+        /// camera's horizontal field of view is 108.9 degrees, 54 either side).
+        inspect_half_angle_deg: f64 [1.0, 90.0] = 52.0,
         /// Extra cost, metres, of a frontier straight behind the rover (scaled by the turn).
         turn_penalty_m: f64 [0.0, 100.0] = 8.0,
         /// Choose each new frontier target as the first stop of a tour through the frontier
