@@ -33,6 +33,8 @@ pub struct Chase {
     pub at: (f64, f64),
     /// The approach is given up at this frame.
     pub give_up_frame: u64,
+    /// The approach is worth a route up to this path cost on the map.
+    pub max_cost: f64,
     route: Option<Route>,
     staging: Option<(f64, f64)>,
     unseen_since: Option<u64>,
@@ -48,12 +50,12 @@ pub enum Aim {
 }
 
 impl Chase {
-    /// An approach from `rover` to the sample at `at`, given up at `give_up_frame`. After
-    /// approaches that failed at the points `failed`, it goes by way of a free cell beside the
-    /// sample on `grid`, away from them, that sees the sample.
+    /// An approach from `rover` to the sample at `at`, given up at `give_up_frame`, worth a route
+    /// up to `max_cost`. After approaches that failed at the points `failed`, it goes by way of a
+    /// free cell beside the sample on `grid`, away from them, that sees the sample.
     pub fn new(
         at: (f64, f64),
-        give_up_frame: u64,
+        (give_up_frame, max_cost): (u64, f64),
         (grid, rover): (&Grid, &Position),
         failed: &[(f64, f64)],
         params: &DecisionParams,
@@ -62,7 +64,13 @@ impl Chase {
             .filter(|failed| !failed.is_empty())
             .and_then(|failed| staging_cell(grid, at, rover, (STAGING_RADIUS_CELLS, STAGING_AWAY_M), failed, params))
             .map(cell_centre_m);
-        Chase { at, give_up_frame, route: None, staging, unseen_since: None }
+        Chase { at, give_up_frame, max_cost, route: None, staging, unseen_since: None }
+    }
+
+    /// Whether the route's latest plan costs more than the approach is worth: the map has shown
+    /// the way to the sample to be a long way round.
+    pub fn out_of_the_way(&self) -> bool {
+        self.route.as_ref().and_then(Route::cost).is_some_and(|cost| cost > self.max_cost)
     }
 
     /// Whether the sample is not where it was thought to be: ahead, in the camera's view and in
@@ -113,7 +121,11 @@ mod tests {
     const SAMPLE: (f64, f64) = (30.5, 51.5);
 
     fn chase() -> Chase {
-        Chase::new(SAMPLE, 1000, (&half_explored(), &at(25.5, 51.5)), &[], &DecisionParams::default())
+        chase_worth(f64::INFINITY)
+    }
+
+    fn chase_worth(max_cost: f64) -> Chase {
+        Chase::new(SAMPLE, (1000, max_cost), (&half_explored(), &at(25.5, 51.5)), &[], &DecisionParams::default())
     }
 
     #[test]
@@ -140,5 +152,17 @@ mod tests {
         let far = chase.aim(&plan_from(&map, &at(20.5, 51.5), 0, &params));
         assert!(matches!(far, Aim::AroundObstacles(point) if point.0 > 20.5 && point.0 <= SAMPLE.0), "{far:?}");
         assert_eq!(chase.aim(&plan_from(&map, &at(28.5, 51.5), 1, &params)), Aim::Straight(SAMPLE));
+    }
+
+    #[test]
+    fn a_sample_whose_route_costs_more_than_it_is_worth_is_out_of_the_way() {
+        let (map, params, rover) = (planning(&half_explored(), 1), DecisionParams::default(), at(20.5, 51.5));
+        let from = plan_from(&map, &rover, 0, &params);
+        let (mut cheap, mut dear) = (chase_worth(15.0), chase_worth(5.0));
+        assert!(!cheap.out_of_the_way() && !dear.out_of_the_way(), "no route planned yet");
+        cheap.aim(&from);
+        dear.aim(&from);
+        assert!(!cheap.out_of_the_way(), "10 m of route is worth 15");
+        assert!(dear.out_of_the_way(), "10 m of route is not worth 5");
     }
 }

@@ -73,11 +73,7 @@ impl Steering {
         }
         if let Some(left) = self.turning {
             if bearing_deg.abs() > params.turn_done_deg {
-                return if speed_mps.abs() > TURN_IN_PLACE_BELOW_MPS {
-                    Drive::stop(params.brake)
-                } else {
-                    Drive::turn_in_place(left)
-                };
+                return stop_then_turn(left, speed_mps, params);
             }
             self.turning = None;
         }
@@ -133,10 +129,14 @@ impl Steering {
             None if bearing_rad.to_degrees().abs() <= CREEP_BEARING_FACTOR * params.turn_done_deg => {
                 self.toward(bearing_rad, params.approach_speed_mps, speed_mps, params)
             }
-            None if speed_mps.abs() > TURN_IN_PLACE_BELOW_MPS => Drive::stop(params.brake),
-            None => Drive::turn_in_place(bearing_rad > 0.0),
+            None => stop_then_turn(bearing_rad > 0.0, speed_mps, params),
         }
     }
+}
+
+/// A turn in place to the left (or right), once the rover has all but stopped: braking until then.
+fn stop_then_turn(left: bool, speed_mps: f64, params: &DecisionParams) -> Drive {
+    if speed_mps.abs() > TURN_IN_PLACE_BELOW_MPS { Drive::stop(params.brake) } else { Drive::turn_in_place(left) }
 }
 
 /// The speed from which braking at `stop_decel_mps2` stops the rover within `distance_m`, m/s.

@@ -29,6 +29,9 @@ const WALLED_IN_RECOVERIES: u32 = 3;
 /// missing, the explorer forgets the walls it has seen up close and looks again, up to this many
 /// times, before the rover goes home.
 const INSPECTION_RESETS: u32 = 2;
+/// A sample whose route turns out to cost more than its approach is worth is left alone for this
+/// long, seconds, while the rover explores on (the map may yet show a shorter way).
+const OUT_OF_THE_WAY_S: f64 = 10.0;
 /// The modes of the state machine, as published on `rover/mode`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Mode {
@@ -513,21 +516,25 @@ impl Machine {
         }
     }
 
-    /// A seen sample within sight, or a remembered one within `max_cost` on the map.
+    /// A seen sample within sight or a remembered one, either within `max_cost` on the map, or
+    /// at any cost once every sample still missing is remembered (exploring on finds no other).
     fn sample_to_chase(&self, obs: &Observation, max_cost: f64) -> Option<Chase> {
         if obs.samples_remaining == 0 {
             return None;
         }
         let p = &self.params;
+        let max_cost = if self.all_missing_samples_located(obs) { f64::INFINITY } else { max_cost };
         let new = |(at, way_m): ((f64, f64), f64)| {
             let give_up_frame = obs.frame + p.frames(p.sample_timeout_s + way_m / p.max_speed_mps);
-            Chase::new(at, give_up_frame, (&self.planning.grid, &obs.position), &self.samples.failed_from(at), p)
+            let (map, failed) = ((&self.planning.grid, &obs.position), &self.samples.failed_from(at));
+            Chase::new(at, (give_up_frame, max_cost), map, failed, p)
         };
         let seen = obs
             .rock
             .filter(|s| s.distance_m <= p.sample_sight_m)
             .map(|s| (obs.position.point_at(s.bearing_rad, s.distance_m), s.distance_m))
-            .filter(|&(at, _)| !self.is_ignored(at));
+            .filter(|&(at, _)| !self.is_ignored(at))
+            .filter(|&(at, _)| self.explorer.cost_to(at).is_none_or(|cost| cost <= max_cost));
         seen.or_else(|| {
             self.samples
                 .located()
@@ -545,9 +552,20 @@ impl Machine {
         self.samples.note_failed_approach(sample, obs.frame, (obs.position.x_m, obs.position.y_m));
     }
 
-    /// Whether the rock at `at` is collected, given up, or failed too often lately.
+    /// Whether the rock at `at` is collected, given up, failed too often lately, or left alone
+    /// for now as out of the way.
     fn is_ignored(&self, at: (f64, f64)) -> bool {
         self.samples.is_ignored(at, self.frame, self.params.frames(self.params.sample_retry_s))
+            || self.samples.is_deferred(at, self.frame)
+    }
+
+    /// Whether the map holds at least as many rocks not collected nor given up as samples are
+    /// missing.
+    fn all_missing_samples_located(&self, obs: &Observation) -> bool {
+        let retry_frames = self.params.frames(self.params.sample_retry_s);
+        let waiting =
+            self.samples.located().iter().filter(|&&at| !self.samples.is_ignored(at, self.frame, retry_frames));
+        waiting.count() >= obs.samples_remaining as usize
     }
 
     fn time_to_go_home(&self, obs: &Observation) -> Option<&'static str> {
@@ -575,9 +593,15 @@ impl Machine {
             self.enter(State::Explore, "sample not where remembered");
             return Drive::stop(p.brake);
         }
+        let aim = chase.aim(&from);
+        if chase.out_of_the_way() {
+            self.samples.defer(chase.at, obs.frame + p.frames(OUT_OF_THE_WAY_S));
+            self.enter(State::Explore, "sample out of the way on the map");
+            return self.explore(obs);
+        }
         let distance_m = obs.position.distance_to(chase.at);
         let speed = speed_to_stop_in(distance_m - ARM_REACH_M, &p).clamp(p.approach_speed_mps, p.max_speed_mps);
-        let drive = match chase.aim(&from) {
+        let drive = match aim {
             Aim::AroundObstacles(point) => {
                 let bearing = obs.position.bearing_to(point);
                 self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, &p)
@@ -689,7 +713,12 @@ mod tests {
 
     /// A machine with the default parameters that has received `map`.
     fn machine_on(map: Grid) -> Machine {
-        let mut machine = Machine::new(DecisionParams::default());
+        machine_on_with(map, DecisionParams::default())
+    }
+
+    /// A machine with `params` that has received `map`.
+    fn machine_on_with(map: Grid, params: DecisionParams) -> Machine {
+        let mut machine = Machine::new(params);
         machine.set_map(map);
         machine
     }
@@ -839,6 +868,46 @@ mod tests {
         let stopping_m = |v: f64| v * v / (2.0 * params.stop_decel_mps2);
         let v = speed_to_stop_in(3.5 - ARM_REACH_M, &params);
         assert!((stopping_m(v) - (3.5 - ARM_REACH_M)).abs() < 1e-9);
+    }
+
+    /// Two corridors along y = 98..103 and y = 106..111 from x = 90 to 140, joined at x = 135..140.
+    fn two_corridors() -> Grid {
+        let mut data = vec![100i8; CELLS];
+        for y in (98..103).chain(106..111) {
+            for x in 90..140 {
+                data[cell_at(x, y)] = 0;
+            }
+        }
+        for y in 103..106 {
+            for x in 135..140 {
+                data[cell_at(x, y)] = 0;
+            }
+        }
+        Grid::from_occupancy(&data).unwrap()
+    }
+
+    #[test]
+    fn a_seen_sample_that_the_map_puts_a_long_way_round_is_left_for_later_unless_it_is_the_last() {
+        let sample_across_the_wall = |sample_detour_cost: f64, samples_remaining: u8| {
+            let mut machine =
+                machine_on_with(two_corridors(), DecisionParams { sample_detour_cost, ..Default::default() });
+            machine.set_rocks(vec![(100.5, 107.5)]);
+            let mut modes = Vec::new();
+            for frame in 1..machine.params.frames(machine.params.stuck_s) {
+                let mut obs = Observation { samples_remaining, ..observation(frame, 100.5, 100.5) };
+                obs.rock = Some(Sighting { bearing_rad: std::f64::consts::FRAC_PI_2, distance_m: 7.0 });
+                machine.step(&obs);
+                modes.push(machine.status().mode);
+            }
+            (modes, machine.status().reason.clone())
+        };
+        let (modes, reason) = sample_across_the_wall(60.0, 2);
+        assert!(modes.iter().all(|&mode| mode == Mode::Explore), "{modes:?}");
+        assert_eq!(reason, "sample out of the way on the map");
+        let (modes, _) = sample_across_the_wall(200.0, 2);
+        assert!(modes.iter().all(|&mode| mode == Mode::ApproachSample), "80 m round is worth 200: {modes:?}");
+        let (modes, _) = sample_across_the_wall(60.0, 1);
+        assert!(modes.iter().all(|&mode| mode == Mode::ApproachSample), "the last sample missing: {modes:?}");
     }
 
     #[test]

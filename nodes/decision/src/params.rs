@@ -77,7 +77,9 @@ rover_node::node_params! {
         /// Chase a seen sample up to this distance, metres (as projected on the ground: a sample
         /// on the foot of a wall projects farther than it is).
         sample_sight_m: f64 [0.5, 20.0] = 12.0,
-        /// Go for a remembered sample up to this path cost.
+        /// Go for a sample, seen or remembered, up to this path cost on the map (an approach whose
+        /// route turns out dearer is left for later); at any cost once the map holds every missing
+        /// sample.
         sample_detour_cost: f64 [0.0, 1000.0] = 60.0,
         /// Give up a sample not reached in this time plus its way at cruising speed, seconds.
         sample_timeout_s: f64 [1.0, 1000.0] = 30.0,

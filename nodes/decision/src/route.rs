@@ -97,13 +97,20 @@ impl PlanStart<'_> {
 pub struct Route {
     goal: usize,
     path: Vec<usize>,
+    cost: Option<f64>,
     planned: Option<(u64, u64)>,
 }
 
 impl Route {
     /// A route to the cell containing `goal`, or `None` when that is off the map.
     pub fn to(goal: (f64, f64)) -> Option<Self> {
-        Some(Route { goal: cell_of_point(goal.0, goal.1)?, path: Vec::new(), planned: None })
+        Some(Route { goal: cell_of_point(goal.0, goal.1)?, path: Vec::new(), cost: None, planned: None })
+    }
+
+    /// The path cost of the latest plan (see [`path_costs`]); `None` before the first plan or
+    /// when the goal cannot be reached on the map.
+    pub fn cost(&self) -> Option<f64> {
+        self.cost
     }
 
     /// The point to steer toward on the way from `at`, replanning when the route is older than
@@ -115,10 +122,9 @@ impl Route {
         let (grid, start) = (&map.grid, cell_of_point(at.x_m, at.y_m)?);
         if from.replan_due(self.planned) {
             let costs = grid.costs_from(start, &path_costs(params));
-            self.path = costs
-                .reachable_near(self.goal, GOAL_SLACK_CELLS)
-                .and_then(|cell| costs.path_to(cell))
-                .unwrap_or_default();
+            let end = costs.reachable_near(self.goal, GOAL_SLACK_CELLS);
+            self.path = end.and_then(|cell| costs.path_to(cell)).unwrap_or_default();
+            self.cost = end.map(|cell| costs.distance[cell] as f64);
             self.planned = Some((frame, map.version));
         }
         let point = lookahead(grid, &self.path, at, params)?;
@@ -190,8 +196,11 @@ mod tests {
         let mut route = Route::to((55.5, 52.5)).unwrap();
         let waypoint = route.waypoint(&plan_from(&planning(&grid, 1), &at(21.5, 51.5), 0, &params)).unwrap();
         assert!(waypoint.0 > 21.5 && (50.0..54.0).contains(&waypoint.1));
+        let cost = route.cost().unwrap();
+        assert!((34.0..60.0).contains(&cost), "at least the 34 m between, unknown cells dearer: {cost}");
         let mut nowhere = Route::to((5.5, 5.5)).unwrap();
         assert_eq!(nowhere.waypoint(&plan_from(&planning(&grid, 1), &at(21.5, 51.5), 0, &params)), None);
+        assert_eq!(nowhere.cost(), None);
         assert!(Route::to((-1.0, 0.0)).is_none());
         let mut into_the_wall = Route::to((40.5, 55.5)).unwrap();
         let waypoint = into_the_wall.waypoint(&plan_from(&planning(&grid, 1), &at(21.5, 51.5), 0, &params)).unwrap();

@@ -25,6 +25,7 @@ pub struct SampleMemory {
     located: Vec<(f64, f64)>,
     ignored: Vec<(f64, f64)>,
     failed: Vec<FailedApproach>,
+    deferred: Vec<((f64, f64), u64)>,
 }
 
 impl SampleMemory {
@@ -53,6 +54,12 @@ impl SampleMemory {
         self.ignored.push(at);
     }
 
+    /// Leaves the rock at `at` alone until `until_frame`: the way to it is a long way round.
+    pub fn defer(&mut self, at: (f64, f64), until_frame: u64) {
+        self.deferred.retain(|&(rock, _)| !same_rock(rock, at));
+        self.deferred.push((at, until_frame));
+    }
+
     /// Notes an approach to `sample` that ended at `frame` with the rover at `from`.
     pub fn note_failed_approach(&mut self, sample: (f64, f64), frame: u64, from: (f64, f64)) {
         self.failed.push(FailedApproach { sample, frame, from });
@@ -61,6 +68,11 @@ impl SampleMemory {
     /// Where the rover was when approaches to the rock at `at` failed.
     pub fn failed_from(&self, at: (f64, f64)) -> Vec<(f64, f64)> {
         self.failed.iter().filter(|f| same_rock(f.sample, at)).map(|f| f.from).collect()
+    }
+
+    /// Whether the rock at `at` is left alone at `frame` after [`SampleMemory::defer`].
+    pub fn is_deferred(&self, at: (f64, f64), frame: u64) -> bool {
+        self.deferred.iter().any(|&(rock, until)| same_rock(rock, at) && frame < until)
     }
 
     /// Whether the rock at `at` is ignored, or failed [`APPROACHES_PER_ROCK`] times within the
@@ -97,5 +109,15 @@ mod tests {
         memory.ignore((10.2, 10.0));
         assert!(memory.is_ignored((10.0, 10.0), 1_000_000, 1) && !memory.is_ignored((30.0, 30.0), 0, 1));
         assert_eq!((memory.located().len(), memory.ignored()), (2, &[(10.2, 10.0)][..]));
+    }
+
+    #[test]
+    fn a_deferred_rock_is_left_alone_until_its_time() {
+        let mut memory = SampleMemory::default();
+        memory.defer((10.0, 10.0), 500);
+        memory.defer((10.5, 10.0), 300);
+        assert!(memory.is_deferred((10.0, 10.0), 299), "the later deferral replaces the earlier one");
+        assert!(!memory.is_deferred((10.0, 10.0), 300) && !memory.is_deferred((30.0, 30.0), 0));
+        assert!(!memory.is_ignored((10.0, 10.0), 0, 1), "deferred, not ignored");
     }
 }
