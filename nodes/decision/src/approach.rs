@@ -31,6 +31,9 @@ pub(crate) const UNSEEN_S: f64 = 1.0;
 pub struct Chase {
     /// Where the sample is, metres.
     pub at: (f64, f64),
+    /// Where the sample was thought to be when the approach began (a remembered rock's place on
+    /// the map, which the camera's sighting may then move by metres).
+    pub first_at: (f64, f64),
     /// The approach is given up at this frame.
     pub give_up_frame: u64,
     /// The approach is worth a route up to this path cost on the map.
@@ -64,7 +67,7 @@ impl Chase {
             .filter(|failed| !failed.is_empty())
             .and_then(|failed| staging_cell(grid, at, rover, (STAGING_RADIUS_CELLS, STAGING_AWAY_M), failed, params))
             .map(cell_centre_m);
-        Chase { at, give_up_frame, max_cost, route: None, staging, unseen_since: None }
+        Chase { at, first_at: at, give_up_frame, max_cost, route: None, staging, unseen_since: None }
     }
 
     /// Whether the route's latest plan costs more than the approach is worth: the map has shown

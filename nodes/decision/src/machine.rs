@@ -595,7 +595,9 @@ impl Machine {
         }
         let aim = chase.aim(&from);
         if chase.out_of_the_way() {
-            self.samples.defer(chase.at, obs.frame + p.frames(OUT_OF_THE_WAY_S));
+            let until_frame = obs.frame + p.frames(OUT_OF_THE_WAY_S);
+            self.samples.defer(chase.at, until_frame);
+            self.samples.defer(chase.first_at, until_frame);
             self.enter(State::Explore, "sample out of the way on the map");
             return self.explore(obs);
         }
@@ -908,6 +910,20 @@ mod tests {
         assert!(modes.iter().all(|&mode| mode == Mode::ApproachSample), "80 m round is worth 200: {modes:?}");
         let (modes, _) = sample_across_the_wall(60.0, 1);
         assert!(modes.iter().all(|&mode| mode == Mode::ApproachSample), "the last sample missing: {modes:?}");
+    }
+
+    #[test]
+    fn a_remembered_sample_that_the_camera_places_a_long_way_round_is_left_alone_where_both_put_it() {
+        let mut machine = machine_on(two_corridors());
+        machine.set_rocks(vec![(110.5, 101.5)]);
+        for frame in 1..machine.params.frames(machine.params.stuck_s) {
+            let mut obs = Observation { samples_remaining: 2, ..observation(frame, 100.5, 100.5) };
+            let across_the_wall = (108.5f64 - 100.5).atan2(107.5 - 100.5);
+            obs.rock = Some(Sighting { bearing_rad: across_the_wall, distance_m: 7.0f64.hypot(8.0) });
+            machine.step(&obs);
+            assert_eq!(machine.status().mode, Mode::Explore, "frame {frame}");
+        }
+        assert!(machine.is_ignored((110.5, 101.5)) && machine.is_ignored((107.5, 108.5)));
     }
 
     #[test]
