@@ -36,11 +36,11 @@ pub struct Chase {
     pub first_at: (f64, f64),
     /// The approach is given up at this frame.
     pub give_up_frame: u64,
-    /// The approach is worth a route up to this path cost on the map.
-    pub max_cost: f64,
     route: Option<Route>,
     staging: Option<(f64, f64)>,
     unseen_since: Option<u64>,
+    /// The approach is worth a route up to this path cost on the map.
+    max_cost: f64,
 }
 
 /// How to drive on toward the sample.

@@ -552,19 +552,20 @@ impl Machine {
         self.samples.note_failed_approach(sample, obs.frame, (obs.position.x_m, obs.position.y_m));
     }
 
-    /// Whether the rock at `at` is collected, given up, failed too often lately, or left alone
-    /// for now as out of the way.
-    fn is_ignored(&self, at: (f64, f64)) -> bool {
+    /// Whether the rock at `at` is collected, given up, or failed too often lately.
+    fn is_given_up(&self, at: (f64, f64)) -> bool {
         self.samples.is_ignored(at, self.frame, self.params.frames(self.params.sample_retry_s))
-            || self.samples.is_deferred(at, self.frame)
     }
 
-    /// Whether the map holds at least as many rocks not collected nor given up as samples are
-    /// missing.
+    /// Whether the rock at `at` is given up ([`Machine::is_given_up`]) or left alone for now as
+    /// out of the way.
+    fn is_ignored(&self, at: (f64, f64)) -> bool {
+        self.is_given_up(at) || self.samples.is_deferred(at, self.frame)
+    }
+
+    /// Whether the map holds at least as many rocks not given up as samples are missing.
     fn all_missing_samples_located(&self, obs: &Observation) -> bool {
-        let retry_frames = self.params.frames(self.params.sample_retry_s);
-        let waiting =
-            self.samples.located().iter().filter(|&&at| !self.samples.is_ignored(at, self.frame, retry_frames));
+        let waiting = self.samples.located().iter().filter(|&&at| !self.is_given_up(at));
         waiting.count() >= obs.samples_remaining as usize
     }
 
