@@ -376,10 +376,10 @@ impl Machine {
             if self.tilted(obs) {
                 self.start_recovery(obs, "tilted");
             } else if self.stuck(obs) {
-                self.mark_if_stuck_again(obs);
+                self.mark_stuck_cell(obs);
                 self.start_recovery(obs, "stuck");
             } else if self.stalled(obs) {
-                self.mark_if_stuck_again(obs);
+                self.mark_stuck_cell(obs);
                 self.start_recovery(obs, "no progress");
             }
         }
@@ -415,11 +415,11 @@ impl Machine {
             >= self.params.frames(self.params.stall_s)
     }
 
-    /// Remembers where the rover got stuck; at a spot where it got stuck lately, the cell ahead
-    /// becomes an obstacle for planning for a while, so that the next plan leads around it.
-    fn mark_if_stuck_again(&mut self, obs: &Observation) {
+    /// Makes the cell ahead of the stuck rover an obstacle for planning for a while, so that the
+    /// next plan leads around what the map did not show.
+    fn mark_stuck_cell(&mut self, obs: &Observation) {
         if let Some(cell) = self.stuck_marks.note_stuck(&obs.position, obs.frame, &self.params) {
-            tracing::debug!(cell = ?cell_centre_m(cell), "stuck again here: the cell ahead is an obstacle for a while");
+            tracing::debug!(cell = ?cell_centre_m(cell), "stuck: the cell ahead is an obstacle for a while");
             self.apply_stuck_marks();
         }
     }
@@ -978,19 +978,18 @@ mod tests {
     }
 
     #[test]
-    fn stuck_twice_at_one_spot_makes_the_cell_ahead_an_obstacle_until_nothing_else_is_left() {
+    fn getting_stuck_makes_the_cell_ahead_an_obstacle_until_nothing_else_is_left() {
         let params = DecisionParams::default();
         let mut machine = machine_on(corridor());
         let ahead = cell_of_point(101.4, 100.5).unwrap();
-        machine.mark_if_stuck_again(&observation(10, 100.5, 100.5));
-        assert_eq!(machine.planning.grid.cell(ahead), Cell::Free, "stuck once: nothing marked");
-        machine.mark_if_stuck_again(&observation(200, 100.7, 100.4));
-        assert_eq!(machine.planning.grid.cell(ahead), Cell::Blocked, "stuck again here: the cell ahead is an obstacle");
+        assert_eq!(machine.planning.grid.cell(ahead), Cell::Free);
+        machine.mark_stuck_cell(&observation(10, 100.5, 100.5));
+        assert_eq!(machine.planning.grid.cell(ahead), Cell::Blocked, "stuck here: the cell ahead is an obstacle");
         assert_eq!(machine.received_map.cell(ahead), Cell::Free, "the map itself is kept");
         machine.set_map(corridor());
         assert_eq!(machine.planning.grid.cell(ahead), Cell::Blocked, "and stays marked in the next map");
         assert!(machine.forget_stuck_marks() && machine.planning.grid.cell(ahead) == Cell::Free);
-        machine.mark_if_stuck_again(&observation(300, 100.5, 100.5));
+        machine.mark_stuck_cell(&observation(300, 100.5, 100.5));
         machine.frame = 300 + params.frames(STUCK_MARK_S) - 1;
         machine.set_map(corridor());
         assert_eq!(machine.planning.grid.cell(ahead), Cell::Blocked, "marked again");

@@ -1,5 +1,5 @@
-//! Getting stuck: watches of the rover's progress, and the cells ahead of spots where it got stuck
-//! twice, which planning takes as obstacles for a while (the map says free what the rover cannot
+//! Getting stuck: watches of the rover's progress, and the cells ahead of spots where it got
+//! stuck, which planning takes as obstacles for a while (the map says free what the rover cannot
 //! drive through).
 
 use rover_msgs::map_grid::cell_of_point;
@@ -8,11 +8,8 @@ use crate::grid::Grid;
 use crate::params::DecisionParams;
 use crate::pose::Position;
 
-/// Getting stuck again this close to an earlier stuck spot...
-const STUCK_AGAIN_M: f64 = 2.0;
-/// ...within this time, seconds, makes the cell ahead of the rover an obstacle for planning...
-const STUCK_AGAIN_S: f64 = 90.0;
-/// ...for this long, seconds.
+/// The cell ahead of a spot where the rover got stuck is an obstacle for planning for this long,
+/// seconds.
 pub(crate) const STUCK_MARK_S: f64 = 120.0;
 /// The marked cell is the one this far ahead of the rover's position: its front, metres.
 const STUCK_MARK_AHEAD_M: f64 = 0.9;
@@ -68,23 +65,18 @@ impl DrivingWatch {
     }
 }
 
-/// Where the rover got stuck lately, and the cells marked as obstacles for planning.
+/// The cells marked as obstacles for planning where the rover got stuck lately.
 #[derive(Debug, Clone, Default)]
 pub struct StuckMarks {
-    spots: Vec<(u64, (f64, f64))>,
     marks: Vec<(usize, u64)>,
 }
 
 impl StuckMarks {
-    /// Notes that the rover `at` got stuck at `frame`. Stuck lately at this spot already, the cell
-    /// ahead of it is marked, and returned.
+    /// Notes that the rover `at` got stuck at `frame`: the cell ahead of it is marked until
+    /// [`STUCK_MARK_S`] later, and returned (none off the map).
     pub fn note_stuck(&mut self, at: &Position, frame: u64, params: &DecisionParams) -> Option<usize> {
-        let memory = params.frames(STUCK_AGAIN_S);
-        self.spots.retain(|&(since, _)| frame < since + memory);
-        let again = self.spots.iter().any(|&(_, spot)| at.distance_to(spot) < STUCK_AGAIN_M);
-        self.spots.push((frame, (at.x_m, at.y_m)));
         let ahead = at.point_at(0.0, STUCK_MARK_AHEAD_M);
-        let cell = cell_of_point(ahead.0, ahead.1).filter(|_| again)?;
+        let cell = cell_of_point(ahead.0, ahead.1)?;
         self.marks.push((cell, frame + params.frames(STUCK_MARK_S)));
         Some(cell)
     }
@@ -139,21 +131,19 @@ mod tests {
     }
 
     #[test]
-    fn stuck_twice_at_one_spot_marks_the_cell_ahead_until_the_mark_expires() {
+    fn getting_stuck_marks_the_cell_ahead_until_the_mark_expires() {
         let params = DecisionParams::default();
         let mut marks = StuckMarks::default();
-        assert_eq!(marks.note_stuck(&at(30.5, 51.5), 10, &params), None, "stuck once");
-        let far_later = 10 + params.frames(STUCK_AGAIN_S);
-        assert_eq!(marks.note_stuck(&at(30.7, 51.5), far_later, &params), None, "too long after");
-        let cell = marks.note_stuck(&at(30.5, 51.5), far_later + 1, &params).expect("stuck again");
+        let cell = marks.note_stuck(&at(30.5, 51.5), 10, &params).expect("on the map");
         assert_eq!(cell, cell_of_point(31.4, 51.5).unwrap(), "the cell ahead");
         let map = half_explored();
         assert_eq!((map.cell(cell), marks.applied_to(&map).cell(cell)), (Cell::Free, Cell::Blocked));
-        let until = far_later + 1 + params.frames(STUCK_MARK_S);
+        let until = 10 + params.frames(STUCK_MARK_S);
         marks.expire(until - 1);
         assert_eq!(marks.applied_to(&map).cell(cell), Cell::Blocked, "not yet expired");
         marks.expire(until);
         assert_eq!(marks.applied_to(&map).cell(cell), Cell::Free, "expired");
         assert!(!marks.forget(), "nothing left to forget");
+        assert_eq!(marks.note_stuck(&at(-5.0, 51.5), 20, &params), None, "off the map");
     }
 }
