@@ -51,6 +51,7 @@ struct Look {
 struct Target {
     cell: usize,
     chosen_frame: u64,
+    allowed_frames: u64,
     path: Vec<usize>,
     recoveries: u32,
 }
@@ -196,8 +197,8 @@ impl Explorer {
         if let Some(point) = self.look_point(grid, frame) {
             return Some(point);
         }
-        if let Some((cell, chosen_frame)) = self.target.as_ref().map(|t| (t.cell, t.chosen_frame)) {
-            let timed_out = frame >= chosen_frame + params.frames(params.target_timeout_s);
+        if let Some(Target { cell, chosen_frame, allowed_frames, .. }) = self.target.as_ref() {
+            let (cell, timed_out) = (*cell, frame >= chosen_frame + allowed_frames);
             let reached = at.distance_to(cell_centre_m(cell)) < params.frontier_reached_m;
             if reached && !timed_out {
                 self.look = Some(Look { around: cell, until_frame: frame + params.frames(LOOK_S) });
@@ -251,6 +252,7 @@ impl Explorer {
             self.target = self.best_frontier(grid, &costs, (at, home), params).map(|cell| Target {
                 cell,
                 chosen_frame: frame,
+                allowed_frames: params.frames_for_way(params.target_timeout_s, costs.distance[cell] as f64),
                 path: Vec::new(),
                 recoveries: 0,
             });
@@ -408,15 +410,18 @@ mod tests {
     }
 
     #[test]
-    fn a_detour_does_not_count_against_the_target() {
+    fn a_target_has_the_time_of_its_way_and_a_detour_does_not_count_against_it() {
         let mut probe = Probe::with_the_walls_inspected();
         probe.waypoint(at(25.5, 51.5), 0);
         let target = probe.explorer.target();
-        let back = probe.params.frames(probe.params.target_timeout_s) + 10;
+        let way_m = probe.explorer.cost_to(target.unwrap()).unwrap();
+        let allowed = probe.params.frames_for_way(probe.params.target_timeout_s, way_m);
+        assert!(allowed > probe.params.frames(probe.params.target_timeout_s + 5.0), "{way_m} m of way add time");
+        let back = allowed + 10;
         probe.explorer.resume_after_detour(back);
-        probe.waypoint(at(26.5, 51.5), back + 1);
-        assert_eq!(probe.explorer.target(), target, "still the target after a detour longer than its timeout");
-        probe.waypoint(at(26.5, 51.5), 2 * back);
+        probe.waypoint(at(26.5, 51.5), back + allowed - 1);
+        assert_eq!(probe.explorer.target(), target, "still the target after a detour longer than its time");
+        probe.waypoint(at(26.5, 51.5), back + allowed);
         assert_ne!(probe.explorer.target(), target, "it times out on its own clock");
     }
 

@@ -525,7 +525,7 @@ impl Machine {
         let p = &self.params;
         let max_cost = if self.all_missing_samples_located(obs) { f64::INFINITY } else { max_cost };
         let new = |(at, way_m): ((f64, f64), f64)| {
-            let give_up_frame = obs.frame + p.frames(p.sample_timeout_s + way_m / p.max_speed_mps);
+            let give_up_frame = obs.frame + p.frames_for_way(p.sample_timeout_s, way_m);
             let (map, failed) = ((&self.planning.grid, &obs.position), &self.samples.failed_from(at));
             Chase::new(at, (give_up_frame, max_cost), map, failed, p)
         };

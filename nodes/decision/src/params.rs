@@ -59,7 +59,8 @@ rover_node::node_params! {
         unknown_cost: f64 [0.0, 100.0] = 1.5,
         /// Extra path cost of cells next to obstacles.
         near_wall_cost: f64 [0.0, 100.0] = 4.0,
-        /// Give up a target after this long without reaching it, seconds.
+        /// Give up a frontier target not reached in this time plus its way at cruising speed,
+        /// seconds.
         target_timeout_s: f64 [1.0, 10000.0] = 40.0,
         /// Throttle without motion for this long means stuck, seconds.
         stuck_s: f64 [0.1, 60.0] = 1.5,
@@ -109,6 +110,12 @@ impl DecisionParams {
     /// Frames in `seconds`.
     pub fn frames(&self, seconds: f64) -> u64 {
         (seconds / self.frame_period_s).round().max(1.0) as u64
+    }
+
+    /// Frames allowed for a way of path cost `way_m`: `allowance_s` plus the way at cruising
+    /// speed.
+    pub fn frames_for_way(&self, allowance_s: f64, way_m: f64) -> u64 {
+        self.frames(allowance_s + way_m / self.max_speed_mps)
     }
 
     /// The free-space rays the decision steers by, in lanes of `lane_half_width_m`.
