@@ -246,9 +246,10 @@ mod tests {
     fn blocked_ahead_turns_toward_the_goal_side() {
         let p = params();
         let free = FreeSpace { directions_rad: vec![-0.2, 0.0, 0.2], free_m: vec![0.5, 0.5, 0.5] };
+        let beyond_creeping_rad = (CREEP_BEARING_FACTOR * p.turn_done_deg + 5.0).to_radians();
         let mut steering = Steering::default();
-        assert_eq!(steering.around_obstacles(-0.6, 2.0, 0.0, &free, &p), Drive::turn_in_place(false));
-        assert_eq!(steering.around_obstacles(0.6, 2.0, 0.0, &free, &p), Drive::turn_in_place(true));
+        assert_eq!(steering.around_obstacles(-beyond_creeping_rad, 2.0, 0.0, &free, &p), Drive::turn_in_place(false));
+        assert_eq!(steering.around_obstacles(beyond_creeping_rad, 2.0, 0.0, &free, &p), Drive::turn_in_place(true));
         let open = FreeSpace { directions_rad: vec![-0.2, 0.0, 0.2], free_m: vec![0.5, 0.5, 6.0] };
         let mut steering = Steering::default();
         let drive = steering.around_obstacles(-0.1, 2.0, 0.0, &open, &p);

@@ -28,8 +28,9 @@ rover_node::node_params! {
         /// Beyond this bearing the rover stops and turns in place, degrees (short of it, it turns
         /// on the move at up to full lock).
         turn_in_place_deg: f64 [10.0, 180.0] = 65.0,
-        /// A turn in place ends below this bearing, degrees.
-        turn_done_deg: f64 [1.0, 90.0] = 12.0,
+        /// A turn in place ends below this bearing, degrees (the rest is turned on the move while
+        /// speeding up; 12 left 18 s more of turning in place a mission, see the README).
+        turn_done_deg: f64 [1.0, 90.0] = 25.0,
         /// Half width of the lanes checked for free ground, metres.
         lane_half_width_m: f64 [0.1, 2.0] = 0.5,
         /// Lookahead of the path follower, metres.
