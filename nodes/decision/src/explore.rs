@@ -56,6 +56,13 @@ struct Target {
     recoveries: u32,
 }
 
+impl Target {
+    /// Whether the target's time (from its choice, or from the end of a detour) is up at `frame`.
+    fn timed_out(&self, frame: u64) -> bool {
+        frame >= self.chosen_frame + self.allowed_frames
+    }
+}
+
 impl Default for Explorer {
     fn default() -> Self {
         let cells = CELLS;
@@ -197,8 +204,7 @@ impl Explorer {
         if let Some(point) = self.look_point(grid, frame) {
             return Some(point);
         }
-        if let Some(Target { cell, chosen_frame, allowed_frames, .. }) = self.target.as_ref() {
-            let (cell, timed_out) = (*cell, frame >= chosen_frame + allowed_frames);
+        if let Some((cell, timed_out)) = self.target.as_ref().map(|t| (t.cell, t.timed_out(frame))) {
             let reached = at.distance_to(cell_centre_m(cell)) < params.frontier_reached_m;
             if reached && !timed_out {
                 self.look = Some(Look { around: cell, until_frame: frame + params.frames(LOOK_S) });
