@@ -3,6 +3,7 @@
 
 use nalgebra::Vector3;
 
+use super::truncated_index;
 use crate::distance::distance_to;
 use crate::look::Look;
 use crate::random::value_noise;
@@ -179,10 +180,11 @@ impl Appearance {
     fn corners_around(&self, x: f64, y: f64) -> ([PackedShade; 4], [f32; 2]) {
         let per_m = NODES_PER_M as f64;
         let (gx, gy) = ((x * per_m - 0.5).max(0.0), (y * per_m - 0.5).max(0.0));
-        let last = self.side - 1;
-        let (ix, iy) = ((gx as usize).min(last - 1), (gy as usize).min(last - 1));
-        let at = |dx: usize, dy: usize| self.shades[(iy + dy) * self.side + ix + dx];
+        let last = self.side as i64 - 1;
+        let (ix, iy) = ((gx as i64).min(last - 1), (gy as i64).min(last - 1));
         let fractions = [((gx - ix as f64) as f32).min(1.0), ((gy - iy as f64) as f32).min(1.0)];
+        let (ix, iy) = (ix as usize, iy as usize);
+        let at = |dx: usize, dy: usize| self.shades[(iy + dy) * self.side + ix + dx];
         ([at(0, 0), at(1, 0), at(0, 1), at(1, 1)], fractions)
     }
 
@@ -249,7 +251,7 @@ impl Appearance {
 
     /// Colour of the floor `depth` metres ahead, before its brightness factor.
     pub(super) fn floor_rgb(&self, depth: f64) -> [f32; 3] {
-        let index = ((depth * FLOOR_TABLE_PER_M) as usize).min(self.floor_by_depth.len() - 1);
+        let index = truncated_index(depth * FLOOR_TABLE_PER_M).min(self.floor_by_depth.len() - 1);
         self.floor_by_depth[index]
     }
 
@@ -329,7 +331,7 @@ fn to_fixed(factor: f64) -> u16 {
 #[inline]
 pub(super) fn shade(rgb: [f32; 3], factor: u32, offset: [f32; 3]) -> [u8; 3] {
     let f = factor as f32 * (1.0 / (1 << FIXED_BITS) as f32);
-    let channel = |k: usize| (rgb[k] * f + offset[k] + 0.5).clamp(0.0, 255.0) as u8;
+    let channel = |k: usize| (rgb[k] * f + offset[k] + 0.5) as u8;
     [channel(0), channel(1), channel(2)]
 }
 
@@ -400,7 +402,7 @@ fn texel(texture: &[u16], u: f32, v: f32) -> u32 {
 
 /// Fog at `distance`: the weight of the surface colour and the fog colour already weighted.
 pub(super) fn fog_weights(distance: f64) -> (f32, [f32; 3]) {
-    let visible = FOG_VISIBLE[((distance * FOG_TABLE_PER_M) as usize).min(FOG_TABLE_LEN - 1)];
+    let visible = FOG_VISIBLE[truncated_index(distance * FOG_TABLE_PER_M).min(FOG_TABLE_LEN - 1)];
     (visible, scale3(FOG_RGB, 1.0 - visible))
 }
 

@@ -10,7 +10,7 @@ use nalgebra::Point3;
 use super::appearance::{Appearance, Facing, NodeShade, fog_weights, lerp3, scale3, shade, shade_fixed, to_rgb8};
 use super::objects::PieceInView;
 use super::view::{LevelView, Window, ceil_row};
-use super::{Hit, RenderOptions, Surface};
+use super::{Hit, RenderOptions, Surface, truncated_index};
 use crate::terrain::{MAX_TERRAIN_HEIGHT_M, Terrain};
 use crate::world::{Sample, WORLD_SIZE, World};
 
@@ -84,6 +84,16 @@ struct RayPoint {
     exact: [f32; EXACT_LANES],
 }
 
+/// The last point marched along a column's ray: where it is, and how it is drawn once it has
+/// been needed (a point that fills no row, hidden behind nearer terrain or less than a row below
+/// the last one drawn, is shaded only when the next point starts its span from it).
+#[derive(Debug, Clone, Copy)]
+struct Marched {
+    depth: f64,
+    z: f64,
+    point: Option<RayPoint>,
+}
+
 /// Fixed-point values of a [`RayPoint`], in 1/256: the floor's and the rock's texture
 /// coordinates (in texels), the rock weight, the colour (fog included, before texture) and the
 /// fog's colour.
@@ -152,7 +162,7 @@ impl Painter<'_, '_> {
         let (delta_x, delta_y) = (1.0 / dx.abs(), 1.0 / dy.abs());
         let mut t_in = 0.0;
         let Window { v0: top, v1: mut bottom, .. } = self.frame.window;
-        let mut last: Option<RayPoint> = None;
+        let mut last: Option<Marched> = None;
         let mut floor_until: Option<f64> = None;
         while bottom > top && t_in < MAX_DEPTH_M && view.row(t_in, MAX_TERRAIN_HEIGHT_M as f64) < bottom as f64 {
             let t_out = t_x.min(t_y);
@@ -165,17 +175,22 @@ impl Painter<'_, '_> {
                 (last, floor_until) = (None, None);
             } else {
                 if let Some(t) = floor_until.take() {
-                    last = Some(self.ray_point([dx, dy], t, 0.0));
+                    last = Some(Marched { depth: t, z: 0.0, point: None });
                 }
                 let mut t = t_in;
                 while t < t_out {
                     t = (t + (t * MARCH_STEP_FRACTION).max(MARCH_STEP_MIN_M)).min(t_out);
                     let (x, y) = (view.camera.x + t * dx, view.camera.y + t * dy);
-                    let point = self.ray_point([dx, dy], t, terrain.height_at(x, y) as f64);
-                    if point.row < bottom as f64 {
-                        bottom = self.fill_span(u, bottom, last.as_ref(), &point);
+                    let z = terrain.height_at(x, y) as f64;
+                    let mut marched = Marched { depth: t, z, point: None };
+                    let row = view.row(t, z);
+                    if row < bottom as f64 && ceil_row(row).max(top) < bottom {
+                        let from = last.map(|m| m.point.unwrap_or_else(|| self.ray_point([dx, dy], m.depth, m.z)));
+                        let point = self.ray_point([dx, dy], t, z);
+                        bottom = self.fill_span(u, bottom, from.as_ref(), &point);
+                        marched.point = Some(point);
                     }
-                    last = Some(point);
+                    last = Some(marched);
                 }
             }
             if t_x < t_y {
@@ -235,11 +250,13 @@ impl Painter<'_, '_> {
         // the rows end above `last.row`). Two points less than a row apart fill with `point`'s
         // values (a row's step would take them far beyond both).
         let (start, per_row) = if rows >= 1.0 { ((from.row - first as f64) / rows, -1.0 / rows) } else { (1.0, 0.0) };
-        let (mut fixed, mut fixed_step) = (from.fixed, [0i32; FIXED_LANES]);
-        for k in 0..FIXED_LANES {
-            let delta = (point.fixed[k] - from.fixed[k]) as f64;
-            fixed[k] += (delta * start) as i32;
-            fixed_step[k] = (delta * per_row) as i32;
+        let (mut fixed, mut fixed_step) = (point.fixed, [0i32; FIXED_LANES]);
+        if per_row != 0.0 {
+            for k in 0..FIXED_LANES {
+                let delta = (point.fixed[k] - from.fixed[k]) as f64;
+                fixed[k] = from.fixed[k] + (delta * start) as i32;
+                fixed_step[k] = (delta * per_row) as i32;
+            }
         }
         let (mut exact, mut exact_step) = (from.exact, [0f32; EXACT_LANES]);
         for k in 0..EXACT_LANES {
@@ -284,7 +301,7 @@ impl Painter<'_, '_> {
     /// colour when `plain`, else shaded node by node; returns the new bottom.
     fn draw_floor(&mut self, u: usize, dir: [f64; 2], t_out: f64, bottom: usize, plain: bool) -> usize {
         let (view, appearance) = (&self.frame.view, self.frame.appearance);
-        let first = (view.row(t_out, 0.0).max(0.0) as usize).saturating_add(1);
+        let first = truncated_index(view.row(t_out, 0.0).max(0.0)).saturating_add(1);
         let sun = appearance.look.sun.z as f32;
         for v in first..bottom {
             let FloorRow { depth, rgb, visible, haze } = self.frame.floor_rows[v];

@@ -72,6 +72,8 @@ pub struct RenderOptions {
 
 /// Renders camera frames of one world.
 pub struct Renderer {
+    /// The sensor noise of each byte of a pixel, three per pixel, and then again as many pixels as
+    /// a row has, so that the noise of any row is one slice.
     noise: Vec<i8>,
     camera: CameraModel,
     options: RenderOptions,
@@ -94,7 +96,7 @@ impl Renderer {
         let level_pixels = level_width * level_height;
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).clamp(1, MAX_THREADS);
         Renderer {
-            noise: (0..=NOISE_MASK as u64).map(|i| (mix64(i) % 7) as i8 - 3).collect(),
+            noise: noise_bytes(camera.width),
             camera,
             options,
             appearance: Appearance::new(world),
@@ -179,6 +181,13 @@ impl Renderer {
     }
 }
 
+/// A non-negative `value` truncated to an index (beyond `i64` it saturates). The conversion goes
+/// through `i64`, which the processor does in one instruction; straight to `usize` it takes
+/// several, and the renderer does it for most pixels.
+fn truncated_index(value: f64) -> usize {
+    value as i64 as usize
+}
+
 /// Bands of columns each thread of a frame draws, interleaved with the other threads' so that the
 /// work is shared evenly whatever the view holds.
 const BANDS_PER_THREAD: usize = 4;
@@ -220,6 +229,17 @@ fn draw_level(frame: &Frame, threads: usize, rgb: &mut [[u8; 3]], depth: &mut [f
     });
 }
 
+/// The noise table of [`Renderer::noise`] for images `width` pixels wide: -3..=3 per pixel.
+fn noise_bytes(width: usize) -> Vec<i8> {
+    (0..=NOISE_MASK + width).flat_map(|i| [(mix64((i & NOISE_MASK) as u64) % 7) as i8 - 3; 3]).collect()
+}
+
+/// `value` plus `noise`, saturated to a byte (in the signed domain, where the processor
+/// saturates by itself).
+fn add_noise(value: u8, noise: i8) -> u8 {
+    ((value ^ 0x80) as i8).saturating_add(noise) as u8 ^ 0x80
+}
+
 /// What the rows of the camera image are made from.
 struct Resampler<'a> {
     rotation: &'a Rotation,
@@ -233,24 +253,21 @@ struct Resampler<'a> {
 }
 
 impl Resampler<'_> {
-    /// Fills the image rows from `first_row` on (`rgb`, and `hits` when recording): first where
-    /// each pixel comes from in the level view, then the pixels a block of rows at a time, so that
-    /// each column of the level view is read a cache line at a time.
+    /// Fills the image rows from `first_row` on (`rgb`, and `hits` when recording): where each
+    /// pixel comes from in the level view, then the pixels row by row (a row reads one pixel of
+    /// each level column, and the next row the pixels below them, which are in the cache by then).
     fn rows(&self, first_row: usize, rgb: &mut [u8], hits: Option<&mut [Hit]>) {
-        const BLOCK_ROWS: usize = 16;
         let rows = rgb.len() / (self.width * 3);
         let sources = self.sources(first_row, rows);
-        for block in (0..rows).step_by(BLOCK_ROWS) {
-            for u in 0..self.width {
-                for r in block..(block + BLOCK_ROWS).min(rows) {
-                    let (pixel, v) = (r * self.width + u, first_row + r);
-                    let noise = self.noise[(self.noise_offset + v * self.width + u) & NOISE_MASK] as i16;
-                    let level = self.level_rgb[sources[pixel] as usize];
-                    let out = &mut rgb[pixel * 3..][..3];
-                    for k in 0..3 {
-                        out[k] = (level[k] as i16 + noise).clamp(0, 255) as u8;
-                    }
-                }
+        let image_rows = rgb.chunks_exact_mut(self.width * 3).zip(sources.chunks_exact(self.width));
+        for (v, (out_row, source_row)) in (first_row..).zip(image_rows) {
+            for (out, &source) in out_row.chunks_exact_mut(3).zip(source_row) {
+                out.copy_from_slice(&self.level_rgb[source as usize]);
+            }
+            let noise_start = self.noise_offset.wrapping_add(v * self.width) & NOISE_MASK;
+            let noise = &self.noise[noise_start * 3..][..self.width * 3];
+            for (channel, &noise) in out_row.iter_mut().zip(noise) {
+                *channel = add_noise(*channel, noise);
             }
         }
         if let Some(hits) = hits.filter(|h| !h.is_empty()) {
@@ -280,10 +297,12 @@ impl Resampler<'_> {
                 let end = (start + SEGMENT_PX).min(self.width);
                 let (a, b) = (map.level_pixel(start, v), map.level_pixel(end, v));
                 let per_px = ((b.0 - a.0) / (end - start) as f32, (b.1 - a.1) / (end - start) as f32);
-                sources.extend((0..end - start).map(|i| {
+                let mut segment = [0u32; SEGMENT_PX];
+                for (i, source) in segment.iter_mut().enumerate() {
                     let (lu, lv) = (a.0 + per_px.0 * i as f32 + 0.5, a.1 + per_px.1 * i as f32 + 0.5);
-                    (lu.clamp(0.0, max_u) as usize * height + lv.clamp(0.0, max_v) as usize) as u32
-                }));
+                    *source = (lu.max(0.0).min(max_u) as i32 * height as i32 + lv.max(0.0).min(max_v) as i32) as u32;
+                }
+                sources.extend_from_slice(&segment[..end - start]);
             }
         }
         sources

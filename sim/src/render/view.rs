@@ -179,6 +179,6 @@ pub(super) fn ceil_row(row: f64) -> usize {
     if row <= 0.0 {
         return 0;
     }
-    let whole = row as usize;
-    if (whole as f64) < row { whole + 1 } else { whole }
+    let whole = row as i64;
+    (if (whole as f64) < row { whole + 1 } else { whole }) as usize
 }
