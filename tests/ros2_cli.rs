@@ -133,9 +133,8 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
         let map = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "--no-arr", "/map"]));
         let odom = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/odom"]));
         let tf_static = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/tf_static"]));
-        // ros2-client's node spinner also subscribes to /clock, as builtin_interfaces/msg/Time,
-        // so the type must be named (see README "Simulated time").
-        let clock = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/clock", "rosgraph_msgs/msg/Clock"]));
+        // Without the type named: only rosgraph_msgs/msg/Clock may be on /clock.
+        let clock = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/clock"]));
         let sim_time = scope.spawn(|| ros2_ok(domain, &["param", "get", "/mapping", "use_sim_time"]));
         let hz = scope.spawn(|| ros2(domain, Duration::from_secs(20), &["topic", "hz", "/rover/telemetry"]).1);
         let info = scope.spawn(|| ros2_ok(domain, &["topic", "info", "-v", "/map"]));
@@ -147,7 +146,8 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
             let after = ros2_ok(domain, &["param", "get", "/bridge", "teleop_timeout_ms"]);
             let refused =
                 ros2(domain, Duration::from_secs(30), &["param", "set", "/bridge", "teleop_timeout_ms", "-1.0"]).1;
-            (list, before, set, after, refused)
+            let described = ros2_ok(domain, &["param", "describe", "/bridge", "teleop_timeout_ms"]);
+            (list, before, set, after, refused, described)
         });
 
         let topics = topics.join().unwrap();
@@ -155,9 +155,10 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
             assert!(topics.lines().any(|line| line.trim() == topic), "`ros2 topic list -t`: no `{topic}` in\n{topics}");
         }
         let clock_line = topics.lines().find(|line| line.starts_with("/clock ["));
-        assert!(
-            clock_line.is_some_and(|line| line.contains("rosgraph_msgs/msg/Clock")),
-            "`ros2 topic list -t`: /clock is not a rosgraph_msgs/msg/Clock topic in\n{topics}"
+        assert_eq!(
+            clock_line.map(str::trim),
+            Some("/clock [rosgraph_msgs/msg/Clock]"),
+            "`ros2 topic list -t`: /clock must have the one type rosgraph_msgs/msg/Clock in\n{topics}"
         );
         let clock = clock.join().unwrap();
         assert_contains(&clock, &["clock:", "nanosec: "], "/clock");
@@ -218,12 +219,21 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
             &["std_msgs/Header header", "uint64 frame", "uint8 samples_remaining"],
             "interface show",
         );
-        let (list, before, set, after, refused) = params.join().unwrap();
+        let (list, before, set, after, refused, described) = params.join().unwrap();
         assert_contains(&list, &["teleop_timeout_ms", "diagnostics_period_ms", "port"], "ros2 param list /bridge");
         assert_contains(&before, &["Double value is: 500.0"], "ros2 param get");
         assert_contains(&set, &["Set parameter successful"], "ros2 param set");
         assert_contains(&after, &["Double value is: 1500.0"], "ros2 param get after the set");
-        assert_contains(&refused, &["Setting parameter failed"], "ros2 param set out of range");
+        assert_contains(
+            &refused,
+            &["Setting parameter failed", "outside the allowed range"],
+            "ros2 param set out of range",
+        );
+        assert_contains(
+            &described,
+            &["Type: double", "Description: ", "Min value: 0.0", "Max value: 2000.0"],
+            "ros2 param describe",
+        );
     });
 
     drop(daemon);

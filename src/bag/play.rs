@@ -69,7 +69,7 @@ impl<M: RosMessage> CdrPublisher for Publisher<M> {
     }
 
     fn subscriptions(&self, node: &RosNode) -> usize {
-        self.get_subscription_count(node.inner())
+        node.subscription_count(self)
     }
 }
 

@@ -7,9 +7,11 @@
 
 pub mod cdr;
 pub mod logging;
+mod matching;
 pub mod names;
 mod node;
 pub mod pairing;
+mod param_services;
 pub mod params;
 pub mod qos;
 pub mod rejections;

@@ -12,11 +12,12 @@ use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::std_msgs::Header;
 use tokio::sync::watch;
 
+use crate::matching::Matches;
 use crate::names::NodeIdentity;
 use crate::params::{self, Assignment, NodeParams, ParamValues, USE_SIM_TIME};
 use crate::ros_args::RosArgs;
 use crate::shutdown::Shutdown;
-use crate::topics::Topic;
+use crate::topics::{self, Topic};
 
 /// Highest domain id for which the DDS port numbers stay valid.
 const MAX_DOMAIN_ID: u16 = 232;
@@ -31,10 +32,6 @@ const MAX_DOMAIN_ID: u16 = 232;
 /// announcement (plus a margin for a loaded machine), every peer receives them in order.
 const FIRST_ANNOUNCEMENT_WAIT: Duration = Duration::from_millis(250);
 
-/// How often a wait for a matched peer reads the match state again. ros2-client wakes such a wait
-/// through an event channel of 8 that drops events when full, so a wait alone can miss its match.
-const MATCH_RECHECK: Duration = Duration::from_millis(200);
-
 /// Reads `ROS_DOMAIN_ID` (default 0), with a clear error for a bad value.
 pub fn domain_id_from_env() -> anyhow::Result<u16> {
     match std::env::var("ROS_DOMAIN_ID") {
@@ -46,10 +43,18 @@ pub fn domain_id_from_env() -> anyhow::Result<u16> {
     }
 }
 
-/// What every node of a process shares: the DDS context, the ROS arguments and the shutdown flag.
+/// What every node of a process shares: the DDS context, what its endpoints have matched, the ROS
+/// arguments and the shutdown flag.
+///
+/// The nodes run without `ros2-client`'s spinner, whose `/clock` reader has the wrong type
+/// (`builtin_interfaces/msg/Time`): the runtime answers the parameter services itself
+/// ([`crate::param_services`]), follows `/clock` as `rosgraph_msgs/msg/Clock` in nodes that use
+/// simulated time, and reads the participant's match events once for all nodes
+/// ([`crate::matching`]).
 #[derive(Clone)]
 pub struct Runtime {
     context: Context,
+    matches: Matches,
     ros_args: Arc<RosArgs>,
     shutdown: Shutdown,
 }
@@ -67,10 +72,11 @@ impl Runtime {
         let participant = DomainParticipant::new(domain_id)
             .with_context(|| format!("cannot create the DDS participant on domain {domain_id}"))?;
         std::thread::sleep(FIRST_ANNOUNCEMENT_WAIT);
+        let matches = Matches::follow(&participant);
         let context = Context::from_domain_participant(participant)
             .with_context(|| format!("cannot create the ROS context on domain {domain_id}"))?;
         tracing::debug!(domain_id, "DDS participant created");
-        Ok(Runtime { context, ros_args: Arc::new(ros_args), shutdown })
+        Ok(Runtime { context, matches, ros_args: Arc::new(ros_args), shutdown })
     }
 
     /// The shutdown flag of the process.
@@ -84,25 +90,26 @@ impl Runtime {
     }
 
     /// Creates the node whose default name is `default_name`, with its parameters `P` resolved from
-    /// the defaults, `--params-file` files and `-p` overrides, and its spinner running.
+    /// the defaults, `--params-file` files and `-p` overrides, its parameter services answered and,
+    /// with `use_sim_time`, its clock following `/clock`.
     pub fn node<P: NodeParams>(&self, default_name: &str) -> anyhow::Result<(RosNode, Params<P>)> {
         let identity = NodeIdentity::resolve(default_name, &self.ros_args)?;
         let values = resolve_param_values::<P>(default_name, &identity, &self.ros_args)?;
-        let (params, options) = Params::<P>::with_services(values, P::specs());
+        let (params, options) = Params::<P>::with_values(values);
         let node_name = NodeName::new(&identity.namespace, &identity.name)
             .map_err(|e| anyhow::anyhow!("node name {}: {e}", identity.fully_qualified()))?;
-        let mut node = self
+        let node = self
             .context
             .new_node(node_name, options)
             .with_context(|| format!("cannot create node {}", identity.fully_qualified()))?;
-        let spinner = node.spinner().context("cannot start the node's spinner")?;
-        tokio::spawn(async move {
-            if let Err(e) = spinner.spin().await {
-                tracing::error!("node spinner stopped: {e:?}");
-            }
-        });
         crate::logging::register_rosout(&identity.fully_qualified(), node.logging_handle());
-        Ok((RosNode { node, identity }, params))
+        let node = Arc::new(Mutex::new(node));
+        crate::param_services::start(&node, P::specs())?;
+        let mut node = RosNode { node, identity, matches: self.matches.clone(), sim_time: None };
+        if node.uses_sim_time() {
+            node.follow_clock()?;
+        }
+        Ok((node, params))
     }
 }
 
@@ -137,8 +144,11 @@ pub fn resolve_params<P: NodeParams>(default_name: &str, ros_args: &RosArgs) -> 
 /// A ROS 2 node: creates publishers and subscriptions for the graph's [`Topic`]s, with the node's
 /// namespace and remaps applied and the topic's QoS.
 pub struct RosNode {
-    node: ros2_client::Node,
+    node: Arc<Mutex<ros2_client::Node>>,
     identity: NodeIdentity,
+    matches: Matches,
+    /// The latest `/clock` time, when the node uses simulated time.
+    sim_time: Option<Arc<Mutex<Time>>>,
 }
 
 impl RosNode {
@@ -155,7 +165,10 @@ impl RosNode {
     /// The node's time: the simulated time of `/clock` when its `use_sim_time` parameter is true
     /// (zero until the first `/clock` message), the wall clock otherwise.
     pub fn now(&self) -> Time {
-        Time::from_nanos(self.node.time_now().to_nanos())
+        match &self.sim_time {
+            Some(latest) => latest.lock().unwrap_or_else(|e| e.into_inner()).clone(),
+            None => Time::now(),
+        }
     }
 
     /// A header in `frame_id` stamped with [`RosNode::now`].
@@ -165,18 +178,28 @@ impl RosNode {
 
     /// Whether the node's `use_sim_time` parameter is true.
     pub fn uses_sim_time(&self) -> bool {
-        self.node.get_parameter(USE_SIM_TIME) == Some(ros2_client::ParameterValue::Boolean(true))
+        self.inner().get_parameter(USE_SIM_TIME) == Some(ros2_client::ParameterValue::Boolean(true))
     }
 
-    /// The underlying `ros2-client` node.
-    pub fn inner(&self) -> &ros2_client::Node {
-        &self.node
+    fn inner(&self) -> std::sync::MutexGuard<'_, ros2_client::Node> {
+        self.node.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Keeps the latest simulated time of `/clock` for [`RosNode::now`].
+    fn follow_clock(&mut self) -> anyhow::Result<()> {
+        let latest = Arc::new(Mutex::new(Time::default()));
+        let clock = Arc::clone(&latest);
+        spawn_subscriber(self.subscription(&topics::CLOCK)?, self.span(), move |message| {
+            *clock.lock().unwrap_or_else(|e| e.into_inner()) = message.clock;
+        });
+        self.sim_time = Some(latest);
+        Ok(())
     }
 
     /// Creates a publisher on `topic`.
     pub fn publisher<M: RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<Publisher<M>> {
         let dds_topic = self.dds_topic(topic)?;
-        self.node
+        self.inner()
             .create_publisher(&dds_topic, None)
             .with_context(|| format!("cannot create a publisher on {}", topic.name))
     }
@@ -184,7 +207,7 @@ impl RosNode {
     /// Creates a subscription on `topic`.
     pub fn subscription<M: RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<Subscription<M>> {
         let dds_topic = self.dds_topic(topic)?;
-        self.node
+        self.inner()
             .create_subscription(&dds_topic, None)
             .with_context(|| format!("cannot create a subscription on {}", topic.name))
     }
@@ -199,18 +222,23 @@ impl RosNode {
 
     /// Resolves once `publisher` has matched a subscription.
     pub async fn subscription_matched<M: RosMessage>(&self, publisher: &Publisher<M>) {
-        until_resolved(|| publisher.wait_for_subscription(&self.node)).await;
+        self.matches.first(publisher.guid()).await;
     }
 
     /// Resolves once `subscription` has matched a publisher.
     pub async fn publisher_matched<M: RosMessage>(&self, subscription: &Subscription<M>) {
-        until_resolved(|| subscription.wait_for_publisher(&self.node)).await;
+        self.matches.first(subscription.guid()).await;
+    }
+
+    /// How many subscriptions `publisher` has matched.
+    pub fn subscription_count<M: RosMessage>(&self, publisher: &Publisher<M>) -> usize {
+        self.matches.count(publisher.guid())
     }
 
     fn dds_topic<M: RosMessage>(&self, topic: &Topic<M>) -> anyhow::Result<ros2_client::dds::rustdds::Topic> {
         let resolved = self.identity.resolve_topic(topic.name)?;
         let name = Name::parse(&resolved).map_err(|e| anyhow::anyhow!("topic {resolved}: {e}"))?;
-        self.node
+        self.inner()
             .create_topic(&name, MessageTypeName::new(M::PACKAGE, M::NAME), &topic.qos)
             .with_context(|| format!("cannot create topic {resolved}"))
     }
@@ -220,12 +248,6 @@ impl Drop for RosNode {
     fn drop(&mut self) {
         crate::logging::unregister_rosout(&self.identity.fully_qualified());
     }
-}
-
-/// Awaits a fresh `wait()` every [`MATCH_RECHECK`] until one resolves: each new wait starts by
-/// reading the match state, so a lost wake-up costs at most one period.
-async fn until_resolved<F: std::future::Future<Output = ()>>(wait: impl Fn() -> F) {
-    while tokio::time::timeout(MATCH_RECHECK, wait()).await.is_err() {}
 }
 
 /// The messages of `subscription` as a stream that owns it; messages that fail to deserialise are
@@ -305,39 +327,24 @@ impl<P: NodeParams> Params<P> {
         self.current.clone()
     }
 
-    fn with_services(values: ParamValues, specs: Vec<params::ParamSpec>) -> (Self, NodeOptions) {
+    /// The parameters `values` and the node options that declare them; a value set later (by the
+    /// parameter services, which check it first) reaches [`Params::watch`].
+    fn with_values(values: ParamValues) -> (Self, NodeOptions) {
         let (sender, current) = watch::channel(P::from_values(&values));
-        let mut options = NodeOptions::new().enable_rosout(true).start_parameter_services(true);
+        let mut options = NodeOptions::new().enable_rosout(true).start_parameter_services(false);
         for (name, value) in &values {
             options = options.declare_parameter(name, value.clone());
         }
-        let specs = Arc::new(specs);
-        let validator_specs = Arc::clone(&specs);
         let state = Mutex::new(values);
-        options = options
-            .parameter_validator(Box::new(move |name, value| {
-                if name == USE_SIM_TIME {
-                    return Ok(());
-                }
-                let spec = validator_specs
-                    .iter()
-                    .find(|s| s.name == name)
-                    .ok_or_else(|| format!("unknown parameter `{name}`"))?;
-                params::check_value(spec, value).map(|_| ())
-            }))
-            .parameter_set_action(Box::new(move |name, value| {
-                let Some(spec) = specs.iter().find(|s| s.name == name) else {
-                    return Ok(());
-                };
-                let value = params::check_value(spec, value)?;
-                let mut values = state.lock().unwrap_or_else(|e| e.into_inner());
-                if values.get(name) != Some(&value) {
-                    tracing::info!("parameter {name} set to {}", params::describe_value(&value));
-                    values.insert(name.to_string(), value);
-                    sender.send_replace(P::from_values(&values));
-                }
-                Ok(())
-            }));
+        options = options.parameter_set_action(Box::new(move |name, value| {
+            let mut values = state.lock().unwrap_or_else(|e| e.into_inner());
+            if name != USE_SIM_TIME && values.get(name) != Some(value) {
+                tracing::info!("parameter {name} set to {}", params::describe_value(value));
+                values.insert(name.to_string(), value.clone());
+                sender.send_replace(P::from_values(&values));
+            }
+            Ok(())
+        }));
         (Params { current }, options)
     }
 }

@@ -107,7 +107,7 @@ pub enum ParamError {
 pub const USE_SIM_TIME: &str = "use_sim_time";
 
 /// The parameter every ROS 2 node has: stamp with the simulated time of `/clock`.
-fn use_sim_time_spec() -> ParamSpec {
+pub(crate) fn use_sim_time_spec() -> ParamSpec {
     ParamSpec {
         name: USE_SIM_TIME,
         description: "Stamp messages with the simulated time of /clock instead of the wall clock.",

@@ -11,6 +11,11 @@ pub const fn reliable(depth: usize) -> QosProfile {
         .history(History::KeepLast { depth })
 }
 
+/// Reliable, volatile, keep last 10: rclpy's default for services.
+pub const fn services() -> QosProfile {
+    reliable(10)
+}
+
 /// Reliable and transient local, keep last 1: a latched topic such as `map`; late joiners get the last sample.
 pub const fn latched() -> QosProfile {
     reliable(1).durability(Durability::TransientLocal)

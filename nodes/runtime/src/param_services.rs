@@ -1,0 +1,274 @@
+//! The ROS 2 parameter services of a node (`~/get_parameters`, `~/set_parameters`,
+//! `~/list_parameters`, ...), answered from the node's declared parameters so that `ros2 param`
+//! lists, gets, sets and describes them. Values live in the `ros2-client` node, which checks a new
+//! value with the node's validator and publishes the change on `/parameter_events`.
+
+use std::sync::{Arc, Mutex};
+
+use anyhow::Context as _;
+use futures::StreamExt;
+use ros2_client::parameters::raw;
+use ros2_client::rcl_interfaces as rcl;
+use ros2_client::service::Server;
+use ros2_client::{Message, Name, Node, Parameter, ParameterValue, RmwRequestId, ServiceMapping, ServiceTypeName};
+
+use crate::params::{self, ParamSpec, USE_SIM_TIME};
+
+/// Separator of the parts of a parameter name (`a.b.c`).
+const NAME_SEPARATOR: char = '.';
+
+/// The six servers of one node.
+struct Servers {
+    get: Server<rcl::GetParametersRequest, rcl::GetParametersResponse>,
+    types: Server<rcl::GetParameterTypesRequest, rcl::GetParameterTypesResponse>,
+    set: Server<rcl::SetParametersRequest, rcl::SetParametersResponse>,
+    set_atomically: Server<rcl::SetParametersRequest, rcl::SetParametersAtomicallyResponse>,
+    list: Server<rcl::ListParametersRequest, rcl::ListParametersResponse>,
+    describe: Server<rcl::DescribeParametersRequest, rcl::DescribeParametersResponse>,
+}
+
+/// Creates the parameter services of `node`, whose parameters are `specs`, and answers them in a
+/// task of the current tokio runtime for as long as the process runs.
+pub(crate) fn start(node: &Arc<Mutex<Node>>, specs: Vec<ParamSpec>) -> anyhow::Result<()> {
+    let servers = {
+        let node = &mut node.lock().unwrap_or_else(|e| e.into_inner());
+        Servers {
+            get: server(node, "get_parameters", "GetParameters")?,
+            types: server(node, "get_parameter_types", "GetParameterTypes")?,
+            set: server(node, "set_parameters", "SetParameters")?,
+            set_atomically: server(node, "set_parameters_atomically", "SetParametersAtomically")?,
+            list: server(node, "list_parameters", "ListParameters")?,
+            describe: server(node, "describe_parameters", "DescribeParameters")?,
+        }
+    };
+    let table =
+        Table { node: Arc::clone(node), specs: std::iter::once(params::use_sim_time_spec()).chain(specs).collect() };
+    tokio::spawn(async move { serve(&servers, &table).await });
+    Ok(())
+}
+
+/// The server of `node`'s parameter service `service` (e.g. `get_parameters`), whose type is
+/// `rcl_interfaces/srv/<type_name>`.
+fn server<Req, Resp>(node: &mut Node, service: &str, type_name: &str) -> anyhow::Result<Server<Req, Resp>>
+where
+    Req: Message + Clone + 'static,
+    Resp: Message + 'static,
+{
+    let node_name = node.fully_qualified_name();
+    let name = Name::new(&node_name, service).map_err(|e| anyhow::anyhow!("{node_name}/{service}: {e}"))?;
+    let (qos, type_name) = (crate::qos::services(), ServiceTypeName::new("rcl_interfaces", type_name));
+    node.create_server(ServiceMapping::Enhanced, &name, &type_name, qos.clone(), qos)
+        .with_context(|| format!("cannot create the parameter service {node_name}/{service}"))
+}
+
+/// Answers the requests of `servers` from `table` until every request stream ends.
+async fn serve(servers: &Servers, table: &Table) {
+    let mut get = servers.get.receive_request_stream();
+    let mut types = servers.types.receive_request_stream();
+    let mut set = servers.set.receive_request_stream();
+    let mut set_atomically = servers.set_atomically.receive_request_stream();
+    let mut list = servers.list.receive_request_stream();
+    let mut describe = servers.describe.receive_request_stream();
+    loop {
+        tokio::select! {
+            Some(request) = get.next() => answer(&servers.get, request, |r| table.get(r)).await,
+            Some(request) = types.next() => answer(&servers.types, request, |r| table.types(r)).await,
+            Some(request) = set.next() => answer(&servers.set, request, |r| table.set(r)).await,
+            Some(request) = set_atomically.next() => {
+                answer(&servers.set_atomically, request, |r| table.set_atomically(r)).await
+            }
+            Some(request) = list.next() => answer(&servers.list, request, |r| table.list(r)).await,
+            Some(request) = describe.next() => answer(&servers.describe, request, |r| table.describe(r)).await,
+            else => return,
+        }
+    }
+}
+
+/// Sends `handle`'s response to a request; a request that could not be read is logged.
+async fn answer<Req, Resp>(
+    server: &Server<Req, Resp>,
+    request: ros2_client::ReadResult<(RmwRequestId, Req)>,
+    handle: impl FnOnce(Req) -> Resp,
+) where
+    Req: Message + Clone + 'static,
+    Resp: Message + 'static,
+{
+    match request {
+        Ok((id, request)) => {
+            if let Err(e) = server.async_send_response(id, handle(request)).await {
+                tracing::warn!("cannot answer a parameter request: {e:?}");
+            }
+        }
+        Err(e) => tracing::warn!("dropped a malformed parameter request: {e:?}"),
+    }
+}
+
+/// The parameters of one node: their declarations and the node that holds their values.
+struct Table {
+    node: Arc<Mutex<Node>>,
+    specs: Vec<ParamSpec>,
+}
+
+impl Table {
+    fn value(&self, name: &str) -> Option<ParameterValue> {
+        self.node.lock().unwrap_or_else(|e| e.into_inner()).get_parameter(name)
+    }
+
+    fn get(&self, request: rcl::GetParametersRequest) -> rcl::GetParametersResponse {
+        let value = |name: &String| self.value(name).unwrap_or(ParameterValue::NotSet).into();
+        rcl::GetParametersResponse { values: request.names.iter().map(value).collect() }
+    }
+
+    fn types(&self, request: rcl::GetParameterTypesRequest) -> rcl::GetParameterTypesResponse {
+        let type_of = |name: &String| self.value(name).map_or(raw::ParameterType::NOT_SET, |v| type_code(&v));
+        rcl::GetParameterTypesResponse { values: request.names.iter().map(type_of).collect() }
+    }
+
+    fn set(&self, request: rcl::SetParametersRequest) -> rcl::SetParametersResponse {
+        let results = request.parameter.into_iter().map(|p| result(self.set_one(Parameter::from(p)))).collect();
+        rcl::SetParametersResponse { results }
+    }
+
+    /// Sets every parameter of the request or none: all are checked before the first is set.
+    fn set_atomically(&self, request: rcl::SetParametersRequest) -> rcl::SetParametersAtomicallyResponse {
+        let parameters: Vec<Parameter> = request.parameter.into_iter().map(Parameter::from).collect();
+        let checked = parameters.iter().try_for_each(|p| self.check(p).map(|_| ()));
+        let outcome = checked.and_then(|()| parameters.into_iter().try_for_each(|p| self.set_one(p)));
+        rcl::SetParametersAtomicallyResponse { result: result(outcome) }
+    }
+
+    fn list(&self, request: rcl::ListParametersRequest) -> rcl::ListParametersResponse {
+        let names: Vec<&str> = self.specs.iter().map(|s| s.name).collect();
+        rcl::ListParametersResponse { result: list(&names, &request.prefixes, request.depth) }
+    }
+
+    fn describe(&self, request: rcl::DescribeParametersRequest) -> rcl::DescribeParametersResponse {
+        rcl::DescribeParametersResponse { values: request.names.iter().map(|n| describe(&self.specs, n)).collect() }
+    }
+
+    /// The value `parameter` would be set to (integers widened where a number is declared), if it
+    /// may be set: declared, of its type, within its range, and not `use_sim_time`, which a node
+    /// reads when it starts.
+    fn check(&self, parameter: &Parameter) -> Result<ParameterValue, String> {
+        if parameter.name == USE_SIM_TIME {
+            return Err(format!("{USE_SIM_TIME} is read when the node starts: start it with -p {USE_SIM_TIME}:=true"));
+        }
+        let spec = self.specs.iter().find(|s| s.name == parameter.name);
+        let spec = spec.ok_or_else(|| format!("unknown parameter `{}`", parameter.name))?;
+        params::check_value(spec, &parameter.value).map_err(|reason| format!("{} {reason}", parameter.name))
+    }
+
+    fn set_one(&self, parameter: Parameter) -> Result<(), String> {
+        let value = self.check(&parameter)?;
+        self.node.lock().unwrap_or_else(|e| e.into_inner()).set_parameter(&parameter.name, value)
+    }
+}
+
+fn result(outcome: Result<(), String>) -> raw::SetParametersResult {
+    match outcome {
+        Ok(()) => raw::SetParametersResult { successful: true, reason: String::new() },
+        Err(reason) => raw::SetParametersResult { successful: false, reason },
+    }
+}
+
+/// The `rcl_interfaces/ParameterType` code of `value`.
+fn type_code(value: &ParameterValue) -> u8 {
+    value.to_parameter_type() as u8
+}
+
+/// The parameters among `names` that a `list_parameters` request for `prefixes` (none: all) and
+/// `depth` (0: any) asks for, and the prefixes of those with nested names. A name is `depth`
+/// deep when it has fewer than `depth` separators after the prefix.
+fn list(names: &[&str], prefixes: &[String], depth: u64) -> rcl::ListParametersResult {
+    let shallow = |rest: &str| depth == 0 || (rest.matches(NAME_SEPARATOR).count() as u64) < depth;
+    let under = |name: &str, prefix: &str| {
+        name == prefix || name.strip_prefix(prefix).and_then(|r| r.strip_prefix(NAME_SEPARATOR)).is_some_and(shallow)
+    };
+    let wanted = |name: &str| {
+        if prefixes.is_empty() { shallow(name) } else { prefixes.iter().any(|prefix| under(name, prefix)) }
+    };
+    let names: Vec<String> = names.iter().filter(|name| wanted(name)).map(|name| name.to_string()).collect();
+    let mut nested: Vec<String> =
+        names.iter().filter_map(|n| n.rsplit_once(NAME_SEPARATOR).map(|(prefix, _)| prefix.to_string())).collect();
+    nested.sort();
+    nested.dedup();
+    rcl::ListParametersResult { names, prefixes: nested }
+}
+
+/// What `describe_parameters` says of `name`: its type, description and range, or that it is
+/// not declared.
+fn describe(specs: &[ParamSpec], name: &str) -> raw::ParameterDescriptor {
+    let Some(spec) = specs.iter().find(|s| s.name == name) else {
+        return raw::ParameterDescriptor {
+            name: name.to_string(),
+            r#type: raw::ParameterType::NOT_SET,
+            description: "not declared by this node".to_string(),
+            additional_constraints: String::new(),
+            read_only: true,
+            dynamic_typing: false,
+            floating_point_range: Vec::new(),
+            integer_range: Vec::new(),
+        };
+    };
+    let (mut integer_range, mut floating_point_range) = (Vec::new(), Vec::new());
+    match (spec.range, &spec.default) {
+        (Some((from, to)), ParameterValue::Integer(_)) => {
+            integer_range.push(raw::IntegerRange { from_value: from as i64, to_value: to as i64, step: 0 });
+        }
+        (Some((from_value, to_value)), _) => {
+            floating_point_range.push(raw::FloatingPointRange { from_value, to_value, step: 0.0 });
+        }
+        (None, _) => {}
+    }
+    raw::ParameterDescriptor {
+        name: name.to_string(),
+        r#type: type_code(&spec.default),
+        description: spec.description.to_string(),
+        additional_constraints: String::new(),
+        read_only: false,
+        dynamic_typing: false,
+        floating_point_range,
+        integer_range,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn strings(items: &[&str]) -> Vec<String> {
+        items.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn a_list_request_selects_by_prefix_and_depth() {
+        let names = ["port", "limits.speed", "limits.turn.rate", "limits_other"];
+        let all = list(&names, &[], 0);
+        assert_eq!(all.names, strings(&names));
+        assert_eq!(all.prefixes, strings(&["limits", "limits.turn"]));
+        assert_eq!(list(&names, &[], 1).names, strings(&["port", "limits_other"]), "no separator at depth 1");
+        let limits = list(&names, &strings(&["limits"]), 0);
+        assert_eq!(limits.names, strings(&["limits.speed", "limits.turn.rate"]), "not limits_other");
+        assert_eq!(list(&names, &strings(&["limits"]), 1).names, strings(&["limits.speed"]));
+        assert!(list(&names, &strings(&["nothing"]), 0).names.is_empty());
+    }
+
+    #[test]
+    fn a_described_parameter_has_its_type_description_and_range() {
+        let spec = |name, default, range| ParamSpec { name, description: "what it does", default, range };
+        let specs = [
+            spec("deadline_ms", ParameterValue::Double(50.0), Some((0.0, 250.0))),
+            spec("every", ParameterValue::Integer(10), Some((0.0, 100.0))),
+            spec("rule", ParameterValue::String("rgb".into()), None),
+        ];
+        let deadline = describe(&specs, "deadline_ms");
+        assert_eq!((deadline.r#type, deadline.description.as_str()), (raw::ParameterType::DOUBLE, "what it does"));
+        assert_eq!(deadline.floating_point_range[0].to_value, 250.0);
+        assert!(deadline.integer_range.is_empty() && !deadline.read_only);
+        let every = describe(&specs, "every");
+        assert_eq!((every.r#type, every.integer_range[0].to_value), (raw::ParameterType::INTEGER, 100));
+        let rule = describe(&specs, "rule");
+        assert!(rule.integer_range.is_empty() && rule.floating_point_range.is_empty());
+        assert_eq!(describe(&specs, "missing").r#type, raw::ParameterType::NOT_SET);
+    }
+}
