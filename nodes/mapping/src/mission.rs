@@ -19,6 +19,11 @@ use crate::snapshot::{Home, Memory};
 /// this order; a restarted bridge numbers frames from 1 again, but its stamps go on.
 type ScanOrder = (i32, u32, u64);
 
+/// Where a message of `frame` stamped in `header` stands among the scans.
+fn order_of(header: &Header, frame: u64) -> ScanOrder {
+    (header.stamp.sec, header.stamp.nanosec, frame)
+}
+
 /// The mapping node's state: the map, home, the samples collected and what it rejected.
 #[derive(Debug, Clone)]
 pub struct MappingCore {
@@ -29,6 +34,10 @@ pub struct MappingCore {
     tally: SampleTally,
     home: Option<Home>,
     last_scan: Option<ScanOrder>,
+    /// Rocks picked up, to forget before the first scan taken after the pickup's telemetry
+    /// (telemetry and scans come on two topics, in either order): the pickup's place in time and
+    /// the rover's pose (x, y, yaw).
+    picked: Vec<(ScanOrder, [f64; 3])>,
     rejections: Rejections,
     frames_mapped: u64,
     tilted_frames: u64,
@@ -46,6 +55,7 @@ impl MappingCore {
             tally: SampleTally::default(),
             home: None,
             last_scan: None,
+            picked: Vec::new(),
             rejections: Rejections::default(),
             frames_mapped: 0,
             tilted_frames: 0,
@@ -57,13 +67,14 @@ impl MappingCore {
     pub fn add_scan(&mut self, scan: &TerrainScan) {
         self.unpublished_scans += 1;
         if self.rejections.accept(topics::TERRAIN.name, scan) && self.in_order(scan) {
+            self.forget_rocks_picked_before(order_of(&scan.header, scan.frame));
             self.map_scan(scan);
         }
     }
 
     /// Whether `scan` comes after the last scan taken (by stamp, then frame); it becomes the last.
     fn in_order(&mut self, scan: &TerrainScan) -> bool {
-        let order = (scan.header.stamp.sec, scan.header.stamp.nanosec, scan.frame);
+        let order = order_of(&scan.header, scan.frame);
         if let Some(last) = self.last_scan.filter(|&last| order <= last) {
             let problem = format_args!("skipped a terrain scan: frame {} arrived after frame {}", scan.frame, last.2);
             self.rejections.reject("out_of_order", &problem);
@@ -93,8 +104,26 @@ impl MappingCore {
         }
         self.home.get_or_insert(Home { frame: telemetry.frame, x_m: telemetry.x_m, y_m: telemetry.y_m });
         if self.tally.update(telemetry.samples_remaining) > 0 {
-            self.map.forget_picked_rock(telemetry.x_m, telemetry.y_m, telemetry.yaw_rad as f64);
+            let pose = [telemetry.x_m, telemetry.y_m, telemetry.yaw_rad as f64];
+            self.picked.push((order_of(&telemetry.header, telemetry.frame), pose));
+            if let Some(last) = self.last_scan {
+                self.forget_rocks_picked_before(last);
+            }
         }
+    }
+
+    /// Forgets the rocks picked up before `order` (a scan's): a pickup lands between the same two
+    /// scans whichever of its telemetry and the scan of its frame came first (unless its
+    /// telemetry comes after a later scan, when it lands at once).
+    fn forget_rocks_picked_before(&mut self, order: ScanOrder) {
+        let map = &mut self.map;
+        self.picked.retain(|&(picked_at, [x_m, y_m, yaw_rad])| {
+            let due = picked_at < order;
+            if due {
+                map.forget_picked_rock(x_m, y_m, yaw_rad);
+            }
+            !due
+        });
     }
 
     /// Keeps the first true sample positions received (for scoring the located rocks).
@@ -292,6 +321,36 @@ mod tests {
         assert_eq!(rocks.len(), 1, "{rocks:?}");
         assert!((rocks[0].0 - other.0).hypot(rocks[0].1 - other.1) < 3.0, "the other rock stays: {rocks:?}");
         assert_eq!(mapping.stats(Header::default()).samples_collected, 1);
+    }
+
+    #[test]
+    fn a_pickup_lands_between_the_same_scans_whichever_of_its_telemetry_and_scan_comes_first() {
+        let (picked, other) = ((100.0, 100.0), (150.0, 150.0));
+        let stamped = |frame: u64, samples| Telemetry {
+            header: Header { stamp: Time { sec: frame as i32, nanosec: 0 }, frame_id: String::new() },
+            ..telemetry(frame, picked, samples)
+        };
+        let map_after = |telemetry_first: bool| {
+            let mut mapping = core();
+            mapping.on_telemetry(&stamped(1, 6));
+            for frame in 1..=3 {
+                mapping.add_scan(&rock_scan(frame, frame as i32, picked));
+            }
+            let pickup_scan = rock_scan(4, 4, picked);
+            if telemetry_first {
+                mapping.on_telemetry(&stamped(4, 5));
+                mapping.add_scan(&pickup_scan);
+            } else {
+                mapping.add_scan(&pickup_scan);
+                mapping.on_telemetry(&stamped(4, 5));
+            }
+            assert_eq!(mapping.rocks().len(), 1, "not forgotten before the next scan");
+            mapping.add_scan(&rock_scan(5, 5, other));
+            (mapping.map().occupancy(), mapping.rocks())
+        };
+        let (telemetry_first, scan_first) = (map_after(true), map_after(false));
+        assert_eq!(telemetry_first, scan_first);
+        assert!(telemetry_first.1.iter().all(|rock| rock.0 > 140.0), "only the other rock: {:?}", telemetry_first.1);
     }
 
     #[test]
