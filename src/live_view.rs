@@ -1,8 +1,8 @@
 //! `rover live-view`: the graph's topics live in Foxglove. A WebSocket server of the `foxglove`
 //! crate (Foxglove's WebSocket protocol) gets one channel per topic below; each message goes out as
 //! the CDR bytes ros2-client sent, with the topic's `ros2msg` schema, as a bag stores it, so that
-//! Foxglove decodes camera, map, odometry, TF, rocks and the decision's mode with its own ROS 2
-//! readers.
+//! Foxglove decodes camera, map, odometry, TF, rocks, the decision's mode and its planned path with
+//! its own ROS 2 readers.
 
 use std::sync::Arc;
 
@@ -21,7 +21,7 @@ pub const DEFAULT_PORT: u16 = 8765;
 /// The message encoding of every channel: ROS 2's CDR.
 const MESSAGE_ENCODING: &str = "cdr";
 /// The topics served (names of the topic table).
-const LIVE_TOPICS: [&str; 9] = [
+const LIVE_TOPICS: [&str; 10] = [
     topics::CAMERA_COMPRESSED.name,
     topics::CAMERA_INFO.name,
     topics::ODOM.name,
@@ -30,6 +30,7 @@ const LIVE_TOPICS: [&str; 9] = [
     topics::MAP.name,
     topics::ROCKS.name,
     topics::MODE.name,
+    topics::PLAN.name,
     topics::TELEMETRY.name,
 ];
 

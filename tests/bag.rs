@@ -108,7 +108,7 @@ fn last_in_bag<M: rover_msgs::RosMessage>(dir: &Path, topic: &str) -> M {
 #[test]
 fn the_recorder_reports_every_topic_of_the_table_and_the_mission_traffic() {
     let recorded = recorded_mission();
-    assert_eq!(recorded.reported.len(), 20, "{:?}", recorded.reported);
+    assert_eq!(recorded.reported.len(), 21, "{:?}", recorded.reported);
     let count = |topic: &str| recorded.reported[topic].1;
     let frames = count("/rover/telemetry");
     assert!(frames >= 900, "{frames} telemetry frames for {MISSION_SIM_SECONDS} sim s");

@@ -1,7 +1,7 @@
 //! The Foxglove live view: `rover demo --foxglove` serves the Foxglove WebSocket protocol; a client
-//! speaking it (subprotocol `foxglove.sdk.v1`) finds the map channel among the advertised
-//! ones, subscribes, and decodes its messages as the graph's `nav_msgs/OccupancyGrid` until one
-//! shows mapped ground.
+//! speaking it (subprotocol `foxglove.sdk.v1`) finds the map and plan channels among the
+//! advertised ones, subscribes, and decodes their messages as the graph's `nav_msgs/OccupancyGrid`
+//! and `nav_msgs/Path` until the map shows mapped ground and the plan has poses.
 
 mod support;
 
@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 
 use futures::{SinkExt, StreamExt};
 use rover_msgs::RosMessage;
-use rover_msgs::nav_msgs::OccupancyGrid;
+use rover_msgs::nav_msgs::{OccupancyGrid, Path};
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::client::IntoClientRequest;
 use tokio_tungstenite::tungstenite::http::HeaderValue;
@@ -19,6 +19,9 @@ use tokio_tungstenite::tungstenite::http::HeaderValue;
 const SUBPROTOCOL: &str = "foxglove.sdk.v1";
 /// Opcode of a binary message carrying a subscribed channel's message.
 const MESSAGE_DATA: u8 = 0x01;
+/// The ids this client gives its subscriptions of the map and of the decision's plan.
+const MAP_SUBSCRIPTION: u32 = 7;
+const PLAN_SUBSCRIPTION: u32 = 8;
 
 struct Demo(Child);
 
@@ -41,7 +44,7 @@ fn advertised(text: &str, topic: &str) -> Option<(u64, String)> {
 }
 
 #[tokio::test(flavor = "multi_thread")]
-async fn a_foxglove_client_subscribes_to_the_map_and_decodes_it() {
+async fn a_foxglove_client_subscribes_to_the_map_and_the_plan_and_decodes_them() {
     support::assert_isolated();
     let domain = support::Domain::reserve();
     let port = domain.port();
@@ -64,32 +67,47 @@ async fn a_foxglove_client_subscribes_to_the_map_and_decodes_it() {
     assert_eq!(response.headers().get("Sec-WebSocket-Protocol").and_then(|v| v.to_str().ok()), Some(SUBPROTOCOL));
 
     let deadline = Instant::now() + Duration::from_secs(90);
-    let mut subscribed = None;
-    let grid = loop {
-        assert!(Instant::now() < deadline, "no map message within 90 s (subscribed: {subscribed:?})");
+    let (mut subscribed, mut grid, mut plan) = (Vec::new(), None::<OccupancyGrid>, None::<Path>);
+    while grid.is_none() || plan.is_none() {
+        assert!(Instant::now() < deadline, "no map and plan within 90 s (subscribed: {subscribed:?})");
         let next = tokio::time::timeout(Duration::from_secs(30), socket.next()).await;
         let message = next.expect("a message within 30 s").expect("the stream goes on").expect("a message");
         match message {
-            Message::Text(text) if subscribed.is_none() => {
-                if let Some((channel, schema)) = advertised(&text, "/map") {
-                    assert_eq!(schema, OccupancyGrid::type_name());
-                    let subscribe =
-                        serde_json::json!({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": channel}]});
-                    socket.send(Message::text(subscribe.to_string())).await.expect("subscribe");
-                    subscribed = Some(channel);
+            Message::Text(text) => {
+                for (subscription, topic, type_name) in [
+                    (MAP_SUBSCRIPTION, "/map", OccupancyGrid::type_name()),
+                    (PLAN_SUBSCRIPTION, "/rover/plan", Path::type_name()),
+                ] {
+                    if let Some((channel, schema)) = advertised(&text, topic) {
+                        assert_eq!(schema, type_name, "{topic}");
+                        let subscribe = serde_json::json!({"op": "subscribe", "subscriptions": [{"id": subscription, "channelId": channel}]});
+                        socket.send(Message::text(subscribe.to_string())).await.expect("subscribe");
+                        subscribed.push(topic);
+                    }
                 }
             }
             Message::Binary(data) if data.first() == Some(&MESSAGE_DATA) => {
-                assert_eq!(u32::from_le_bytes(data[1..5].try_into().unwrap()), 7, "our subscription's id");
-                let grid = rover_node::cdr::decode::<OccupancyGrid>(&data[13..]).expect("a CDR OccupancyGrid");
-                assert_eq!((grid.info.width, grid.info.height), (200, 200));
-                if grid.data.contains(&0) {
-                    break grid;
+                let (subscription, payload) = (u32::from_le_bytes(data[1..5].try_into().unwrap()), &data[13..]);
+                if subscription == MAP_SUBSCRIPTION {
+                    let map = rover_node::cdr::decode::<OccupancyGrid>(payload).expect("a CDR OccupancyGrid");
+                    assert_eq!((map.info.width, map.info.height), (200, 200));
+                    grid = grid.or(map.data.contains(&0).then_some(map));
+                } else {
+                    assert_eq!(subscription, PLAN_SUBSCRIPTION, "one of our subscriptions' ids");
+                    let path = rover_node::cdr::decode::<Path>(payload).expect("a CDR Path");
+                    plan = plan.or((!path.poses.is_empty()).then_some(path));
                 }
             }
             _ => {}
         }
-    };
+    }
+    let (grid, plan) = (grid.unwrap(), plan.unwrap());
     assert_eq!(grid.data.len(), 200 * 200, "a whole map, with free cells mapped");
+    assert_eq!(plan.header.frame_id, "map");
+    let step_m = plan.poses.windows(2).map(|pair| {
+        let (a, b) = (&pair[0].pose.position, &pair[1].pose.position);
+        (a.x - b.x).hypot(a.y - b.y)
+    });
+    assert!(step_m.fold(0.0, f64::max) < 1.5, "a plan goes from cell to neighbouring cell");
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use support::{Domain, STOP_TIMEOUT, eventually, ros2_cli, rover, start_process};
 
 /// Every topic of the graph with its type, as `ros2 topic list -t` prints it.
-const TOPICS: [&str; 19] = [
+const TOPICS: [&str; 20] = [
     "/camera/image_raw/compressed [sensor_msgs/msg/CompressedImage]",
     "/camera/image_raw [sensor_msgs/msg/Image]",
     "/camera/camera_info [sensor_msgs/msg/CameraInfo]",
@@ -33,6 +33,7 @@ const TOPICS: [&str; 19] = [
     "/rover/drive_cmd [rover_msgs/msg/DriveCommand]",
     "/rover/pickup [rover_msgs/msg/PickupRequest]",
     "/rover/mode [rover_msgs/msg/DecisionState]",
+    "/rover/plan [nav_msgs/msg/Path]",
     "/cmd_vel [geometry_msgs/msg/Twist]",
     "/diagnostics [diagnostic_msgs/msg/DiagnosticArray]",
 ];

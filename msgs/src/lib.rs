@@ -156,6 +156,8 @@ pub mod geometry_msgs {
     "geometry_msgs" / Pose { position: Point, orientation: Quaternion } }
     ros_message! { /// A set of poses in one frame.
     "geometry_msgs" / PoseArray { header: Header, poses: Vec<Pose> } }
+    ros_message! { /// A pose in the frame of its header.
+    "geometry_msgs" / PoseStamped { header: Header, pose: Pose } }
     ros_message! { /// Linear (m/s) and angular (rad/s) velocity.
     "geometry_msgs" / Twist { linear: Vector3, angular: Vector3 } }
     ros_message! { /// A pose with its 6x6 covariance.
@@ -193,7 +195,7 @@ pub mod geometry_msgs {
 
 /// `nav_msgs` messages.
 pub mod nav_msgs {
-    use crate::geometry_msgs::{Pose, PoseWithCovariance, TwistWithCovariance};
+    use crate::geometry_msgs::{Pose, PoseStamped, PoseWithCovariance, TwistWithCovariance};
     use crate::std_msgs::Header;
 
     ros_message! { /// Pose and velocity estimate of `child_frame_id` in `header.frame_id`.
@@ -206,6 +208,8 @@ pub mod nav_msgs {
     } }
     ros_message! { /// A 2-D occupancy grid: 0 free, 100 occupied, -1 unknown, row-major from the origin.
     "nav_msgs" / OccupancyGrid { header: Header, info: MapMetaData, data: Vec<i8> } }
+    ros_message! { /// A path for a robot to follow, pose by pose.
+    "nav_msgs" / Path { header: Header, poses: Vec<PoseStamped> } }
 }
 
 /// `sensor_msgs` messages.

@@ -70,6 +70,11 @@ impl Chase {
         Chase { at, first_at: at, give_up_frame, max_cost, route: None, staging, unseen_since: None }
     }
 
+    /// The cells of the route's latest plan (empty while the rover drives straight at the sample).
+    pub fn path(&self) -> &[usize] {
+        self.route.as_ref().map_or(&[], Route::path)
+    }
+
     /// Whether the route's latest plan costs more than the approach is worth: the map has shown
     /// the way to the sample to be a long way round.
     pub fn out_of_the_way(&self) -> bool {

@@ -106,6 +106,11 @@ impl Explorer {
         Explorer { inspected, explored, past_obstacles, ..Explorer::default() }
     }
 
+    /// The cells of the path to the current target (empty without one).
+    pub fn path(&self) -> &[usize] {
+        self.target.as_ref().map_or(&[], |t| &t.path)
+    }
+
     /// The current target's centre, if any.
     pub fn target(&self) -> Option<(f64, f64)> {
         self.target.as_ref().map(|t| cell_centre_m(t.cell))

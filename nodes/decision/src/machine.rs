@@ -301,6 +301,17 @@ impl Machine {
         &self.status
     }
 
+    /// The cells of the path on the map that the rover follows now: to the frontier, the sample or
+    /// home (empty when it follows none: turning, picking up, recovering, done).
+    pub fn path(&self) -> &[usize] {
+        match &self.state {
+            State::Explore => self.explorer.path(),
+            State::Approach(chase) => chase.path(),
+            State::ReturnHome(Some(route)) => route.path(),
+            _ => &[],
+        }
+    }
+
     /// Whether the mode changed since the last call.
     pub fn take_change(&mut self) -> bool {
         std::mem::take(&mut self.changed)
@@ -811,6 +822,17 @@ mod tests {
         assert_eq!(machine.status().mode, Mode::ReturnHome, "10 m from home is not home");
         assert_eq!(machine.status().home, Some((100.5, 100.5)));
         assert!(drive.brake == 0.0, "{drive:?}");
+    }
+
+    #[test]
+    fn the_path_followed_while_exploring_leads_to_the_frontier_target() {
+        let mut machine = machine_on(corridor());
+        assert!(machine.path().is_empty(), "no plan before the first frame");
+        machine.step(&observation(1, 100.5, 100.5));
+        let path = machine.path();
+        let (first, last) = (cell_centre_m(path[0]), cell_centre_m(path[path.len() - 1]));
+        assert_eq!(first, (100.5, 100.5), "from the rover's cell");
+        assert_eq!(Some(last), machine.explorer.target(), "to the target");
     }
 
     #[test]

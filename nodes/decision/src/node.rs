@@ -4,10 +4,10 @@
 use futures::StreamExt;
 use rover_msgs::frame_ids;
 use rover_msgs::frames::MissionFrames;
-use rover_msgs::geometry_msgs::PoseArray;
-use rover_msgs::map_grid::SIDE_CELLS;
+use rover_msgs::geometry_msgs::{Point, Pose, PoseArray, PoseStamped, Quaternion};
+use rover_msgs::map_grid::{SIDE_CELLS, cell_centre_m};
 use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, Telemetry, TerrainScan};
-use rover_msgs::nav_msgs::OccupancyGrid;
+use rover_msgs::nav_msgs::{OccupancyGrid, Path};
 use rover_msgs::std_msgs::Header;
 use rover_node::pairing::Pairer;
 use rover_node::snapshot::SnapshotFile;
@@ -32,6 +32,9 @@ struct Decision {
     rays: FreeSpaceRays,
     drive: Publisher<DriveCommand>,
     mode: Publisher<DecisionState>,
+    plan: Publisher<Path>,
+    /// The cells of the path last published on `rover/plan`.
+    planned: Vec<usize>,
     first_frame: Option<u64>,
     mission_frames: MissionFrames,
     resumed: bool,
@@ -61,6 +64,17 @@ impl Decision {
         }
         if self.machine.take_change() || telemetry.frame.is_multiple_of(STATUS_EVERY_FRAMES) {
             self.publish_status(telemetry);
+        }
+        if self.machine.path() != self.planned {
+            self.planned = self.machine.path().to_vec();
+            self.publish_plan(telemetry);
+        }
+    }
+
+    fn publish_plan(&mut self, telemetry: &Telemetry) {
+        let header = Header { frame_id: frame_ids::MAP.to_string(), ..telemetry.header.clone() };
+        if let Err(e) = self.plan.publish(path_message(&self.planned, header)) {
+            tracing::warn!("cannot publish rover/plan: {e:?}");
         }
     }
 
@@ -164,6 +178,8 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         machine: Machine::new(settings),
         drive: node.publisher(&topics::DRIVE_CMD)?,
         mode: node.publisher(&topics::MODE)?,
+        plan: node.publisher(&topics::PLAN)?,
+        planned: Vec::new(),
         first_frame: None,
         mission_frames: MissionFrames::default(),
         resumed: false,
@@ -214,7 +230,35 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The path through the centres of `cells`, in the map frame of `header`.
+fn path_message(cells: &[usize], header: Header) -> Path {
+    let pose = |cell: usize| {
+        let (x, y) = cell_centre_m(cell);
+        let pose = Pose { position: Point { x, y, z: 0.0 }, orientation: Quaternion::IDENTITY };
+        PoseStamped { header: header.clone(), pose }
+    };
+    Path { poses: cells.iter().map(|&cell| pose(cell)).collect(), header }
+}
+
 /// Whether a map has the size and cell size of the grid the machine plans on.
 fn is_the_planning_grid(map: &OccupancyGrid) -> bool {
     (map.info.width as usize, map.info.height as usize, map.info.resolution) == (SIDE_CELLS, SIDE_CELLS, 1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use rover_msgs::map_grid::cell_at;
+
+    use super::*;
+
+    #[test]
+    fn a_plan_goes_through_the_centres_of_its_cells_in_the_map_frame() {
+        let header = Header { frame_id: frame_ids::MAP.to_string(), ..Header::default() };
+        let path = path_message(&[cell_at(10, 20), cell_at(11, 21)], header);
+        let points: Vec<(f64, f64)> = path.poses.iter().map(|p| (p.pose.position.x, p.pose.position.y)).collect();
+        assert_eq!(points, [(10.5, 20.5), (11.5, 21.5)]);
+        assert!(path.poses.iter().all(|p| p.header.frame_id == "map" && p.pose.orientation == Quaternion::IDENTITY));
+        assert_eq!(path.header.frame_id, "map");
+        assert!(path_message(&[], Header::default()).poses.is_empty());
+    }
 }

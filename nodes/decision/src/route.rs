@@ -107,6 +107,12 @@ impl Route {
         Some(Route { goal: cell_of_point(goal.0, goal.1)?, path: Vec::new(), cost: None, planned: None })
     }
 
+    /// The cells of the latest plan, from the rover's cell on (empty before the first plan or when
+    /// the goal cannot be reached).
+    pub fn path(&self) -> &[usize] {
+        &self.path
+    }
+
     /// The path cost of the latest plan (see [`path_costs`]); `None` before the first plan or
     /// when the goal cannot be reached on the map.
     pub fn cost(&self) -> Option<f64> {

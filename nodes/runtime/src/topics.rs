@@ -8,7 +8,7 @@ use rover_msgs::RosMessage;
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_msgs::geometry_msgs::{PoseArray, Twist};
 use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, PickupRequest, Telemetry, TerrainScan};
-use rover_msgs::nav_msgs::{OccupancyGrid, Odometry};
+use rover_msgs::nav_msgs::{OccupancyGrid, Odometry, Path};
 use rover_msgs::rosgraph_msgs::Clock;
 use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image};
 use rover_msgs::tf2_msgs::TFMessage;
@@ -61,6 +61,7 @@ pub fn visit_all(visitor: &mut impl TopicVisitor) -> anyhow::Result<()> {
     visitor.visit(&DRIVE_CMD)?;
     visitor.visit(&PICKUP)?;
     visitor.visit(&MODE)?;
+    visitor.visit(&PLAN)?;
     visitor.visit(&CMD_VEL)?;
     visitor.visit(&CLOCK)?;
     visitor.visit(&DIAGNOSTICS)
@@ -100,6 +101,9 @@ pub const DRIVE_CMD: Topic<DriveCommand> = Topic::new("rover/drive_cmd", reliabl
 pub const PICKUP: Topic<PickupRequest> = Topic::new("rover/pickup", reliable(10));
 /// State of the decision node.
 pub const MODE: Topic<DecisionState> = Topic::new("rover/mode", latched());
+/// The path on the map that the decision node follows, cell centre by cell centre (empty while
+/// it follows none).
+pub const PLAN: Topic<Path> = Topic::new("rover/plan", latched());
 /// Teleoperation velocity (overrides the decision node while fresh).
 pub const CMD_VEL: Topic<Twist> = Topic::new("cmd_vel", reliable(10));
 /// Simulated time, from the bridge (nodes with `use_sim_time` stamp with it).
