@@ -235,10 +235,7 @@ fn describe(specs: &[ParamSpec], name: &str) -> raw::ParameterDescriptor {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn strings(items: &[&str]) -> Vec<String> {
-        items.iter().map(|s| s.to_string()).collect()
-    }
+    use crate::ros_args::tests::strings;
 
     #[test]
     fn a_list_request_selects_by_prefix_and_depth() {

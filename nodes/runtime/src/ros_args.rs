@@ -126,10 +126,11 @@ impl RosArgs {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn strings(args: &[&str]) -> Vec<String> {
+    /// `args` as owned strings.
+    pub(crate) fn strings(args: &[&str]) -> Vec<String> {
         args.iter().map(|s| s.to_string()).collect()
     }
 
