@@ -1,9 +1,6 @@
 //! Planning on the 200 x 200 occupancy grid: path costs from the rover to every cell (Dijkstra with
 //! wall clearance and a premium for unknown ground), frontiers, and paths.
 
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
-
 use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_at, cell_centre_m, cell_of_point, cell_xy, checked_cell_at};
 
 /// What a cell of the occupancy grid says.
@@ -81,22 +78,21 @@ impl Grid {
         self.cells[cell] == Cell::Blocked && chebyshev(cell, start) > ESCAPE_RADIUS_CELLS
     }
 
-    /// Whether a plan from `start` with `costs` cannot cross `cell`.
-    fn walls_off(&self, cell: usize, start: usize, costs: &Costs) -> bool {
-        costs.obstacle.is_none() && self.beyond_escape(cell, start)
-    }
-
-    fn step_cost(&self, i: usize, costs: &Costs, start: usize) -> Option<f32> {
-        match self.cells[i] {
-            Cell::Blocked if self.beyond_escape(i, start) => {
-                costs.obstacle.map(|extra| 1.0 + costs.near_wall + costs.unknown + extra)
-            }
-            Cell::Blocked => Some(1.0 + costs.near_wall + costs.unknown),
-            Cell::Unknown if !costs.cross_unknown => None,
-            Cell::Unknown => Some(1.0 + costs.unknown),
-            Cell::Free if self.near_wall[i] => Some(1.0 + costs.near_wall),
-            Cell::Free => Some(1.0),
-        }
+    /// The cost of entering each cell on a plan from `start` (infinite: it cannot be entered).
+    fn step_costs(&self, start: usize, costs: &Costs) -> Vec<f32> {
+        let blocked = 1.0 + costs.near_wall + costs.unknown;
+        (0..CELLS)
+            .map(|i| match self.cells[i] {
+                Cell::Blocked if self.beyond_escape(i, start) => {
+                    costs.obstacle.map_or(f32::INFINITY, |extra| blocked + extra)
+                }
+                Cell::Blocked => blocked,
+                Cell::Unknown if !costs.cross_unknown => f32::INFINITY,
+                Cell::Unknown => 1.0 + costs.unknown,
+                Cell::Free if self.near_wall[i] => 1.0 + costs.near_wall,
+                Cell::Free => 1.0,
+            })
+            .collect()
     }
 
     /// Path costs from `start` to every cell and each cell's predecessor (Dijkstra, 8-connected,
@@ -104,35 +100,36 @@ impl Grid {
     /// obstacle cells right around it can be crossed at a premium: a rover that the map puts in or
     /// against a wall (a sample by the wall, a wall margin) can still leave.
     pub fn costs_from(&self, start: usize, costs: &Costs) -> CostMap {
-        let mut distance = vec![f32::INFINITY; CELLS];
-        let mut parent = vec![usize::MAX; CELLS];
-        let mut heap = BinaryHeap::new();
-        distance[start] = 0.0;
-        heap.push(Reverse((Ordered(0.0), start)));
-        while let Some(Reverse((Ordered(d), i))) = heap.pop() {
-            if d > distance[i] {
-                continue;
+        let step = self.step_costs(start, costs);
+        let mut search = Search::new(start, &step);
+        let mut k = 0;
+        while search.open.len > 0 {
+            let keys = search.open.take_sorted(k);
+            for (d, i) in keys.iter().map(|&key| from_heap_key(key)) {
+                if d <= search.distance[i] {
+                    self.expand(i, d, &step, &mut search);
+                }
             }
-            let (x, y) = cell_xy(i);
-            for (dx, dy) in NEIGHBOURS8 {
-                let Some(n) = checked_cell_at(x as i64 + dx, y as i64 + dy) else { continue };
-                let (nx, ny) = cell_xy(n);
-                let diagonal = dx != 0 && dy != 0;
-                if diagonal
-                    && (self.walls_off(cell_at(nx, y), start, costs) || self.walls_off(cell_at(x, ny), start, costs))
-                {
-                    continue;
-                }
-                let Some(step) = self.step_cost(n, costs, start) else { continue };
-                let next = d + step * if diagonal { std::f32::consts::SQRT_2 } else { 1.0 };
-                if next < distance[n] {
-                    distance[n] = next;
-                    parent[n] = i;
-                    heap.push(Reverse((Ordered(next), n)));
-                }
+            search.open.give_back(k, keys);
+            k += 1;
+        }
+        CostMap { distance: search.distance, parent: search.parent }
+    }
+
+    /// Relaxes the neighbours of cell `i`, reached at cost `d`, with the entry costs `step`; no
+    /// diagonal step cuts the corner of a cell that walls off the plan.
+    fn expand(&self, i: usize, d: f32, step: &[f32], search: &mut Search) {
+        let walls_off = |c: usize| step[c] == f32::INFINITY && self.cells[c] == Cell::Blocked;
+        let (x, y) = cell_xy(i);
+        for (dx, dy) in NEIGHBOURS8 {
+            let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+            let Some(n) = checked_cell_at(nx, ny) else { continue };
+            if dx == 0 || dy == 0 {
+                search.relax(n, d + step[n], i);
+            } else if !walls_off(cell_at(nx as usize, y)) && !walls_off(cell_at(x, ny as usize)) {
+                search.relax(n, d + step[n] * std::f32::consts::SQRT_2, i);
             }
         }
-        CostMap { distance, parent }
     }
 
     /// Frontier cells: free cells with a 4-neighbour that is still `unexplored`.
@@ -185,12 +182,104 @@ fn chebyshev(a: usize, b: usize) -> usize {
     ax.abs_diff(bx).max(ay.abs_diff(by))
 }
 
+/// The predecessor of a cell that has none (the start, and cells not reached).
+const NO_PARENT: u32 = u32::MAX;
+
+/// The heap key of cell `i` at path cost `d`: ordered by cost, then by cell (a cost is never
+/// negative or NaN, and the bits of such an `f32` order as the numbers do).
+fn heap_key(d: f32, i: usize) -> u64 {
+    (u64::from(d.to_bits()) << 32) | i as u64
+}
+
+/// The path cost and cell of a heap key.
+fn from_heap_key(key: u64) -> (f32, usize) {
+    (f32::from_bits((key >> 32) as u32), (key & u64::from(u32::MAX)) as usize)
+}
+
+/// The state of [`Grid::costs_from`]: the best cost and predecessor found so far of each cell,
+/// and the cells still to expand.
+struct Search {
+    distance: Vec<f32>,
+    parent: Vec<u32>,
+    open: UnitBuckets,
+}
+
+impl Search {
+    /// A search from cell `start` with the entry costs `step`.
+    fn new(start: usize, step: &[f32]) -> Self {
+        let max_step = step.iter().copied().filter(|c| c.is_finite()).fold(1.0, f32::max);
+        let mut search = Search {
+            distance: vec![f32::INFINITY; CELLS],
+            parent: vec![NO_PARENT; CELLS],
+            open: UnitBuckets::new(max_step * std::f32::consts::SQRT_2),
+        };
+        search.distance[start] = 0.0;
+        search.open.push(0.0, start);
+        search
+    }
+
+    /// Reaches cell `n` from cell `from` at cost `d`, if that is cheaper than before.
+    fn relax(&mut self, n: usize, d: f32, from: usize) {
+        if d < self.distance[n] {
+            self.distance[n] = d;
+            self.parent[n] = from as u32;
+            self.open.push(d, n);
+        }
+    }
+}
+
+/// The open cells of [`Grid::costs_from`], in buckets of unit path cost: as no step costs less
+/// than 1, a cell taken from the bucket of costs in [k, k + 1) only adds cells to later buckets
+/// and its cost is final. Each bucket is sorted once and taken in order, by cost and then by
+/// cell, as a binary heap would, so that of two paths of equal cost the same one is kept.
+struct UnitBuckets {
+    /// Heap keys by the integer part of their cost, modulo the number of buckets (a power of 2).
+    ring: Vec<Vec<u64>>,
+    /// Keys in the ring.
+    len: usize,
+}
+
+impl UnitBuckets {
+    /// Buckets for steps of at most `max_step` (diagonals included).
+    fn new(max_step: f32) -> Self {
+        UnitBuckets { ring: vec![Vec::new(); (max_step as usize + 2).next_power_of_two()], len: 0 }
+    }
+
+    fn slot(&self, k: usize) -> usize {
+        k & (self.ring.len() - 1)
+    }
+
+    fn push(&mut self, d: f32, i: usize) {
+        let slot = self.slot(d as usize);
+        self.ring[slot].push(heap_key(d, i));
+        self.len += 1;
+    }
+
+    /// The keys of bucket `k` in order, leaving it empty for reuse.
+    fn take_sorted(&mut self, k: usize) -> Vec<u64> {
+        let slot = self.slot(k);
+        let mut keys = std::mem::take(&mut self.ring[slot]);
+        self.len -= keys.len();
+        keys.sort_unstable();
+        keys
+    }
+
+    /// Hands an emptied bucket's storage back.
+    fn give_back(&mut self, k: usize, mut keys: Vec<u64>) {
+        keys.clear();
+        let slot = self.slot(k);
+        if self.ring[slot].is_empty() {
+            self.ring[slot] = keys;
+        }
+    }
+}
+
 /// The result of [`Grid::costs_from`].
 #[derive(Debug, Clone)]
 pub struct CostMap {
     /// Path cost to each cell (infinite when unreachable).
     pub distance: Vec<f32>,
-    parent: Vec<usize>,
+    parent: Vec<u32>,
 }
 
 impl CostMap {
@@ -212,8 +301,8 @@ impl CostMap {
         }
         let mut path = vec![goal];
         let mut at = goal;
-        while self.parent[at] != usize::MAX {
-            at = self.parent[at];
+        while self.parent[at] != NO_PARENT {
+            at = self.parent[at] as usize;
             path.push(at);
         }
         path.reverse();
@@ -230,24 +319,6 @@ fn cells_on_line(from: (f64, f64), to: usize) -> impl Iterator<Item = Option<usi
         let t = k as f64 / steps as f64;
         cell_of_point(from.0 + t * (target.0 - from.0), from.1 + t * (target.1 - from.1))
     })
-}
-
-/// An `f32` ordered for the heap (costs are never NaN).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Ordered(f32);
-
-impl Eq for Ordered {}
-
-impl PartialOrd for Ordered {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl Ord for Ordered {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        self.0.total_cmp(&other.0)
-    }
 }
 
 const NEIGHBOURS8: [(i64, i64); 8] = [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)];
@@ -337,5 +408,93 @@ mod tests {
         let corner = cell_of_point(0.5, 0.5).unwrap();
         assert_eq!(Grid::cells_around(corner, 2).count(), 9, "clipped at the edge");
         assert_eq!(Grid::cells_around(cell_of_point(50.5, 50.5).unwrap(), 2).count(), 25);
+    }
+
+    /// The cost of the step from cell `from` into its neighbour `to`, restated from the rules of
+    /// [`Grid::costs_from`]: a diagonal step costs SQRT_2 times as much and may not cut the corner
+    /// of an obstacle that walls the plan off.
+    fn step_between(grid: &Grid, step: &[f32], from: usize, to: usize) -> f32 {
+        let ((fx, fy), (tx, ty)) = (cell_xy(from), cell_xy(to));
+        if fx == tx || fy == ty {
+            return step[to];
+        }
+        let walls = |c: usize| grid.cell(c) == Cell::Blocked && step[c].is_infinite();
+        if walls(cell_at(tx, fy)) || walls(cell_at(fx, ty)) {
+            f32::INFINITY
+        } else {
+            step[to] * std::f32::consts::SQRT_2
+        }
+    }
+
+    /// Path costs by relaxing every step until nothing changes (Bellman-Ford), for comparison.
+    fn costs_by_relaxation(grid: &Grid, start: usize, costs: &Costs) -> Vec<f32> {
+        let step = grid.step_costs(start, costs);
+        let mut distance = vec![f32::INFINITY; CELLS];
+        distance[start] = 0.0;
+        let mut changed = true;
+        while changed {
+            changed = false;
+            for from in 0..CELLS {
+                for to in neighbours8(from) {
+                    let via = distance[from] + step_between(grid, &step, from, to);
+                    if via < distance[to] {
+                        distance[to] = via;
+                        changed = true;
+                    }
+                }
+            }
+        }
+        distance
+    }
+
+    /// A 30 x 30 patch of random free, blocked and unknown cells walled in by obstacles.
+    fn random_patch(seed: u64) -> Vec<i8> {
+        let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % 100
+        };
+        (0..CELLS)
+            .map(|i| {
+                let (x, y) = cell_xy(i);
+                let inside = (20..50).contains(&x) && (20..50).contains(&y);
+                match next() {
+                    _ if !inside => 100,
+                    r if r < 15 => 100,
+                    r if r < 30 => -1,
+                    _ => 0,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn path_costs_are_the_least_over_all_paths_and_each_cell_is_reached_from_its_predecessor() {
+        let variants = [
+            COSTS,
+            Costs { cross_unknown: false, ..COSTS },
+            Costs { obstacle: Some(30.0), ..COSTS },
+            Costs { unknown: 0.0, near_wall: 0.0, ..COSTS },
+        ];
+        for seed in 0..8 {
+            let grid = Grid::from_occupancy(&random_patch(seed)).unwrap();
+            let costs = &variants[seed as usize % variants.len()];
+            let start = cell_at(25 + seed as usize, 30);
+            let found = grid.costs_from(start, costs);
+            let least = costs_by_relaxation(&grid, start, costs);
+            let step = grid.step_costs(start, costs);
+            for (cell, &want) in least.iter().enumerate() {
+                let got = found.distance[cell];
+                assert!(got == want || (got - want).abs() < 1e-3, "seed {seed}, cell {cell}: {got} against {want}");
+                let Some(path) = found.path_to(cell) else { continue };
+                assert_eq!((path[0], path.last()), (start, Some(&cell)));
+                if let [.., before, last] = path[..] {
+                    let via = found.distance[before] + step_between(&grid, &step, before, last);
+                    assert_eq!(via, got, "seed {seed}: cell {cell} is reached from its predecessor {before}");
+                }
+            }
+        }
     }
 }
