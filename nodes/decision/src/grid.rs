@@ -14,7 +14,8 @@ pub enum Cell {
     Unknown,
 }
 
-/// Costs of moving through cells.
+/// Costs of moving through cells. The extra costs are never negative: planning relies on every
+/// step costing at least as much as a free cell's.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Costs {
     /// Extra cost of an unknown cell (1 is a free cell).
@@ -78,8 +79,10 @@ impl Grid {
         self.cells[cell] == Cell::Blocked && chebyshev(cell, start) > ESCAPE_RADIUS_CELLS
     }
 
-    /// The cost of entering each cell on a plan from `start` (infinite: it cannot be entered).
+    /// The cost of entering each cell on a plan from `start` (infinite: it cannot be entered); at
+    /// least 1, as the extra costs are never negative.
     fn step_costs(&self, start: usize, costs: &Costs) -> Vec<f32> {
+        debug_assert!(costs.near_wall >= 0.0 && costs.unknown >= 0.0 && costs.obstacle.is_none_or(|c| c >= 0.0));
         let blocked = 1.0 + costs.near_wall + costs.unknown;
         (0..CELLS)
             .map(|i| match self.cells[i] {
@@ -105,7 +108,7 @@ impl Grid {
         let mut k = 0;
         while search.open.len > 0 {
             let keys = search.open.take_sorted(k);
-            for (d, i) in keys.iter().map(|&key| from_heap_key(key)) {
+            for (d, i) in keys.iter().map(|&key| from_order_key(key)) {
                 if d <= search.distance[i] {
                     self.expand(i, d, &step, &mut search);
                 }
@@ -185,14 +188,14 @@ fn chebyshev(a: usize, b: usize) -> usize {
 /// The predecessor of a cell that has none (the start, and cells not reached).
 const NO_PARENT: u32 = u32::MAX;
 
-/// The heap key of cell `i` at path cost `d`: ordered by cost, then by cell (a cost is never
+/// The key of cell `i` at path cost `d` among the open cells: ordered by cost, then by cell (a cost is never
 /// negative or NaN, and the bits of such an `f32` order as the numbers do).
-fn heap_key(d: f32, i: usize) -> u64 {
+fn order_key(d: f32, i: usize) -> u64 {
     (u64::from(d.to_bits()) << 32) | i as u64
 }
 
-/// The path cost and cell of a heap key.
-fn from_heap_key(key: u64) -> (f32, usize) {
+/// The path cost and cell of an open cell's key.
+fn from_order_key(key: u64) -> (f32, usize) {
     (f32::from_bits((key >> 32) as u32), (key & u64::from(u32::MAX)) as usize)
 }
 
@@ -233,7 +236,7 @@ impl Search {
 /// and its cost is final. Each bucket is sorted once and taken in order, by cost and then by
 /// cell, as a binary heap would, so that of two paths of equal cost the same one is kept.
 struct UnitBuckets {
-    /// Heap keys by the integer part of their cost, modulo the number of buckets (a power of 2).
+    /// Keys by the integer part of their cost, modulo the number of buckets (a power of 2).
     ring: Vec<Vec<u64>>,
     /// Keys in the ring.
     len: usize,
@@ -245,13 +248,15 @@ impl UnitBuckets {
         UnitBuckets { ring: vec![Vec::new(); (max_step as usize + 2).next_power_of_two()], len: 0 }
     }
 
+    /// The bucket of the costs in [k, k + 1).
     fn slot(&self, k: usize) -> usize {
         k & (self.ring.len() - 1)
     }
 
+    /// Adds cell `i` at cost `d`.
     fn push(&mut self, d: f32, i: usize) {
         let slot = self.slot(d as usize);
-        self.ring[slot].push(heap_key(d, i));
+        self.ring[slot].push(order_key(d, i));
         self.len += 1;
     }
 
