@@ -180,10 +180,9 @@ impl Appearance {
     fn corners_around(&self, x: f64, y: f64) -> ([PackedShade; 4], [f32; 2]) {
         let per_m = NODES_PER_M as f64;
         let (gx, gy) = ((x * per_m - 0.5).max(0.0), (y * per_m - 0.5).max(0.0));
-        let last = self.side as i64 - 1;
-        let (ix, iy) = ((gx as i64).min(last - 1), (gy as i64).min(last - 1));
+        let last = self.side - 1;
+        let (ix, iy) = (truncated_index(gx).min(last - 1), truncated_index(gy).min(last - 1));
         let fractions = [((gx - ix as f64) as f32).min(1.0), ((gy - iy as f64) as f32).min(1.0)];
-        let (ix, iy) = (ix as usize, iy as usize);
         let at = |dx: usize, dy: usize| self.shades[(iy + dy) * self.side + ix + dx];
         ([at(0, 0), at(1, 0), at(0, 1), at(1, 1)], fractions)
     }

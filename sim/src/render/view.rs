@@ -3,6 +3,7 @@
 
 use nalgebra::{Point3, Vector3};
 
+use super::truncated_index;
 use crate::camera::{BodyPose, CameraModel, tilt};
 
 /// Extra pixels around the level view, so that pitch and roll up to about 19 degrees stay inside.
@@ -179,6 +180,6 @@ pub(super) fn ceil_row(row: f64) -> usize {
     if row <= 0.0 {
         return 0;
     }
-    let whole = row as i64;
-    (if (whole as f64) < row { whole + 1 } else { whole }) as usize
+    let whole = truncated_index(row);
+    if (whole as f64) < row { whole + 1 } else { whole }
 }
