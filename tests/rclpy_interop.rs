@@ -11,6 +11,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use rover::graph::{Graph, GraphConfig};
+use rover_node::sync::lock;
 use support::{Domain, Process, start_process};
 
 /// Seed of the procedural world (no sample is picked up during the probe's teleop phases).
@@ -69,7 +70,7 @@ fn run_probe_against_graph(mode: Mode) {
         return;
     };
     support::assert_isolated();
-    let _one_at_a_time = ONE_GRAPH_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let _one_at_a_time = lock(&ONE_GRAPH_AT_A_TIME);
     let domain = Domain::reserve();
     let report_path = std::env::temp_dir().join(format!("rover-interop-{}-{}.json", domain.id, std::process::id()));
     let signals = [".ready", ".go"].map(|suffix| PathBuf::from(format!("{}{suffix}", report_path.display())));

@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 use rover_msgs::geometry_msgs::Twist;
 use rover_msgs::validate::Validate as _;
 use rover_node::rejections::{clipped, worth_logging};
+use rover_node::sync::lock;
 use tokio::sync::oneshot;
 
 use crate::reply::{CommandSource, DriveValues, LastCommand, Reply, ReplyPolicy};
@@ -299,10 +300,6 @@ impl<S: FrameSink> LockStep<S> {
         }
         *lock(&self.teleop) = Some((twist, Instant::now()));
     }
-}
-
-fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    mutex.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 #[cfg(test)]

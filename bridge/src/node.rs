@@ -16,6 +16,7 @@ use rover_msgs::rosgraph_msgs::Clock;
 use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image};
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tf2_msgs::TFMessage;
+use rover_node::sync::lock;
 use rover_node::{Publisher, RosNode, Runtime, spawn_subscriber, topics};
 use tracing::Instrument as _;
 
@@ -143,7 +144,7 @@ impl DdsSink {
     }
 
     fn publish_sample_truth(&self, telemetry: &SimTelemetry, header: Header) {
-        let mut last = self.last_samples.lock().unwrap_or_else(|e| e.into_inner());
+        let mut last = lock(&self.last_samples);
         if last.as_ref() != Some(&telemetry.samples) {
             *last = Some(telemetry.samples.clone());
             let message =

@@ -19,6 +19,7 @@ use engineioxide::sid::Sid;
 use engineioxide::socket::{DisconnectReason, Socket};
 use engineioxide::{Str, config::EngineIoConfig, layer::EngineIoLayer};
 use rover_node::rejections::worth_logging;
+use rover_node::sync::lock;
 use tokio::sync::mpsc::error::TrySendError;
 use tower::util::MapRequestLayer;
 
@@ -130,7 +131,7 @@ impl<T> ServedSimulator<T> {
     }
 
     fn current(&self) -> std::sync::MutexGuard<'_, Option<(Sid, T)>> {
-        self.current.lock().unwrap_or_else(|e| e.into_inner())
+        lock(&self.current)
     }
 }
 

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use rover_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
 use rover_msgs::std_msgs::Header;
+use rover_node::sync::lock;
 
 use crate::reply::{CommandSource, Reply};
 
@@ -49,7 +50,7 @@ impl Default for LatencyWindow {
 
 impl LatencyWindow {
     fn record(&self, duration: Duration) {
-        let mut window = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let mut window = lock(&self.0);
         if window.len() == LATENCY_WINDOW {
             window.pop_front();
         }
@@ -57,7 +58,7 @@ impl LatencyWindow {
     }
 
     fn summary(&self) -> LatencySummary {
-        let mut values: Vec<f64> = self.0.lock().unwrap_or_else(|e| e.into_inner()).iter().copied().collect();
+        let mut values: Vec<f64> = lock(&self.0).iter().copied().collect();
         if values.is_empty() {
             return LatencySummary::default();
         }
@@ -144,7 +145,7 @@ impl BridgeStats {
     /// Counts a problem of kind `kind` (a rejected frame, a disconnect, a bad command...); returns
     /// how many of its kind there were so far.
     pub fn problem(&self, kind: &str) -> u64 {
-        let mut problems = self.problems.lock().unwrap_or_else(|e| e.into_inner());
+        let mut problems = lock(&self.problems);
         let count = problems.entry(kind.to_string()).or_default();
         *count += 1;
         *count
@@ -193,7 +194,7 @@ impl BridgeStats {
 
     /// Count of problems of kind `kind`.
     pub fn problem_count(&self, kind: &str) -> u64 {
-        self.problems.lock().unwrap_or_else(|e| e.into_inner()).get(kind).copied().unwrap_or(0)
+        lock(&self.problems).get(kind).copied().unwrap_or(0)
     }
 
     /// Percentiles of the recent reply latencies.
@@ -210,7 +211,7 @@ impl BridgeStats {
     fn rate_hz(&self) -> f64 {
         let now = Instant::now();
         let frames = self.frames();
-        let mut last = self.last_rate.lock().unwrap_or_else(|e| e.into_inner());
+        let mut last = lock(&self.last_rate);
         let elapsed = now.duration_since(last.0).as_secs_f64();
         let rate = if elapsed > 0.0 { (frames - last.1) as f64 / elapsed } else { 0.0 };
         *last = (now, frames);
@@ -221,7 +222,7 @@ impl BridgeStats {
     pub fn summary(&self) -> String {
         let count = |counter: &AtomicU64| counter.load(Ordering::Relaxed);
         let latency = self.latency();
-        let problems = self.problems.lock().unwrap_or_else(|e| e.into_inner());
+        let problems = lock(&self.problems);
         format!(
             "{} frames; replies: {} fresh, {} held, {} silence brakes, {} teleop, {} rejected frames, {} pickups, \
              {} manual; {} deadline misses; reply latency p50 {:.2} ms, p99 {:.2} ms; problems {:?}",
@@ -275,7 +276,7 @@ impl BridgeStats {
             values.push(key_value(&format!("hop_{name}_p50_ms"), format!("{:.3}", hop.p50_ms)));
             values.push(key_value(&format!("hop_{name}_p99_ms"), format!("{:.3}", hop.p99_ms)));
         }
-        for (kind, count) in self.problems.lock().unwrap_or_else(|e| e.into_inner()).iter() {
+        for (kind, count) in lock(&self.problems).iter() {
             values.push(key_value(&format!("problem_{kind}"), count.to_string()));
         }
         DiagnosticArray {

@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 
 use rover_bag::{BagMetadata, BagWriter, MessageTime, TopicId};
 use rover_msgs::RosMessage;
+use rover_node::sync::lock;
 use rover_node::topics::{Topic, TopicVisitor, visit_all};
 use rover_node::{MessageInfo, RosNode, Runtime, spawn_subscriber_with_info};
 use tokio::sync::mpsc;
@@ -87,7 +88,7 @@ impl Recorder {
 
     /// One line on the recording so far: time, messages, megabytes.
     pub fn progress_line(&self) -> String {
-        let written = self.written.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        let written = lock(&self.written).clone();
         format!(
             "recording {}: {:.0} s, {} messages on {} topics, {:.1} MB",
             self.dir.display(),
@@ -135,7 +136,7 @@ fn write_until_closed(
 ) -> anyhow::Result<BagMetadata> {
     while let Some(received) = receiver.blocking_recv() {
         writer.write(received.topic, received.time, &received.data)?;
-        let mut written = written.lock().unwrap_or_else(|e| e.into_inner());
+        let mut written = lock(written);
         written.messages[received.topic.index()] += 1;
         written.bytes += received.data.len() as u64;
     }

@@ -18,6 +18,7 @@ pub mod rejections;
 pub mod ros_args;
 pub mod shutdown;
 pub mod snapshot;
+pub mod sync;
 pub mod topics;
 
 pub use node::{

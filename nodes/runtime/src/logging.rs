@@ -12,6 +12,8 @@ use tracing_subscriber::registry::LookupSpan;
 use tracing_subscriber::util::SubscriberInitExt;
 use tracing_subscriber::{EnvFilter, Layer};
 
+use crate::sync::lock;
+
 /// Directives that mute the DDS and Socket.IO stacks' chatter; `RUST_LOG` or `--log-level` come after
 /// them and can override each one.
 pub const QUIET_DEPENDENCIES: &str = "rustdds=warn,rustdds::network::udp_sender=error,rustdds::rtps=error,\
@@ -46,12 +48,12 @@ pub fn init(log_level: Option<&str>) {
 
 /// Registers the `/rosout` publisher of the node with fully qualified name `node`.
 pub(crate) fn register_rosout(node: &str, handle: NodeLoggingHandle) {
-    handles().lock().unwrap_or_else(|e| e.into_inner()).push((node.to_string(), handle));
+    lock(handles()).push((node.to_string(), handle));
 }
 
 /// Removes the `/rosout` publisher of `node` (when the node is dropped).
 pub(crate) fn unregister_rosout(node: &str) {
-    handles().lock().unwrap_or_else(|e| e.into_inner()).retain(|(name, _)| name != node);
+    lock(handles()).retain(|(name, _)| name != node);
 }
 
 struct NodeName(String);
@@ -78,7 +80,7 @@ impl<S: Subscriber + for<'a> LookupSpan<'a>> Layer<S> for RosoutLayer {
         let node = ctx.event_scope(event).and_then(|scope| {
             scope.from_root().find_map(|span| span.extensions().get::<NodeName>().map(|n| n.0.clone()))
         });
-        let handles = handles().lock().unwrap_or_else(|e| e.into_inner());
+        let handles = lock(handles());
         let handle = match node {
             Some(node) => handles.iter().find(|(name, _)| *name == node),
             None if handles.len() == 1 => handles.first(),

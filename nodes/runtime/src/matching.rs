@@ -9,6 +9,8 @@ use futures::StreamExt;
 use ros2_client::dds::rustdds::{DomainParticipant, DomainParticipantStatusEvent, GUID, StatusEvented};
 use tokio::sync::watch;
 
+use crate::sync::lock;
+
 /// The remote endpoints matched by each local endpoint of one participant.
 #[derive(Clone)]
 pub(crate) struct Matches {
@@ -27,7 +29,7 @@ impl Matches {
         tokio::spawn(async move {
             let mut events = std::pin::pin!(listener.as_async_status_stream());
             while let Some(event) = events.next().await {
-                if apply(&mut table.lock().unwrap_or_else(|e| e.into_inner()), event) {
+                if apply(&mut lock(&table), event) {
                     sender.send_modify(|version| *version += 1);
                 }
             }
@@ -37,7 +39,7 @@ impl Matches {
 
     /// How many remote endpoints `local` has matched.
     pub(crate) fn count(&self, local: GUID) -> usize {
-        self.matched.lock().unwrap_or_else(|e| e.into_inner()).get(&local).map_or(0, BTreeSet::len)
+        lock(&self.matched).get(&local).map_or(0, BTreeSet::len)
     }
 
     /// Resolves once `local` has matched a remote endpoint (at once if it has).

@@ -17,6 +17,7 @@ use crate::names::NodeIdentity;
 use crate::params::{self, Assignment, NodeParams, ParamValues, USE_SIM_TIME};
 use crate::ros_args::RosArgs;
 use crate::shutdown::Shutdown;
+use crate::sync::lock;
 use crate::topics::{self, Topic};
 
 /// Highest domain id for which the DDS port numbers stay valid.
@@ -166,7 +167,7 @@ impl RosNode {
     /// (zero until the first `/clock` message), the wall clock otherwise.
     pub fn now(&self) -> Time {
         match &self.sim_time {
-            Some(latest) => latest.lock().unwrap_or_else(|e| e.into_inner()).clone(),
+            Some(latest) => lock(latest).clone(),
             None => Time::now(),
         }
     }
@@ -182,7 +183,7 @@ impl RosNode {
     }
 
     fn inner(&self) -> std::sync::MutexGuard<'_, ros2_client::Node> {
-        self.node.lock().unwrap_or_else(|e| e.into_inner())
+        lock(&self.node)
     }
 
     /// Keeps the latest simulated time of `/clock` for [`RosNode::now`].
@@ -190,7 +191,7 @@ impl RosNode {
         let latest = Arc::new(Mutex::new(Time::default()));
         let clock = Arc::clone(&latest);
         spawn_subscriber(self.subscription(&topics::CLOCK)?, self.span(), move |message| {
-            *clock.lock().unwrap_or_else(|e| e.into_inner()) = message.clock;
+            *lock(&clock) = message.clock;
         });
         self.sim_time = Some(latest);
         Ok(())
@@ -337,7 +338,7 @@ impl<P: NodeParams> Params<P> {
         }
         let state = Mutex::new(values);
         options = options.parameter_set_action(Box::new(move |name, value| {
-            let mut values = state.lock().unwrap_or_else(|e| e.into_inner());
+            let mut values = lock(&state);
             if name != USE_SIM_TIME && values.get(name) != Some(value) {
                 tracing::info!("parameter {name} set to {}", params::describe_value(value));
                 values.insert(name.to_string(), value.clone());

@@ -13,6 +13,7 @@ use ros2_client::service::Server;
 use ros2_client::{Message, Name, Node, Parameter, ParameterValue, RmwRequestId, ServiceMapping, ServiceTypeName};
 
 use crate::params::{self, ParamSpec, USE_SIM_TIME};
+use crate::sync::lock;
 
 /// Separator of the parts of a parameter name (`a.b.c`).
 const NAME_SEPARATOR: char = '.';
@@ -31,7 +32,7 @@ struct Servers {
 /// task of the current tokio runtime for as long as the process runs.
 pub(crate) fn start(node: &Arc<Mutex<Node>>, specs: Vec<ParamSpec>) -> anyhow::Result<()> {
     let servers = {
-        let node = &mut node.lock().unwrap_or_else(|e| e.into_inner());
+        let node = &mut lock(node);
         Servers {
             get: server(node, "get_parameters", "GetParameters")?,
             types: server(node, "get_parameter_types", "GetParameterTypes")?,
@@ -111,7 +112,7 @@ struct Table {
 
 impl Table {
     fn value(&self, name: &str) -> Option<ParameterValue> {
-        self.node.lock().unwrap_or_else(|e| e.into_inner()).get_parameter(name)
+        lock(&self.node).get_parameter(name)
     }
 
     fn get(&self, request: rcl::GetParametersRequest) -> rcl::GetParametersResponse {
@@ -160,7 +161,7 @@ impl Table {
 
     fn set_one(&self, parameter: Parameter) -> Result<(), String> {
         let value = self.check(&parameter)?;
-        self.node.lock().unwrap_or_else(|e| e.into_inner()).set_parameter(&parameter.name, value)
+        lock(&self.node).set_parameter(&parameter.name, value)
     }
 }
 
