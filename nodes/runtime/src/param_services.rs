@@ -199,34 +199,23 @@ fn list(names: &[&str], prefixes: &[String], depth: u64) -> rcl::ListParametersR
 /// What `describe_parameters` says of `name`: its type, description and range, or that it is
 /// not declared.
 fn describe(specs: &[ParamSpec], name: &str) -> raw::ParameterDescriptor {
-    let Some(spec) = specs.iter().find(|s| s.name == name) else {
-        return raw::ParameterDescriptor {
-            name: name.to_string(),
-            r#type: raw::ParameterType::NOT_SET,
-            description: "not declared by this node".to_string(),
-            additional_constraints: String::new(),
-            read_only: true,
-            dynamic_typing: false,
-            floating_point_range: Vec::new(),
-            integer_range: Vec::new(),
-        };
-    };
+    let spec = specs.iter().find(|s| s.name == name);
     let (mut integer_range, mut floating_point_range) = (Vec::new(), Vec::new());
-    match (spec.range, &spec.default) {
-        (Some((from, to)), ParameterValue::Integer(_)) => {
+    match spec.map(|s| (s.range, &s.default)) {
+        Some((Some((from, to)), ParameterValue::Integer(_))) => {
             integer_range.push(raw::IntegerRange { from_value: from as i64, to_value: to as i64, step: 0 });
         }
-        (Some((from_value, to_value)), _) => {
+        Some((Some((from_value, to_value)), _)) => {
             floating_point_range.push(raw::FloatingPointRange { from_value, to_value, step: 0.0 });
         }
-        (None, _) => {}
+        _ => {}
     }
     raw::ParameterDescriptor {
         name: name.to_string(),
-        r#type: type_code(&spec.default),
-        description: spec.description.to_string(),
+        r#type: spec.map_or(raw::ParameterType::NOT_SET, |s| type_code(&s.default)),
+        description: spec.map_or("not declared by this node", |s| s.description).to_string(),
         additional_constraints: String::new(),
-        read_only: false,
+        read_only: spec.is_none(),
         dynamic_typing: false,
         floating_point_range,
         integer_range,
