@@ -4,6 +4,7 @@
 //! Plain types and no DDS here; [`node`] wires the machine to the topics.
 
 pub mod approach;
+pub mod arrivals;
 pub mod drive;
 pub mod explore;
 pub mod grid;

@@ -6,6 +6,7 @@ use rover_msgs::map_grid::cell_centre_m;
 use rover_msgs::tally::SampleTally;
 
 use crate::approach::{Aim, Chase};
+use crate::arrivals::Delayed;
 use crate::drive::{Drive, STOPPED_MPS, Steering, speed_to_stop_in};
 use crate::explore::{Explorer, ExplorerMemory};
 use crate::grid::Grid;
@@ -172,6 +173,9 @@ pub struct Machine {
     status: Status,
     changed: bool,
     received_map: Grid,
+    /// Maps and rocks received but not yet due ([`crate::arrivals`]).
+    arriving_maps: Delayed<Grid>,
+    arriving_rocks: Delayed<Vec<(f64, f64)>>,
     planning: PlanningMap,
     samples: SampleMemory,
     explorer: Explorer,
@@ -207,6 +211,8 @@ impl Machine {
             },
             changed: true,
             received_map: Grid::unknown(),
+            arriving_maps: Delayed::default(),
+            arriving_rocks: Delayed::default(),
             planning: PlanningMap { grid: Grid::unknown(), version: 0 },
             samples: SampleMemory::default(),
             explorer: Explorer::default(),
@@ -296,6 +302,28 @@ impl Machine {
         self.samples.set_located(rocks);
     }
 
+    /// Takes a map made from the scans up to mission frame `made_at_frame`, in effect
+    /// [`crate::arrivals::ARRIVAL_DELAY_FRAMES`] frames after it (at once if that frame has passed).
+    pub fn receive_map(&mut self, made_at_frame: u64, map: Grid) {
+        self.arriving_maps.push(made_at_frame, map);
+    }
+
+    /// Takes the rocks located by the scans up to mission frame `made_at_frame`, in effect as a
+    /// map received with them.
+    pub fn receive_rocks(&mut self, made_at_frame: u64, rocks: Vec<(f64, f64)>) {
+        self.arriving_rocks.push(made_at_frame, rocks);
+    }
+
+    /// Puts the maps and rocks due at `frame` into effect.
+    fn take_arrivals(&mut self, frame: u64) {
+        if let Some(map) = self.arriving_maps.take_due(frame) {
+            self.set_map(map);
+        }
+        if let Some(rocks) = self.arriving_rocks.take_due(frame) {
+            self.set_rocks(rocks);
+        }
+    }
+
     /// The reported state.
     pub fn status(&self) -> &Status {
         &self.status
@@ -323,6 +351,7 @@ impl Machine {
             self.status.home.get_or_insert((obs.position.x_m, obs.position.y_m));
         }
         self.frame = obs.frame;
+        self.take_arrivals(obs.frame);
         self.explorer.inspect(&obs.position, &self.params);
         self.tally.update(obs.samples_remaining);
         self.status.samples_collected = self.tally.collected();
@@ -702,6 +731,7 @@ mod tests {
     use rover_msgs::map_grid::{CELLS, cell_at, cell_of_point};
 
     use crate::approach::UNSEEN_S;
+    use crate::arrivals::ARRIVAL_DELAY_FRAMES;
     use crate::grid::Cell;
     use crate::samples::APPROACHES_PER_ROCK;
     use crate::stuck::STUCK_MARK_S;
@@ -1018,6 +1048,16 @@ mod tests {
         machine.frame += 1;
         machine.set_map(corridor());
         assert_eq!(machine.planning.grid.cell(ahead), Cell::Free, "until the mark expires");
+    }
+
+    #[test]
+    fn a_received_map_is_planned_on_from_the_arrival_delay_after_its_frame() {
+        let mut machine = Machine::new(DecisionParams::default());
+        machine.receive_map(5, corridor());
+        machine.step(&observation(5 + ARRIVAL_DELAY_FRAMES - 1, 100.5, 100.5));
+        assert_eq!(machine.received_map.counts(), Grid::unknown().counts(), "not yet due");
+        machine.step(&observation(5 + ARRIVAL_DELAY_FRAMES, 100.5, 100.5));
+        assert_eq!(machine.received_map.counts(), corridor().counts(), "due");
     }
 
     /// A machine that started its mission at (100.5, 100.5) in [`corridor`], and the frame of its

@@ -1,7 +1,10 @@
 //! The decision node (`rover decision`): telemetry, terrain scans, the map and the located rocks in;
 //! one drive command per frame and the state machine's mode out.
 
+use std::collections::VecDeque;
+
 use futures::StreamExt;
+use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::frame_ids;
 use rover_msgs::frames::MissionFrames;
 use rover_msgs::geometry_msgs::{Point, Pose, PoseArray, PoseStamped, Quaternion};
@@ -26,6 +29,31 @@ use crate::snapshot::{self, Snapshot};
 const PAIRING_BACKLOG: usize = 16;
 /// The mode is published at least every this many frames, even when it does not change.
 const STATUS_EVERY_FRAMES: u64 = 25;
+/// How many decided frames are remembered by stamp, to date the maps and rocks that come in.
+const STAMPS_KEPT: usize = 64;
+
+/// The mission frames of the last decided telemetry messages, by stamp. The mapping node stamps a
+/// map with its last scan, whose stamp is its telemetry's, so that the machine can put the map
+/// into effect at a fixed frame after it ([`crate::arrivals`]).
+#[derive(Default)]
+struct FrameStamps {
+    recent: VecDeque<(Time, u64)>,
+}
+
+impl FrameStamps {
+    fn note(&mut self, stamp: &Time, mission_frame: u64) {
+        if self.recent.len() == STAMPS_KEPT {
+            self.recent.pop_front();
+        }
+        self.recent.push_back((stamp.clone(), mission_frame));
+    }
+
+    /// The mission frame of the message stamped `stamp`, or 0 (long past: in effect at once) for a
+    /// stamp of no recent frame (e.g. the latched map a restarted node receives).
+    fn frame_of(&self, stamp: &Time) -> u64 {
+        self.recent.iter().rev().find(|(s, _)| s == stamp).map_or(0, |&(_, frame)| frame)
+    }
+}
 
 struct Decision {
     machine: Machine,
@@ -37,6 +65,7 @@ struct Decision {
     planned: Vec<usize>,
     first_frame: Option<u64>,
     mission_frames: MissionFrames,
+    stamps: FrameStamps,
     resumed: bool,
     frames: u64,
     rejections: Rejections,
@@ -48,7 +77,9 @@ impl Decision {
             Some(observation) => {
                 self.first_frame.get_or_insert(telemetry.frame);
                 self.frames += 1;
-                self.machine.step(&Observation { frame: self.mission_frames.of(telemetry.frame), ..observation })
+                let frame = self.mission_frames.of(telemetry.frame);
+                self.stamps.note(&telemetry.header.stamp, frame);
+                self.machine.step(&Observation { frame, ..observation })
             }
             None => Drive::stop(self.machine.params().brake),
         };
@@ -104,7 +135,7 @@ impl Decision {
         }
         let info = &map.info;
         match Grid::from_occupancy(&map.data).filter(|_| is_the_planning_grid(map)) {
-            Some(grid) => self.machine.set_map(grid),
+            Some(grid) => self.machine.receive_map(self.stamps.frame_of(&map.header.stamp), grid),
             None => self.rejections.reject(
                 topics::MAP.name,
                 &format_args!(
@@ -117,7 +148,8 @@ impl Decision {
 
     fn set_rocks(&mut self, rocks: &PoseArray) {
         if self.rejections.accept(topics::ROCKS.name, rocks) {
-            self.machine.set_rocks(rocks.poses.iter().map(|pose| (pose.position.x, pose.position.y)).collect());
+            let located = rocks.poses.iter().map(|pose| (pose.position.x, pose.position.y)).collect();
+            self.machine.receive_rocks(self.stamps.frame_of(&rocks.header.stamp), located);
         }
     }
 
@@ -182,6 +214,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         planned: Vec::new(),
         first_frame: None,
         mission_frames: MissionFrames::default(),
+        stamps: FrameStamps::default(),
         resumed: false,
         frames: 0,
         rejections: Rejections::default(),

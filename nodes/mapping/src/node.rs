@@ -173,7 +173,8 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             Some(scan) = scans.next() => {
                 mapping.add_scan(&scan);
                 if mapping.publication_due() {
-                    outputs.publish(&mut mapping, node.header(frame_ids::MAP));
+                    // Stamped as the scan, so that the decision node knows which frame the map includes.
+                    outputs.publish(&mut mapping, Header::at(frame_ids::MAP, scan.header.stamp.clone()));
                     snapshots.write_if_due(&mapping, Duration::from_secs_f64(mapping.params().snapshot_every_ms / 1000.0));
                 }
             }

@@ -1,0 +1,66 @@
+//! Maps and rocks take effect a fixed number of frames after the scan they include, so that the
+//! machine decides alike whether they reach it at once (in process) or a frame or two later, when
+//! the mapping node's DDS messages happen to come in (the graph).
+
+use std::collections::VecDeque;
+
+/// Frames between the scan that a map (or a list of rocks) includes and the first frame decided
+/// with it. In the graph the map of frame `f` reaches the decision node while frame `f + 1` is on
+/// its way, well before `f + 3` (each frame is a full lock-step round trip).
+pub const ARRIVAL_DELAY_FRAMES: u64 = 3;
+
+/// Values waiting for their frame, oldest first.
+#[derive(Debug, Clone)]
+pub struct Delayed<T> {
+    waiting: VecDeque<(u64, T)>,
+}
+
+impl<T> Default for Delayed<T> {
+    fn default() -> Self {
+        Delayed { waiting: VecDeque::new() }
+    }
+}
+
+impl<T> Delayed<T> {
+    /// Keeps `value`, made from the scans up to mission frame `made_at_frame`, until it is due.
+    pub fn push(&mut self, made_at_frame: u64, value: T) {
+        self.waiting.push_back((made_at_frame, value));
+    }
+
+    /// The newest value due at `frame` (older due ones are dropped: each value is a whole state).
+    pub fn take_due(&mut self, frame: u64) -> Option<T> {
+        let mut due = None;
+        while let Some(&(made_at, _)) = self.waiting.front() {
+            if made_at.saturating_add(ARRIVAL_DELAY_FRAMES) > frame {
+                break;
+            }
+            due = self.waiting.pop_front().map(|(_, value)| value);
+        }
+        due
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_value_takes_effect_the_delay_after_its_frame_and_the_newest_due_wins() {
+        let mut maps = Delayed::default();
+        maps.push(10, "a");
+        maps.push(11, "b");
+        maps.push(20, "c");
+        assert_eq!(maps.take_due(10 + ARRIVAL_DELAY_FRAMES - 1), None);
+        assert_eq!(maps.take_due(11 + ARRIVAL_DELAY_FRAMES), Some("b"), "a is superseded");
+        assert_eq!(maps.take_due(19 + ARRIVAL_DELAY_FRAMES), None);
+        assert_eq!(maps.take_due(20 + ARRIVAL_DELAY_FRAMES), Some("c"));
+        assert_eq!(maps.take_due(u64::MAX), None);
+    }
+
+    #[test]
+    fn a_value_that_arrives_late_takes_effect_at_the_next_frame() {
+        let mut rocks = Delayed::default();
+        rocks.push(5, 1);
+        assert_eq!(rocks.take_due(100), Some(1));
+    }
+}
