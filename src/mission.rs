@@ -3,10 +3,13 @@
 //! the order the graph runs them. It is the fast loop for developing the decision logic and for
 //! tests of it; `rover eval` runs the same mission with every node in its own process.
 
+use std::collections::VecDeque;
 use std::time::Instant;
 
 use rover_bridge::convert::telemetry_message;
+use rover_bridge::reply::DriveValues;
 use rover_bridge::telemetry::{SimTelemetry, parse_telemetry};
+use rover_decision::drive::Drive;
 use rover_decision::grid::Grid;
 use rover_decision::machine::{Machine, Mode};
 use rover_decision::params::DecisionParams;
@@ -30,6 +33,11 @@ use crate::timeline::Timeline;
 
 /// The largest telemetry payload accepted, bytes (as the bridge's default).
 const MAX_TELEMETRY_BYTES: usize = 4 << 20;
+/// Telemetry messages in flight, as between the simulator's client and the bridge: the client
+/// emits one when the websocket opens and one on the Engine.IO open packet, then one per command
+/// (unity-sim-spec 1.5), so two request/reply loops circulate and each command is applied one
+/// step after the state it was decided on.
+const LOOPS_IN_FLIGHT: usize = 2;
 
 /// The parameters of every node of the mission.
 #[derive(Debug, Clone, Default)]
@@ -149,11 +157,15 @@ pub fn run_in_process(
         }
     };
     let started = Instant::now();
+    let mut in_flight = VecDeque::with_capacity(LOOPS_IN_FLIGHT);
+    for _ in 0..LOOPS_IN_FLIGHT {
+        in_flight.push_back(read_telemetry(&mut sim)?);
+    }
     for frame in 1.. {
         if shutdown.is_requested() {
             anyhow::bail!("interrupted at {:.1} sim s", sim.report().sim_seconds);
         }
-        let telemetry = read_telemetry(&mut sim)?;
+        let telemetry = in_flight.pop_front().expect("a telemetry is in flight for each loop");
         let message = telemetry_message(&telemetry, frame, Header::default());
         path.record(message.x_m, message.y_m);
         clock.on_frame(frame, activity_of(machine.status().mode.name(), &message), config.step_s);
@@ -165,8 +177,8 @@ pub fn run_in_process(
             mapping.mark_published();
             located.update(&mapping.map().rock_cells());
             let grid = Grid::from_occupancy(&mapping.map().occupancy()).expect("the map has the cells of map_grid");
-            machine.set_map(grid);
-            machine.set_rocks(mapping.rocks());
+            machine.receive_map(frame, grid);
+            machine.receive_rocks(frame, mapping.rocks());
             mapped_pct = mapping.map().scores(&truth).mapped_pct;
         }
         let drive = machine.step(&rover_decision::observation(&message, &scan, &mut rays));
@@ -174,9 +186,10 @@ pub fn run_in_process(
         let command = if arm.is_some_and(|arm| pickup.on_telemetry(&arm, &settings.pickup)) {
             Command::Pickup
         } else {
-            Command::Drive { steering_deg: drive.steering_deg, throttle: drive.throttle, brake: drive.brake }
+            drive_as_sent(&drive, settings.decision.brake)
         };
         sim.step(command);
+        in_flight.push_back(read_telemetry(&mut sim)?);
         timeline.note(sim.report().sim_seconds, mapped_pct, sim.report().samples_collected);
         let mode = machine.status().mode;
         if frame % progress_every_frames.max(1) == 0 {
@@ -199,7 +212,39 @@ pub fn run_in_process(
     Ok(MissionOutcome { report: sim.report(), progress, mission_map })
 }
 
+/// The drive command as the simulator gets it through the graph: in the `f32` of
+/// `rover/drive_cmd`, checked and clamped by the bridge (whose text of an `f32` reads back as
+/// exactly that value); a non-finite one brakes.
+fn drive_as_sent(drive: &Drive, brake: f64) -> Command {
+    let values = DriveValues::checked(drive.throttle as f32, drive.brake as f32, drive.steering_deg as f32)
+        .unwrap_or_else(|_| DriveValues::brake(brake as f32));
+    Command::Drive {
+        steering_deg: values.steering_deg.into(),
+        throttle: values.throttle.into(),
+        brake: values.brake.into(),
+    }
+}
+
 fn read_telemetry(sim: &mut Simulator) -> anyhow::Result<SimTelemetry> {
     parse_telemetry(&sim.telemetry(), MAX_TELEMETRY_BYTES)?
         .ok_or_else(|| anyhow::anyhow!("the simulator sent empty telemetry"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_drive_is_sent_as_the_graph_sends_it() {
+        let drive = Drive { throttle: 0.3, brake: -1.0, steering_deg: 4.999_999_854_546_46 };
+        let Command::Drive { steering_deg, throttle, brake } = drive_as_sent(&drive, 10.0) else {
+            panic!("a drive command")
+        };
+        assert_eq!(steering_deg, 4.999_999_854_546_46_f64 as f32 as f64, "rounded to the f32 of rover/drive_cmd");
+        assert_eq!((throttle, brake), (0.3_f32 as f64, 0.0), "the brake clamped at zero");
+        let wild = Drive { throttle: 2.0, brake: 0.0, steering_deg: -40.0 };
+        assert!(matches!(drive_as_sent(&wild, 10.0), Command::Drive { throttle: 1.0, steering_deg: -15.0, .. }));
+        let broken = Drive { throttle: f64::NAN, brake: 0.0, steering_deg: 0.0 };
+        assert!(matches!(drive_as_sent(&broken, 10.0), Command::Drive { throttle: 0.0, brake: 10.0, .. }));
+    }
 }
