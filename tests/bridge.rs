@@ -56,6 +56,8 @@ async fn a_thousand_frames_each_get_exactly_one_reply_with_the_command_for_that_
     for &(k, frame) in &simulation.fresh_matches {
         assert_eq!(frame, k as f64, "the reply to telemetry {k} carries the command for frame {k}");
     }
+    let order: Vec<u64> = simulation.fresh_matches.iter().map(|&(k, _)| k).collect();
+    assert!(order.is_sorted(), "replies come in the order of their telemetry (the simulator applies them so)");
     let first_fresh = simulation.replies.iter().position(|r| r.throttle > 0.0).expect("the echo node answered");
     let misses = simulation.unmatched.iter().filter(|r| r.at > simulation.replies[first_fresh].at).count();
     assert!(misses <= 5, "{misses} replies missed their command after the echo node was discovered");

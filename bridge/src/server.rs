@@ -21,6 +21,7 @@ use engineioxide::{Str, config::EngineIoConfig, layer::EngineIoLayer};
 use rover_node::rejections::worth_logging;
 use rover_node::sync::lock;
 use tokio::sync::mpsc::error::TrySendError;
+use tokio::sync::oneshot;
 use tower::util::MapRequestLayer;
 
 use crate::lockstep::{FrameSink, InFlight, LockStep};
@@ -71,8 +72,12 @@ pub async fn serve<S: FrameSink>(
         .ws_max_frame_size(config.max_message_bytes)
         .max_buffer_size(1024)
         .build();
-    let handler =
-        Arc::new(SimulatorLink { core, served: Arc::default(), replace_connected: config.replace_connected_simulator });
+    let handler = Arc::new(SimulatorLink {
+        core,
+        served: Arc::default(),
+        replies: Arc::default(),
+        replace_connected: config.replace_connected_simulator,
+    });
     let app = axum::Router::new()
         .layer(EngineIoLayer::from_config(handler, engine_config))
         .layer(MapRequestLayer::new(rewrite_engine_io_version));
@@ -135,10 +140,28 @@ impl<T> ServedSimulator<T> {
     }
 }
 
+/// Keeps the replies in the order of their frames, although frames wait for their drive commands
+/// side by side: the simulator applies commands in the order they come, and two frames in flight
+/// whose replies swapped would leave the rover with the older command.
+#[derive(Default)]
+struct ReplyOrder {
+    previous_sent: Mutex<Option<oneshot::Receiver<()>>>,
+}
+
+impl ReplyOrder {
+    /// The next reply's turn: it waits for the first (the reply before it was sent, or its task
+    /// ended), and fires the second once it is sent itself.
+    fn next_turn(&self) -> (Option<oneshot::Receiver<()>>, oneshot::Sender<()>) {
+        let (sent, next_waits_for) = oneshot::channel();
+        (lock(&self.previous_sent).replace(next_waits_for), sent)
+    }
+}
+
 /// The Engine.IO handler: one per server; it serves one simulator connection at a time.
 struct SimulatorLink<S> {
     core: Arc<LockStep<S>>,
     served: Arc<ServedSimulator<Arc<Socket<()>>>>,
+    replies: Arc<ReplyOrder>,
     replace_connected: bool,
 }
 
@@ -147,6 +170,7 @@ impl<S> Clone for SimulatorLink<S> {
         SimulatorLink {
             core: self.core.clone(),
             served: self.served.clone(),
+            replies: self.replies.clone(),
             replace_connected: self.replace_connected,
         }
     }
@@ -227,9 +251,14 @@ impl<S: FrameSink> SimulatorLink<S> {
 
     fn spawn_reply(&self, in_flight: InFlight, socket: Arc<Socket<()>>) {
         let core = self.core.clone();
+        let (previous_sent, sent) = self.replies.next_turn();
         tokio::spawn(async move {
             let reply = core.reply(in_flight).await;
+            if let Some(previous_sent) = previous_sent {
+                let _ = previous_sent.await;
+            }
             send_reply(&socket, &core, &reply);
+            let _ = sent.send(());
         });
     }
 }
