@@ -29,29 +29,28 @@ use crate::snapshot::{self, Snapshot};
 const PAIRING_BACKLOG: usize = 16;
 /// The mode is published at least every this many frames, even when it does not change.
 const STATUS_EVERY_FRAMES: u64 = 25;
-/// How many decided frames are remembered by stamp, to date the maps and rocks that come in.
+/// How many telemetry messages are remembered by stamp, to date the maps and rocks that come in.
 const STAMPS_KEPT: usize = 64;
 
-/// The mission frames of the last decided telemetry messages, by stamp. The mapping node stamps a
+/// The bridge's frame numbers of the last telemetry messages, by stamp. The mapping node stamps a
 /// map with its last scan, whose stamp is its telemetry's, so that the machine can put the map
-/// into effect at a fixed frame after it ([`crate::arrivals`]).
+/// into effect at a fixed frame after it ([`crate::arrivals`]). Noted on arrival: a map may come
+/// in before its frame is decided (the mapping node and this one get the scan at the same time).
 #[derive(Default)]
 struct FrameStamps {
     recent: VecDeque<(Time, u64)>,
 }
 
 impl FrameStamps {
-    fn note(&mut self, stamp: &Time, mission_frame: u64) {
+    fn note(&mut self, stamp: &Time, bridge_frame: u64) {
         if self.recent.len() == STAMPS_KEPT {
             self.recent.pop_front();
         }
-        self.recent.push_back((stamp.clone(), mission_frame));
+        self.recent.push_back((stamp.clone(), bridge_frame));
     }
 
-    /// The mission frame of the message stamped `stamp`, or 0 (long past: in effect at once) for a
-    /// stamp of no recent frame (e.g. the latched map a restarted node receives).
-    fn frame_of(&self, stamp: &Time) -> u64 {
-        self.recent.iter().rev().find(|(s, _)| s == stamp).map_or(0, |&(_, frame)| frame)
+    fn bridge_frame_of(&self, stamp: &Time) -> Option<u64> {
+        self.recent.iter().rev().find(|(s, _)| s == stamp).map(|&(_, frame)| frame)
     }
 }
 
@@ -77,9 +76,7 @@ impl Decision {
             Some(observation) => {
                 self.first_frame.get_or_insert(telemetry.frame);
                 self.frames += 1;
-                let frame = self.mission_frames.of(telemetry.frame);
-                self.stamps.note(&telemetry.header.stamp, frame);
-                self.machine.step(&Observation { frame, ..observation })
+                self.machine.step(&Observation { frame: self.mission_frames.of(telemetry.frame), ..observation })
             }
             None => Drive::stop(self.machine.params().brake),
         };
@@ -135,7 +132,7 @@ impl Decision {
         }
         let info = &map.info;
         match Grid::from_occupancy(&map.data).filter(|_| is_the_planning_grid(map)) {
-            Some(grid) => self.machine.receive_map(self.stamps.frame_of(&map.header.stamp), grid),
+            Some(grid) => self.machine.receive_map(self.mission_frame_of(&map.header.stamp), grid),
             None => self.rejections.reject(
                 topics::MAP.name,
                 &format_args!(
@@ -146,10 +143,20 @@ impl Decision {
         }
     }
 
+    /// The mission frame of the telemetry stamped `stamp`, counted from the last decided frame by
+    /// the bridge's numbers; 0 (long past: in effect at once) for a stamp of no recent telemetry
+    /// (e.g. the latched map a restarted node receives).
+    fn mission_frame_of(&self, stamp: &Time) -> u64 {
+        match (self.stamps.bridge_frame_of(stamp), self.mission_frames.last()) {
+            (Some(frame), Some((bridge, mission))) => mission.saturating_add(frame).saturating_sub(bridge),
+            _ => 0,
+        }
+    }
+
     fn set_rocks(&mut self, rocks: &PoseArray) {
         if self.rejections.accept(topics::ROCKS.name, rocks) {
             let located = rocks.poses.iter().map(|pose| (pose.position.x, pose.position.y)).collect();
-            self.machine.receive_rocks(self.stamps.frame_of(&rocks.header.stamp), located);
+            self.machine.receive_rocks(self.mission_frame_of(&rocks.header.stamp), located);
         }
     }
 
@@ -233,7 +240,10 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         loop {
             let pair = tokio::select! {
                 () = shutdown.wait() => break,
-                Some(t) = telemetry.next() => pairs.push_first(t.frame, t),
+                Some(t) = telemetry.next() => {
+                    decision.stamps.note(&t.header.stamp, t.frame);
+                    pairs.push_first(t.frame, t)
+                }
                 Some(scan) = scans.next() => pairs.push_second(scan.frame, scan),
                 Some(map) = maps.next() => { decision.set_map(&map); None }
                 Some(located) = rocks.next() => { decision.set_rocks(&located); None }

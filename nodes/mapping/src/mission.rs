@@ -42,6 +42,7 @@ pub struct MappingCore {
     frames_mapped: u64,
     tilted_frames: u64,
     unpublished_scans: u64,
+    last_scan_frame: u64,
 }
 
 impl MappingCore {
@@ -60,12 +61,14 @@ impl MappingCore {
             frames_mapped: 0,
             tilted_frames: 0,
             unpublished_scans: 0,
+            last_scan_frame: 0,
         }
     }
 
     /// Maps one terrain scan, unless it fails its checks or comes before the last scan taken.
     pub fn add_scan(&mut self, scan: &TerrainScan) {
         self.unpublished_scans += 1;
+        self.last_scan_frame = scan.frame;
         if self.rejections.accept(topics::TERRAIN.name, scan) && self.in_order(scan) {
             self.forget_rocks_picked_before(order_of(&scan.header, scan.frame));
             self.map_scan(scan);
@@ -145,9 +148,12 @@ impl MappingCore {
         self.params = params;
     }
 
-    /// Whether enough scans came in since the last publication to publish again.
+    /// Whether to publish after the last scan: its frame is a multiple of `publish_every_scans`
+    /// (so that the maps hold the same scans however many of the first frames this node missed
+    /// while the graph came up), or that many scans came in since the last publication.
     pub fn publication_due(&self) -> bool {
-        self.unpublished_scans >= self.params.publish_every_scans as u64
+        let every = self.params.publish_every_scans as u64;
+        self.unpublished_scans > 0 && (self.last_scan_frame.is_multiple_of(every) || self.unpublished_scans >= every)
     }
 
     /// Whether any scan came in since the last publication.
@@ -292,6 +298,27 @@ mod tests {
     #[test]
     fn a_new_bridge_numbering_frames_from_one_again_is_mapped() {
         assert_eq!(mapped_and_out_of_order(&[(5000, 200), (1, 201), (2, 201)]), (3, 0));
+    }
+
+    #[test]
+    fn maps_are_published_at_the_same_frames_whichever_scans_came_first() {
+        let every = MappingParams::default().publish_every_scans as u64;
+        let published_after = |frames: std::ops::RangeInclusive<u64>| {
+            let mut mapping = core();
+            let mut published = Vec::new();
+            for frame in frames {
+                mapping.add_scan(&rock_scan(frame, frame as i32, (100.0, 100.0)));
+                if mapping.publication_due() {
+                    mapping.mark_published();
+                    published.push(frame);
+                }
+            }
+            published
+        };
+        assert_eq!(published_after(1..=3 * every), [every, 2 * every, 3 * every]);
+        assert_eq!(published_after(3..=3 * every), [every, 2 * every, 3 * every], "the first two missed");
+        let renumbered = published_after(5 * every + 1..=7 * every + 1);
+        assert_eq!(renumbered, [6 * every, 7 * every], "frames go on where a count of scans would drift");
     }
 
     #[test]
