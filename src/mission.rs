@@ -7,7 +7,7 @@ use std::collections::VecDeque;
 use std::time::Instant;
 
 use rover_bridge::convert::telemetry_message;
-use rover_bridge::reply::DriveValues;
+use rover_bridge::reply::{DataEvent, DriveValues};
 use rover_bridge::telemetry::{SimTelemetry, parse_telemetry};
 use rover_decision::drive::Drive;
 use rover_decision::grid::Grid;
@@ -22,7 +22,7 @@ use rover_node::{Rejections, RosArgs, Shutdown, resolve_params};
 use rover_perception::node::PerceptionParams;
 use rover_pickup::{Pickup, PickupParams, checked_arm_input};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
-use rover_sim::wire::command::Command;
+use rover_sim::wire::command::{Command, parse_command};
 use rover_sim::world::World;
 use serde::Serialize;
 
@@ -213,16 +213,13 @@ pub fn run_in_process(
 }
 
 /// The drive command as the simulator gets it through the graph: in the `f32` of
-/// `rover/drive_cmd`, checked and clamped by the bridge (whose text of an `f32` reads back as
-/// exactly that value); a non-finite one brakes.
+/// `rover/drive_cmd`, checked and clamped by the bridge (a non-finite one brakes), written as the
+/// text of a `data` event and read back by the simulator.
 fn drive_as_sent(drive: &Drive, brake: f64) -> Command {
     let values = DriveValues::checked(drive.throttle as f32, drive.brake as f32, drive.steering_deg as f32)
         .unwrap_or_else(|_| DriveValues::brake(brake as f32));
-    Command::Drive {
-        steering_deg: values.steering_deg.into(),
-        throttle: values.throttle.into(),
-        brake: values.brake.into(),
-    }
+    let event = serde_json::to_value(DataEvent::new(values, "", "")).expect("a data event is JSON");
+    parse_command("data", Some(&event)).ok().flatten().expect("the simulator reads the bridge's data event")
 }
 
 fn read_telemetry(sim: &mut Simulator) -> anyhow::Result<SimTelemetry> {
@@ -236,12 +233,14 @@ mod tests {
 
     #[test]
     fn a_drive_is_sent_as_the_graph_sends_it() {
-        let drive = Drive { throttle: 0.3, brake: -1.0, steering_deg: 4.999_999_854_546_46 };
+        let drive = Drive { throttle: 0.3, brake: 0.713_479_546_953_064_8, steering_deg: 5.0 };
         let Command::Drive { steering_deg, throttle, brake } = drive_as_sent(&drive, 10.0) else {
             panic!("a drive command")
         };
-        assert_eq!(steering_deg, 4.999_999_854_546_46_f64 as f32 as f64, "rounded to the f32 of rover/drive_cmd");
-        assert_eq!((throttle, brake), (0.3_f32 as f64, 0.0), "the brake clamped at zero");
+        assert_eq!(brake, 0.713_479_5, "the shortest text of the f32 of rover/drive_cmd");
+        assert_eq!((throttle, steering_deg), (0.3, 5.0));
+        let backwards = Drive { throttle: 0.0, brake: -1.0, steering_deg: 0.0 };
+        assert!(matches!(drive_as_sent(&backwards, 10.0), Command::Drive { brake: 0.0, .. }), "clamped at zero");
         let wild = Drive { throttle: 2.0, brake: 0.0, steering_deg: -40.0 };
         assert!(matches!(drive_as_sent(&wild, 10.0), Command::Drive { throttle: 1.0, steering_deg: -15.0, .. }));
         let broken = Drive { throttle: f64::NAN, brake: 0.0, steering_deg: 0.0 };
