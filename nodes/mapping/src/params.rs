@@ -31,8 +31,9 @@ rover_node::node_params! {
         rock_merge_m: f64 [0.1, 20.0] = 3.5,
         /// Ground-truth map (200x200 PNG, navigable > 0) for the Udacity scores; empty: none.
         ground_truth_png: String = "",
-        /// Publish map, map/image, rover/map_stats and rover/rocks every this many terrain scans
-        /// (simulated time, so a mission plays out alike however fast the graph runs).
+        /// Publish map, map/image, rover/map_stats and rover/rocks after each terrain scan whose
+        /// frame is a multiple of this (simulated time, so a mission plays out alike however fast
+        /// the graph runs), or after this many scans since the last publication.
         publish_every_scans: i64 [1, 100000] = 25,
         /// Also publish scans not yet published after this long, ms (when the scans stop).
         publish_max_delay_ms: f64 [10.0, 60000.0] = 500.0,
