@@ -8,6 +8,10 @@ use std::collections::VecDeque;
 /// with it. In the graph the map of frame `f` reaches the decision node while frame `f + 1` is on
 /// its way, well before `f + 3` (each frame is a full lock-step round trip).
 pub const ARRIVAL_DELAY_FRAMES: u64 = 3;
+/// At most this many values wait; beyond, the oldest is dropped. While frames are decided one or
+/// two wait; more pile up only while none is (telemetry cut off but scans still mapped), and then
+/// the newest are the ones that matter.
+const MAX_WAITING: usize = 8;
 
 /// Values waiting for their frame, oldest first.
 #[derive(Debug, Clone)]
@@ -24,6 +28,9 @@ impl<T> Default for Delayed<T> {
 impl<T> Delayed<T> {
     /// Keeps `value`, made from the scans up to mission frame `made_at_frame`, until it is due.
     pub fn push(&mut self, made_at_frame: u64, value: T) {
+        if self.waiting.len() == MAX_WAITING {
+            self.waiting.pop_front();
+        }
         self.waiting.push_back((made_at_frame, value));
     }
 
@@ -55,6 +62,16 @@ mod tests {
         assert_eq!(maps.take_due(19 + ARRIVAL_DELAY_FRAMES), None);
         assert_eq!(maps.take_due(20 + ARRIVAL_DELAY_FRAMES), Some("c"));
         assert_eq!(maps.take_due(u64::MAX), None);
+    }
+
+    #[test]
+    fn values_waiting_while_no_frame_is_decided_are_bounded_and_the_newest_kept() {
+        let mut maps = Delayed::default();
+        for frame in 0..100 {
+            maps.push(frame, frame);
+        }
+        assert_eq!(maps.waiting.len(), MAX_WAITING);
+        assert_eq!(maps.take_due(u64::MAX), Some(99));
     }
 
     #[test]
