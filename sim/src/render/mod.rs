@@ -87,6 +87,8 @@ pub struct Renderer {
     level_hits: Vec<Hit>,
     hits: Vec<Hit>,
     frame: u64,
+    /// What the level buffers hold: the pose and the samples they were drawn for.
+    drawn: Option<(BodyPose, Vec<Sample>)>,
 }
 
 impl Renderer {
@@ -109,6 +111,7 @@ impl Renderer {
             level_hits: if options.record_hits { vec![Hit::SKY; level_pixels] } else { Vec::new() },
             hits: if options.record_hits { vec![Hit::SKY; camera.width * camera.height] } else { Vec::new() },
             frame: 0,
+            drawn: None,
         }
     }
 
@@ -124,11 +127,23 @@ impl Renderer {
     }
 
     /// Renders the camera view of the rover at `pose`, with `samples` on the ground, into `out`.
+    /// A rover that has not moved (stopped, or picking up a sample) sees the scene it saw: only
+    /// the sensor noise is new.
     pub fn render(&mut self, world: &World, samples: &[Sample], pose: &BodyPose, out: &mut RgbImage) {
         self.frame = self.frame.wrapping_add(1);
-        let view = LevelView::new(&self.camera, self.camera.position(pose), pose.yaw_deg);
         let rotation = Rotation::new(pose, &self.camera);
-        let window = Window::needed(&rotation, &self.camera, (self.level_width, self.level_height));
+        if self.drawn.as_ref().is_none_or(|(drawn_pose, drawn_samples)| drawn_pose != pose || drawn_samples != samples)
+        {
+            self.draw(world, samples, pose, &rotation);
+            self.drawn = Some((*pose, samples.to_vec()));
+        }
+        self.resample(&rotation, out);
+    }
+
+    /// Draws the level view of the rover at `pose` into the level buffers.
+    fn draw(&mut self, world: &World, samples: &[Sample], pose: &BodyPose, rotation: &Rotation) {
+        let view = LevelView::new(&self.camera, self.camera.position(pose), pose.yaw_deg);
+        let window = Window::needed(rotation, &self.camera, (self.level_width, self.level_height));
         floor_rows(&view, &self.appearance, &mut self.floor_rows);
         let frame = Frame {
             world,
@@ -142,7 +157,6 @@ impl Renderer {
             level_height: self.level_height,
         };
         draw_level(&frame, self.threads, &mut self.level_rgb, &mut self.level_depth, &mut self.level_hits);
-        self.resample(&rotation, out);
     }
 
     /// Turns the level view into the camera image, rotating by the body's pitch and roll (nearest
@@ -387,6 +401,26 @@ mod tests {
             disagreements * 100 < boulder_pixels,
             "{disagreements} of {boulder_pixels} pixels disagree at the outlines"
         );
+    }
+
+    #[test]
+    fn a_rover_that_has_not_moved_sees_what_a_fresh_drawing_shows() {
+        let world = crate::procgen::procedural_world(3);
+        let here = BodyPose { x_m: world.start.x_m, y_m: world.start.y_m, yaw_deg: 10.0, pitch_deg: 1.5, ..Default::default() };
+        let elsewhere = BodyPose { yaw_deg: 100.0, ..here };
+        let sample = Sample { x_m: here.x_m + 3.0, y_m: here.y_m + 0.5, radius_m: 0.2 };
+        let second_frame = |first: (&BodyPose, &[Sample]), second: (&BodyPose, &[Sample])| {
+            let mut renderer = Renderer::new(&world, CameraModel::rover(), RenderOptions::default());
+            let mut image = RgbImage::default();
+            renderer.render(&world, first.1, first.0, &mut image);
+            renderer.render(&world, second.1, second.0, &mut image);
+            image
+        };
+        let kept = second_frame((&here, &[sample]), (&here, &[sample]));
+        assert_eq!(kept.data, second_frame((&elsewhere, &[sample]), (&here, &[sample])).data);
+        let picked_up = second_frame((&here, &[sample]), (&here, &[]));
+        assert_eq!(picked_up.data, second_frame((&elsewhere, &[]), (&here, &[])).data);
+        assert_ne!(kept.data, picked_up.data, "the sample is in view");
     }
 
     #[test]
