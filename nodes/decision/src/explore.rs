@@ -22,6 +22,9 @@ const RECOVERIES_PER_TARGET: u32 = 2;
 const WALLED_IN_CELLS: usize = 25;
 /// Longest look at the unexplored cells of a reached target, seconds (a half turn takes 4 s).
 const LOOK_S: f64 = 5.0;
+/// A new target at least this far off the heading, degrees, turns the rover around: it is chosen
+/// again on the next map, which holds what the camera saw while the rover got there.
+const TURN_AROUND_DEG: f64 = 100.0;
 
 /// Frontier exploration. A cell is explored once it is free on the map or has been in close view
 /// of the camera: obstacle cells seen only from afar may be floor hidden behind the projection
@@ -54,9 +57,32 @@ struct Target {
     allowed_frames: u64,
     path: Vec<usize>,
     recoveries: u32,
+    /// The version of the map a turn-around target was chosen on, until a newer map confirms it.
+    unconfirmed_on_map: Option<u64>,
 }
 
 impl Target {
+    /// A target at frontier `cell`, chosen at `frame` from `at` on map `version`.
+    fn new(
+        cell: usize,
+        costs: &CostMap,
+        (at, version): (&Position, u64),
+        frame: u64,
+        params: &DecisionParams,
+    ) -> Target {
+        let (cost, centre) = (costs.distance[cell], cell_centre_m(cell));
+        let bearing_deg = at.bearing_to(centre).to_degrees();
+        tracing::debug!(frame, at = ?(at.x_m, at.y_m), target = ?centre, cost, bearing_deg = bearing_deg.round(), "new frontier target");
+        Target {
+            cell,
+            chosen_frame: frame,
+            allowed_frames: params.frames_for_way(params.target_timeout_s, cost as f64),
+            path: Vec::new(),
+            recoveries: 0,
+            unconfirmed_on_map: (bearing_deg.abs() >= TURN_AROUND_DEG).then_some(version),
+        }
+    }
+
     /// Whether the target's time (from its choice, or from the end of a detour) is up at `frame`.
     fn timed_out(&self, frame: u64) -> bool {
         frame >= self.chosen_frame + self.allowed_frames
@@ -225,7 +251,7 @@ impl Explorer {
         }
         if self.target.is_none() || from.replan_due(self.planned) {
             let home = home.and_then(|(x, y)| cell_of_point(x, y));
-            self.replan(grid, (start, home), at, frame, params);
+            self.replan((grid, map.version), (start, home), at, frame, params);
             self.planned = Some((frame, map.version));
         }
         lookahead(grid, &self.target.as_ref()?.path, at, params)
@@ -247,30 +273,27 @@ impl Explorer {
         Some((unexplored.iter().map(|p| p.0).sum::<f64>() / count, unexplored.iter().map(|p| p.1).sum::<f64>() / count))
     }
 
-    /// Plans from cell `start` again, keeping the target while it is still a frontier, else
-    /// choosing a new one on the way to cell `home`.
+    /// Plans from cell `start` again, choosing a new target (on the way to cell `home`) when the
+    /// target is no longer a frontier,
+    /// or when it turns to the target, choosing a new one when the target is no longer a frontier,
+    /// or when it turns the rover around and a newer map than the one it was chosen on has come
+    /// (which keeps it if it is still the best).
     fn replan(
         &mut self,
-        grid: &Grid,
+        (grid, version): (&Grid, u64),
         (start, home): (usize, Option<usize>),
         at: &Position,
         frame: u64,
         params: &DecisionParams,
     ) {
         let costs = grid.costs_from(start, &self.costs(params));
-        let keep = self.target.as_ref().is_some_and(|t| self.is_candidate(grid, &costs, t.cell, params));
-        if !keep {
-            self.target = self.best_frontier(grid, &costs, (at, home), params).map(|cell| Target {
-                cell,
-                chosen_frame: frame,
-                allowed_frames: params.frames_for_way(params.target_timeout_s, costs.distance[cell] as f64),
-                path: Vec::new(),
-                recoveries: 0,
-            });
-            if let Some(target) = &self.target {
-                let (cost, centre) = (costs.distance[target.cell], cell_centre_m(target.cell));
-                let bearing_deg = at.bearing_to(centre).to_degrees().round();
-                tracing::debug!(frame, at = ?(at.x_m, at.y_m), target = ?centre, cost, bearing_deg, "new frontier target");
+        let frontier = self.target.as_ref().is_some_and(|t| self.is_candidate(grid, &costs, t.cell, params));
+        let confirmed = self.target.as_ref().is_some_and(|t| t.unconfirmed_on_map.is_none_or(|v| v == version));
+        if !(frontier && confirmed) {
+            let best = self.best_frontier(grid, &costs, (at, home), params);
+            match self.target.as_mut() {
+                Some(target) if frontier && best == Some(target.cell) => target.unconfirmed_on_map = None,
+                _ => self.target = best.map(|cell| Target::new(cell, &costs, (at, version), frame, params)),
             }
         }
         if let Some(target) = self.target.as_mut() {
@@ -418,6 +441,51 @@ mod tests {
             "{first:?} then {second:?}"
         );
         assert!(probe.explorer.forget_explored());
+    }
+
+    /// The corridor of [`half_explored`], walled at its west end, or with that end open: known
+    /// floor on to x = 14 and unknown ground beyond.
+    fn corridor(west_end_open: bool) -> PlanningMap {
+        let mut data = vec![100i8; CELLS];
+        for y in 50..54 {
+            for x in 0..90 {
+                data[cell_at(x, y)] = match x {
+                    ..14 if west_end_open => -1,
+                    14..20 if west_end_open => 0,
+                    20..60 => 0,
+                    60.. => -1,
+                    _ => 100,
+                };
+            }
+        }
+        planning(&Grid::from_occupancy(&data).unwrap(), 1)
+    }
+
+    #[test]
+    fn a_turn_around_is_chosen_again_on_the_next_map_and_then_kept() {
+        let facing_west = Position { x_m: 36.5, y_m: 51.5, yaw_rad: std::f64::consts::PI };
+        let turned_around = || {
+            let mut probe = Probe { map: corridor(false), ..Probe::with_the_walls_inspected() };
+            probe.waypoint(facing_west, 0);
+            let behind = probe.explorer.target().unwrap();
+            assert!(behind.0 > 55.0, "the only frontier is the east end, behind the rover: {behind:?}");
+            probe.waypoint(facing_west, 1);
+            assert_eq!(probe.explorer.target(), Some(behind), "kept on the map it was chosen on");
+            (probe, behind)
+        };
+        let (mut opened, _) = turned_around();
+        opened.map = PlanningMap { version: 2, ..corridor(true) };
+        opened.waypoint(facing_west, 2);
+        let ahead = opened.explorer.target().unwrap();
+        assert!(ahead.0 < 20.0, "the next map opens the west end ahead: {ahead:?}");
+
+        let (mut confirmed, behind) = turned_around();
+        confirmed.new_map_version();
+        confirmed.waypoint(facing_west, 2);
+        assert_eq!(confirmed.explorer.target(), Some(behind), "the next map still says east");
+        confirmed.map = PlanningMap { version: 3, ..corridor(true) };
+        confirmed.waypoint(facing_west, 3);
+        assert_eq!(confirmed.explorer.target(), Some(behind), "a confirmed target is kept while it is a frontier");
     }
 
     #[test]
