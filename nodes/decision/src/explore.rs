@@ -22,11 +22,9 @@ const RECOVERIES_PER_TARGET: u32 = 2;
 const WALLED_IN_CELLS: usize = 25;
 /// Longest look at the unexplored cells of a reached target, seconds (a half turn takes 4 s).
 const LOOK_S: f64 = 5.0;
-/// A new target at least this far off the heading, degrees, turns the rover around...
+/// A new target at least this far off the heading, degrees, turns the rover around: it is chosen
+/// again on the next map, which holds what the camera saw while the rover got there.
 const TURN_AROUND_DEG: f64 = 100.0;
-/// ...so for this long after its choice, seconds, it is chosen again on every newer map: the map
-/// lags the camera by a second or two, and the way on may be missing from the map it was chosen on.
-const TURN_AROUND_REVIEW_S: f64 = 3.0;
 
 /// Frontier exploration. A cell is explored once it is free on the map or has been in close view
 /// of the camera: obstacle cells seen only from afar may be floor hidden behind the projection
@@ -59,9 +57,8 @@ struct Target {
     allowed_frames: u64,
     path: Vec<usize>,
     recoveries: u32,
-    /// For a turn-around: the version of the map it was last chosen on, and the frame until
-    /// which newer maps review the choice.
-    review: Option<(u64, u64)>,
+    /// The version of the map a turn-around target was chosen on, until a newer map confirms it.
+    unconfirmed_on_map: Option<u64>,
 }
 
 impl Target {
@@ -82,20 +79,8 @@ impl Target {
             allowed_frames: params.frames_for_way(params.target_timeout_s, cost as f64),
             path: Vec::new(),
             recoveries: 0,
-            review: (bearing_deg.abs() >= TURN_AROUND_DEG)
-                .then(|| (version, frame + params.frames(TURN_AROUND_REVIEW_S))),
+            unconfirmed_on_map: (bearing_deg.abs() >= TURN_AROUND_DEG).then_some(version),
         }
-    }
-
-    /// Whether the choice of the target stands on map `version` at `frame`: it is no turn-around
-    /// under review, or was chosen on that very map.
-    fn stands(&self, version: u64, frame: u64) -> bool {
-        self.review.is_none_or(|(chosen_on, until)| chosen_on == version || frame >= until)
-    }
-
-    /// Notes that map `version` chose the target again at `frame`; the review ends with its time.
-    fn chosen_again(&mut self, version: u64, frame: u64) {
-        self.review = self.review.filter(|&(_, until)| frame < until).map(|(_, until)| (version, until));
     }
 
     /// Whether the target's time (from its choice, or from the end of a detour) is up at `frame`.
@@ -289,8 +274,8 @@ impl Explorer {
     }
 
     /// Plans from cell `start` again, choosing a new target (on the way to cell `home`) when the
-    /// target is no longer a frontier, or when it is a turn-around under review and a newer map
-    /// than the one it was chosen on has come (which keeps it if it is still the best).
+    /// target is no longer a frontier, or when it turns the rover around and a newer map than the
+    /// one it was chosen on has come (which keeps it if it is still the best).
     fn replan(
         &mut self,
         (grid, version): (&Grid, u64),
@@ -301,11 +286,11 @@ impl Explorer {
     ) {
         let costs = grid.costs_from(start, &self.costs(params));
         let frontier = self.target.as_ref().is_some_and(|t| self.is_candidate(grid, &costs, t.cell, params));
-        let stands = self.target.as_ref().is_some_and(|t| t.stands(version, frame));
-        if !(frontier && stands) {
+        let confirmed = self.target.as_ref().is_some_and(|t| t.unconfirmed_on_map.is_none_or(|v| v == version));
+        if !(frontier && confirmed) {
             let best = self.best_frontier(grid, &costs, (at, home), params);
             match self.target.as_mut() {
-                Some(target) if frontier && best == Some(target.cell) => target.chosen_again(version, frame),
+                Some(target) if frontier && best == Some(target.cell) => target.unconfirmed_on_map = None,
                 _ => self.target = best.map(|cell| Target::new(cell, &costs, (at, version), frame, params)),
             }
         }
@@ -475,7 +460,7 @@ mod tests {
     }
 
     #[test]
-    fn a_turn_around_is_chosen_again_on_newer_maps_for_a_while_then_kept() {
+    fn a_turn_around_is_chosen_again_on_the_next_map_and_then_kept() {
         let facing_west = Position { x_m: 36.5, y_m: 51.5, yaw_rad: std::f64::consts::PI };
         let turned_around = || {
             let mut probe = Probe { map: corridor(false), ..Probe::with_the_walls_inspected() };
@@ -496,10 +481,9 @@ mod tests {
         confirmed.new_map_version();
         confirmed.waypoint(facing_west, 2);
         assert_eq!(confirmed.explorer.target(), Some(behind), "the next map still says east");
-        let review_over = confirmed.params.frames(TURN_AROUND_REVIEW_S);
         confirmed.map = PlanningMap { version: 3, ..corridor(true) };
-        confirmed.waypoint(facing_west, review_over);
-        assert_eq!(confirmed.explorer.target(), Some(behind), "after the review it is kept while it is a frontier");
+        confirmed.waypoint(facing_west, 3);
+        assert_eq!(confirmed.explorer.target(), Some(behind), "a confirmed target is kept while it is a frontier");
     }
 
     #[test]
