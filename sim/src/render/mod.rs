@@ -87,8 +87,10 @@ pub struct Renderer {
     level_hits: Vec<Hit>,
     hits: Vec<Hit>,
     frame: u64,
-    /// What the level buffers hold: the pose and the samples they were drawn for.
-    drawn: Option<(BodyPose, Vec<Sample>)>,
+    /// The pose the level buffers were drawn for (none before the first frame)...
+    drawn_pose: Option<BodyPose>,
+    /// ...and the samples they show.
+    drawn_samples: Vec<Sample>,
 }
 
 impl Renderer {
@@ -111,7 +113,8 @@ impl Renderer {
             level_hits: if options.record_hits { vec![Hit::SKY; level_pixels] } else { Vec::new() },
             hits: if options.record_hits { vec![Hit::SKY; camera.width * camera.height] } else { Vec::new() },
             frame: 0,
-            drawn: None,
+            drawn_pose: None,
+            drawn_samples: Vec::new(),
         }
     }
 
@@ -132,10 +135,11 @@ impl Renderer {
     pub fn render(&mut self, world: &World, samples: &[Sample], pose: &BodyPose, out: &mut RgbImage) {
         self.frame = self.frame.wrapping_add(1);
         let rotation = Rotation::new(pose, &self.camera);
-        if self.drawn.as_ref().is_none_or(|(drawn_pose, drawn_samples)| drawn_pose != pose || drawn_samples != samples)
-        {
+        if self.drawn_pose.as_ref() != Some(pose) || self.drawn_samples != samples {
             self.draw(world, samples, pose, &rotation);
-            self.drawn = Some((*pose, samples.to_vec()));
+            self.drawn_pose = Some(*pose);
+            self.drawn_samples.clear();
+            self.drawn_samples.extend_from_slice(samples);
         }
         self.resample(&rotation, out);
     }
@@ -406,7 +410,13 @@ mod tests {
     #[test]
     fn a_rover_that_has_not_moved_sees_what_a_fresh_drawing_shows() {
         let world = crate::procgen::procedural_world(3);
-        let here = BodyPose { x_m: world.start.x_m, y_m: world.start.y_m, yaw_deg: 10.0, pitch_deg: 1.5, ..Default::default() };
+        let here = BodyPose {
+            x_m: world.start.x_m,
+            y_m: world.start.y_m,
+            yaw_deg: 10.0,
+            pitch_deg: 1.5,
+            ..Default::default()
+        };
         let elsewhere = BodyPose { yaw_deg: 100.0, ..here };
         let sample = Sample { x_m: here.x_m + 3.0, y_m: here.y_m + 0.5, radius_m: 0.2 };
         let second_frame = |first: (&BodyPose, &[Sample]), second: (&BodyPose, &[Sample])| {
