@@ -407,16 +407,15 @@ mod tests {
         );
     }
 
+    /// The body at the start of `world` on level ground, with the given yaw, pitch and roll.
+    fn at_start(world: &World, yaw_deg: f64, pitch_deg: f64, roll_deg: f64) -> BodyPose {
+        BodyPose { x_m: world.start.x_m, y_m: world.start.y_m, yaw_deg, pitch_deg, roll_deg, ground_m: 0.0 }
+    }
+
     #[test]
     fn a_rover_that_has_not_moved_sees_what_a_fresh_drawing_shows() {
         let world = crate::procgen::procedural_world(3);
-        let here = BodyPose {
-            x_m: world.start.x_m,
-            y_m: world.start.y_m,
-            yaw_deg: 10.0,
-            pitch_deg: 1.5,
-            ..Default::default()
-        };
+        let here = at_start(&world, 10.0, 1.5, 0.0);
         let elsewhere = BodyPose { yaw_deg: 100.0, ..here };
         let sample = Sample { x_m: here.x_m + 3.0, y_m: here.y_m + 0.5, radius_m: 0.2 };
         let second_frame = |first: (&BodyPose, &[Sample]), second: (&BodyPose, &[Sample])| {
@@ -436,14 +435,7 @@ mod tests {
     #[test]
     fn threads_draw_the_same_frame_as_one() {
         let world = crate::procgen::procedural_world(2);
-        let pose = BodyPose {
-            x_m: world.start.x_m,
-            y_m: world.start.y_m,
-            yaw_deg: 30.0,
-            pitch_deg: 3.0,
-            roll_deg: -2.0,
-            ground_m: 0.0,
-        };
+        let pose = at_start(&world, 30.0, 3.0, -2.0);
         let frame_with = |threads: usize| {
             let mut renderer = Renderer::new(&world, CameraModel::rover(), RenderOptions::default());
             renderer.threads = threads;
