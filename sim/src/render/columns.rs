@@ -113,6 +113,88 @@ const EXACT_SUN: usize = 2;
 /// One in the fixed-point values.
 const FIXED_ONE: f32 = 256.0;
 
+/// The values of the pixels of a span between two [`RayPoint`]s at one row, and their change from
+/// one row to the next.
+#[derive(Debug, Clone, Copy)]
+struct Span {
+    fixed: [i32; FIXED_LANES],
+    fixed_step: [i32; FIXED_LANES],
+    exact: [f32; EXACT_LANES],
+    exact_step: [f32; EXACT_LANES],
+}
+
+impl Span {
+    /// The span from `from` to `point`, at row `first`. The pixel at `first` lies `start` of the
+    /// way from `from` to `point`, each row below one step back towards `from` (all within the
+    /// two, as `first` is at or below `point.row` and the rows end above `from.row`). Two points
+    /// less than a row apart fill with `point`'s values (a row's step would take them far beyond
+    /// both).
+    fn between(from: &RayPoint, point: &RayPoint, first: usize) -> Self {
+        let rows = from.row - point.row;
+        let (start, per_row) = if rows >= 1.0 { ((from.row - first as f64) / rows, -1.0 / rows) } else { (1.0, 0.0) };
+        let (mut fixed, mut fixed_step) = (point.fixed, [0i32; FIXED_LANES]);
+        if per_row != 0.0 {
+            for k in 0..FIXED_LANES {
+                let delta = (point.fixed[k] - from.fixed[k]) as f64;
+                fixed[k] = from.fixed[k] + (delta * start) as i32;
+                fixed_step[k] = (delta * per_row) as i32;
+            }
+        }
+        let (mut exact, mut exact_step) = (from.exact, [0f32; EXACT_LANES]);
+        for k in 0..EXACT_LANES {
+            let delta = point.exact[k] - from.exact[k];
+            exact[k] += delta * start as f32;
+            exact_step[k] = delta * per_row as f32;
+        }
+        Span { fixed, fixed_step, exact, exact_step }
+    }
+
+    /// The weight of the rock's colour, 0..=256.
+    fn rock(&self) -> i32 {
+        self.fixed[FIXED_ROCK].clamp(0, FIXED_ONE as i32)
+    }
+
+    /// The colour of the pixel.
+    fn colour(&self, appearance: &Appearance) -> [u8; 3] {
+        let fixed = &self.fixed;
+        let floor_texel = || appearance.floor_texel_fixed(fixed[FIXED_FLOOR_U], fixed[FIXED_FLOOR_V]);
+        let rock_texel = || appearance.rock_texel_fixed(fixed[FIXED_ROCK_U], fixed[FIXED_ROCK_V]);
+        let texture = match self.rock() {
+            0 => floor_texel(),
+            256 => rock_texel(),
+            rock => {
+                let floor = floor_texel() as i32;
+                (floor + (((rock_texel() as i32 - floor) * rock) >> 8)) as u32
+            }
+        };
+        let rgb = [fixed[FIXED_RGB], fixed[FIXED_RGB + 1], fixed[FIXED_RGB + 2]];
+        let haze = [fixed[FIXED_HAZE], fixed[FIXED_HAZE + 1], fixed[FIXED_HAZE + 2]];
+        shade_fixed(rgb, texture, haze)
+    }
+
+    /// What the pixel's ray hit.
+    fn hit(&self) -> Hit {
+        let rock = self.rock();
+        Hit {
+            surface: if rock < 128 { Surface::Floor } else { Surface::Rock },
+            depth_m: self.exact[EXACT_DEPTH],
+            height_m: self.exact[EXACT_HEIGHT],
+            sun: self.exact[EXACT_SUN],
+            rock: rock as f32 / FIXED_ONE,
+        }
+    }
+
+    /// Moves on to the next row.
+    fn advance(&mut self) {
+        for (value, step) in self.fixed.iter_mut().zip(self.fixed_step) {
+            *value += step;
+        }
+        for (value, step) in self.exact.iter_mut().zip(self.exact_step) {
+            *value += step;
+        }
+    }
+}
+
 impl Painter<'_, '_> {
     /// Draws the band: terrain and sky, then the boulders and the samples over them.
     pub(super) fn draw(&mut self) {
@@ -239,62 +321,32 @@ impl Painter<'_, '_> {
     }
 
     /// Fills the rows from `point` down to `bottom` with the terrain between `last` and `point`;
-    /// returns the new bottom.
+    /// returns the new bottom. The pixels of a column are one slice of the band's buffers, filled
+    /// in one pass; what each ray hit, only when the frame records it, in a second.
     fn fill_span(&mut self, u: usize, bottom: usize, last: Option<&RayPoint>, point: &RayPoint) -> usize {
         let appearance = self.frame.appearance;
         let first = ceil_row(point.row).max(self.frame.window.v0);
-        let from = last.unwrap_or(point);
-        let rows = from.row - point.row;
-        // The pixel at `first` lies `start` of the way from `last` to `point`, each row below one
-        // step back towards `last` (all within the two, as `first` is at or below `point.row` and
-        // the rows end above `last.row`). Two points less than a row apart fill with `point`'s
-        // values (a row's step would take them far beyond both).
-        let (start, per_row) = if rows >= 1.0 { ((from.row - first as f64) / rows, -1.0 / rows) } else { (1.0, 0.0) };
-        let (mut fixed, mut fixed_step) = (point.fixed, [0i32; FIXED_LANES]);
-        if per_row != 0.0 {
-            for k in 0..FIXED_LANES {
-                let delta = (point.fixed[k] - from.fixed[k]) as f64;
-                fixed[k] = from.fixed[k] + (delta * start) as i32;
-                fixed_step[k] = (delta * per_row) as i32;
+        if first >= bottom {
+            return bottom;
+        }
+        let span = Span::between(last.unwrap_or(point), point, first);
+        let pixels = self.index(u, first)..self.index(u, bottom);
+        let mut lanes = span;
+        let rgb = &mut self.band.rgb[pixels.clone()];
+        let depth = &mut self.band.depth[pixels.clone()];
+        for (rgb, depth) in rgb.iter_mut().zip(depth) {
+            *rgb = lanes.colour(appearance);
+            *depth = lanes.exact[EXACT_DEPTH];
+            lanes.advance();
+        }
+        if let Some(hits) = self.band.hits.get_mut(pixels) {
+            let mut lanes = span;
+            for hit in hits {
+                *hit = lanes.hit();
+                lanes.advance();
             }
         }
-        let (mut exact, mut exact_step) = (from.exact, [0f32; EXACT_LANES]);
-        for k in 0..EXACT_LANES {
-            let delta = point.exact[k] - from.exact[k];
-            exact[k] += delta * start as f32;
-            exact_step[k] = delta * per_row as f32;
-        }
-        for v in first..bottom {
-            let rock = fixed[FIXED_ROCK].clamp(0, FIXED_ONE as i32);
-            let floor_texel = || appearance.floor_texel_fixed(fixed[FIXED_FLOOR_U], fixed[FIXED_FLOOR_V]);
-            let rock_texel = || appearance.rock_texel_fixed(fixed[FIXED_ROCK_U], fixed[FIXED_ROCK_V]);
-            let texture = match rock {
-                0 => floor_texel(),
-                256 => rock_texel(),
-                _ => {
-                    let floor = floor_texel() as i32;
-                    (floor + (((rock_texel() as i32 - floor) * rock) >> 8)) as u32
-                }
-            };
-            let rgb = [fixed[FIXED_RGB], fixed[FIXED_RGB + 1], fixed[FIXED_RGB + 2]];
-            let haze = [fixed[FIXED_HAZE], fixed[FIXED_HAZE + 1], fixed[FIXED_HAZE + 2]];
-            let hit = Hit {
-                surface: if rock < 128 { Surface::Floor } else { Surface::Rock },
-                depth_m: exact[EXACT_DEPTH],
-                height_m: exact[EXACT_HEIGHT],
-                sun: exact[EXACT_SUN],
-                rock: rock as f32 / FIXED_ONE,
-            };
-            let index = self.index(u, v);
-            self.put(index, shade_fixed(rgb, texture, haze), hit);
-            for (value, step) in fixed.iter_mut().zip(fixed_step) {
-                *value += step;
-            }
-            for (value, step) in exact.iter_mut().zip(exact_step) {
-                *value += step;
-            }
-        }
-        first.min(bottom)
+        first
     }
 
     /// Draws the floor rows of one flat cell (forward depths up to `t_out`): all of the floor's
