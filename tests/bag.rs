@@ -112,8 +112,14 @@ fn the_recorder_reports_every_topic_of_the_table_and_the_mission_traffic() {
     let count = |topic: &str| recorded.reported[topic].1;
     let frames = count("/rover/telemetry");
     assert!(frames >= 900, "{frames} telemetry frames for {MISSION_SIM_SECONDS} sim s");
+    // The recorder's reader of each topic matches the bridge's writer on its own, so the first
+    // frame or two may be recorded on some of these topics and not on others.
     for topic in ["/camera/image_raw/compressed", "/camera/camera_info", "/odom", "/tf", "/clock"] {
-        assert_eq!(count(topic), frames, "{topic}: the bridge publishes it with every frame");
+        let recorded = count(topic);
+        assert!(
+            recorded.abs_diff(frames) <= 3,
+            "{topic}: {recorded} messages for {frames} frames, one per frame expected"
+        );
     }
     // The frames still in flight when the simulator stops may go unanswered.
     for topic in ["/rover/terrain", "/rover/drive_cmd"] {
