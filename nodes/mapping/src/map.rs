@@ -60,19 +60,39 @@ const BEARING_BIN_DEG: f64 = 1.0;
 /// Bearing bins from -90 to +90 degrees.
 const BEARING_BINS: usize = (180.0 / BEARING_BIN_DEG) as usize + 1;
 
-/// The bearing bin of every cell of one scan layout (rows, columns, resolution and origin), so
-/// that the bins are computed once and not for every frame.
-#[derive(Debug, Clone, Default)]
-struct BearingTable {
-    layout: Option<(usize, usize, u64, u64, u64)>,
-    bins: Vec<u8>,
+/// A scan cell within range of the rover: its index, rover-frame centre (x ahead, y left) and
+/// range, squared and not.
+#[derive(Debug, Clone, Copy)]
+struct CellInRange {
+    index: usize,
+    x: f64,
+    y: f64,
+    range_sq: f64,
+    range_m: f64,
 }
 
-impl BearingTable {
-    /// The bins of `scan`'s layout, recomputed when the layout differs from the last one.
-    fn bins_of(&mut self, scan: &ScanGrid) -> &[u8] {
-        let layout =
-            (scan.rows, scan.cols, scan.resolution_m.to_bits(), scan.origin_x_m.to_bits(), scan.origin_y_m.to_bits());
+/// What one scan layout (rows, columns, resolution and origin) and range limit fix about its
+/// cells, computed once and not for every frame: the bearing bin of every cell, and the cells
+/// within range, row by row.
+#[derive(Debug, Clone, Default)]
+struct LayoutTable {
+    layout: Option<(usize, usize, u64, u64, u64, u64)>,
+    bins: Vec<u8>,
+    in_range: Vec<CellInRange>,
+}
+
+impl LayoutTable {
+    /// The table of `scan`'s layout and `max_range_m`, recomputed when either differs from the
+    /// last one.
+    fn of(&mut self, scan: &ScanGrid, max_range_m: f64) -> &Self {
+        let layout = (
+            scan.rows,
+            scan.cols,
+            scan.resolution_m.to_bits(),
+            scan.origin_x_m.to_bits(),
+            scan.origin_y_m.to_bits(),
+            max_range_m.to_bits(),
+        );
         if self.layout != Some(layout) {
             self.layout = Some(layout);
             self.bins = (0..scan.rows * scan.cols)
@@ -81,8 +101,9 @@ impl BearingTable {
                     Self::bin(x, y) as u8
                 })
                 .collect();
+            self.in_range = scan.cells_within(max_range_m).collect();
         }
-        &self.bins
+        self
     }
 
     /// The bearing bin of rover-frame point (x, y), x ahead.
@@ -99,16 +120,15 @@ struct NearestObstacles<'t> {
 }
 
 impl<'t> NearestObstacles<'t> {
-    /// The nearest obstacle of each bearing in `scan` within `max_range_m`, plus `margin_m`.
-    fn of(scan: &ScanGrid, bins: &'t [u8], max_range_m: f64, margin_m: f64) -> Self {
+    /// The nearest obstacle of each bearing among the `cells` of `table` within range, plus
+    /// `margin_m`.
+    fn of(cells: &[u8], table: &'t LayoutTable, margin_m: f64) -> Self {
         let mut range_m = [f64::INFINITY; BEARING_BINS];
-        for (index, x, y, class) in scan.cells_within(max_range_m) {
-            if class == OBSTACLE {
-                let bin = bins[index] as usize;
-                range_m[bin] = range_m[bin].min(x.hypot(y));
-            }
+        for cell in table.in_range.iter().filter(|cell| cells[cell.index] == OBSTACLE) {
+            let bin = table.bins[cell.index] as usize;
+            range_m[bin] = range_m[bin].min(cell.range_m);
         }
-        NearestObstacles { shadow_sq: range_m.map(|r| (r + margin_m).powi(2)), bins }
+        NearestObstacles { shadow_sq: range_m.map(|r| (r + margin_m).powi(2)), bins: &table.bins }
     }
 
     /// True if scan cell `index`, `range_sq` away, lies in the shadow of a nearer obstacle.
@@ -156,19 +176,23 @@ impl<'a> ScanGrid<'a> {
         )
     }
 
-    /// The classified cells (UNKNOWN ones left out) within `max_range_m` of the rover: index,
-    /// rover-frame centre (x ahead, y left) and class, row by row.
-    fn cells_within(&self, max_range_m: f64) -> impl Iterator<Item = (usize, f64, f64, u8)> + '_ {
+    /// The cells within `max_range_m` of the rover, row by row.
+    fn cells_within(&self, max_range_m: f64) -> impl Iterator<Item = CellInRange> + '_ {
         let max_range_sq = max_range_m * max_range_m;
         (0..self.rows)
             .map(move |row| (row, self.origin_x_m + (row as f64 + 0.5) * self.resolution_m))
             .take_while(move |&(_, x)| x * x <= max_range_sq)
             .flat_map(move |(row, x)| {
-                let first = row * self.cols;
-                self.cells[first..first + self.cols].iter().enumerate().filter_map(move |(col, &class)| {
+                (0..self.cols).filter_map(move |col| {
                     let y = self.origin_y_m + (col as f64 + 0.5) * self.resolution_m;
-                    let keep = (NAVIGABLE..=ROCK).contains(&class) && x * x + y * y <= max_range_sq;
-                    keep.then_some((first + col, x, y, class))
+                    let range_sq = x * x + y * y;
+                    (range_sq <= max_range_sq).then(|| CellInRange {
+                        index: row * self.cols + col,
+                        x,
+                        y,
+                        range_sq,
+                        range_m: x.hypot(y),
+                    })
                 })
             })
     }
@@ -224,7 +248,7 @@ pub struct WorldMap {
     last_frame: [Vec<u32>; CLASSES],
     rock_range_m: Vec<f32>,
     frame: u32,
-    bearings: BearingTable,
+    layouts: LayoutTable,
 }
 
 impl WorldMap {
@@ -245,7 +269,7 @@ impl WorldMap {
             last_frame: std::array::from_fn(|_| vec![u32::MAX; CELLS]),
             rock_range_m,
             frame: 0,
-            bearings: BearingTable::default(),
+            layouts: LayoutTable::default(),
         }
     }
 
@@ -277,14 +301,16 @@ impl WorldMap {
         let projector = Projector::new(pose, self.mount, self.config.correct_tilt);
         let full_weight_sq = self.config.full_weight_range_m * self.config.full_weight_range_m;
         let (max_range_m, margin_m) = (self.config.max_range_m, self.config.shadow_margin_m);
-        let mut bearings = std::mem::take(&mut self.bearings);
-        let bins = bearings.bins_of(scan);
-        let nearest_obstacles =
-            (margin_m < max_range_m).then(|| NearestObstacles::of(scan, bins, max_range_m, margin_m));
+        let mut layouts = std::mem::take(&mut self.layouts);
+        let table = layouts.of(scan, max_range_m);
+        let nearest_obstacles = (margin_m < max_range_m).then(|| NearestObstacles::of(scan.cells, table, margin_m));
         let mut landed = 0;
         let mut nearest_rock: Option<(f64, f64, f64)> = None;
-        for (index, x, y, class) in scan.cells_within(max_range_m) {
-            let range_sq = x * x + y * y;
+        for &CellInRange { index, x, y, range_sq, .. } in &table.in_range {
+            let class = scan.cells[index];
+            if !(NAVIGABLE..=ROCK).contains(&class) {
+                continue;
+            }
             if class == ROCK {
                 if nearest_rock.is_none_or(|(r, ..)| range_sq < r) {
                     nearest_rock = Some((range_sq, x, y));
@@ -300,7 +326,7 @@ impl WorldMap {
                 landed += 1;
             }
         }
-        self.bearings = bearings;
+        self.layouts = layouts;
         let rock = nearest_rock.and_then(|(range_sq, x, y)| {
             let cell = projector.world(x, y).and_then(|(wx, wy)| cell_of_point(wx, wy))?;
             Some((cell, range_sq.sqrt() as f32))
@@ -460,6 +486,18 @@ mod tests {
         map.update(&scan(&cells, 4, 4), pose);
         assert!(map.is_navigable(cell));
         assert_eq!(map.occupancy()[cell], 0);
+    }
+
+    #[test]
+    fn a_new_range_limit_applies_from_the_next_frame() {
+        let cells = vec![NAVIGABLE; 16 * 2];
+        let pose = Pose { x_m: 100.0, y_m: 100.0, ..Pose::default() };
+        let mut map = WorldMap::new(STRICT);
+        assert_eq!(map.update(&scan(&cells, 16, 2), pose), Update::Used(28), "rows 1.25..7.75 m ahead");
+        map.set_config(MapConfig { max_range_m: 3.0, ..STRICT });
+        assert_eq!(map.update(&scan(&cells, 16, 2), pose), Update::Used(8), "rows 1.25..2.75 m ahead");
+        map.set_config(STRICT);
+        assert_eq!(map.update(&scan(&cells, 16, 2), pose), Update::Used(28));
     }
 
     #[test]
