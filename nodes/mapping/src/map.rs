@@ -248,7 +248,7 @@ pub struct WorldMap {
     last_frame: [Vec<u32>; CLASSES],
     rock_range_m: Vec<f32>,
     frame: u32,
-    layouts: LayoutTable,
+    scan_layout: LayoutTable,
 }
 
 impl WorldMap {
@@ -269,7 +269,7 @@ impl WorldMap {
             last_frame: std::array::from_fn(|_| vec![u32::MAX; CELLS]),
             rock_range_m,
             frame: 0,
-            layouts: LayoutTable::default(),
+            scan_layout: LayoutTable::default(),
         }
     }
 
@@ -301,8 +301,8 @@ impl WorldMap {
         let projector = Projector::new(pose, self.mount, self.config.correct_tilt);
         let full_weight_sq = self.config.full_weight_range_m * self.config.full_weight_range_m;
         let (max_range_m, margin_m) = (self.config.max_range_m, self.config.shadow_margin_m);
-        let mut layouts = std::mem::take(&mut self.layouts);
-        let table = layouts.of(scan, max_range_m);
+        let mut scan_layout = std::mem::take(&mut self.scan_layout);
+        let table = scan_layout.of(scan, max_range_m);
         let nearest_obstacles = (margin_m < max_range_m).then(|| NearestObstacles::of(scan.cells, table, margin_m));
         let mut landed = 0;
         let mut nearest_rock: Option<(f64, f64, f64)> = None;
@@ -326,7 +326,7 @@ impl WorldMap {
                 landed += 1;
             }
         }
-        self.layouts = layouts;
+        self.scan_layout = scan_layout;
         let rock = nearest_rock.and_then(|(range_sq, x, y)| {
             let cell = projector.world(x, y).and_then(|(wx, wy)| cell_of_point(wx, wy))?;
             Some((cell, range_sq.sqrt() as f32))
