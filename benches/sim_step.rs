@@ -34,7 +34,7 @@ fn command(step: usize) -> Command {
 /// Times `STEPS` steps of the simulator in `world`; prints and returns the step's median, ms.
 fn measure(name: &str, world: World) -> f64 {
     let mut simulator = Simulator::new(world, SimConfig::default());
-    let (mut steps, mut physics, mut frames, mut encodes) = (vec![], vec![], vec![], vec![]);
+    let (mut steps, mut physics, mut telemetries, mut encodes) = (vec![], vec![], vec![], vec![]);
     for step in 0..STEPS {
         let started = Instant::now();
         simulator.step(command(step));
@@ -43,7 +43,7 @@ fn measure(name: &str, world: World) -> f64 {
         let total = started.elapsed();
         steps.push(total);
         physics.push(stepped);
-        frames.push(total - stepped);
+        telemetries.push(total - stepped);
         std::hint::black_box(telemetry);
         let image = simulator.render().clone();
         let started = Instant::now();
@@ -55,7 +55,7 @@ fn measure(name: &str, world: World) -> f64 {
     println!(
         "{name:<22} step median {step_ms:.3} ms (physics {:.3}, telemetry: render + JPEG + JSON {:.3}; the JPEG alone {jpeg_ms:.3}); the step takes {:.2}x the JPEG encode alone   ({:.0} m driven, {} collisions)",
         median(physics),
-        median(frames),
+        median(telemetries),
         step_ms / jpeg_ms,
         report.distance_m,
         report.collisions

@@ -115,15 +115,17 @@ fn the_recorder_reports_every_topic_of_the_table_and_the_mission_traffic() {
     // The recorder's reader of each topic matches the bridge's writer on its own, so the first
     // frame or two may be recorded on some of these topics and not on others.
     for topic in ["/camera/image_raw/compressed", "/camera/camera_info", "/odom", "/tf", "/clock"] {
-        let recorded = count(topic);
+        let messages = count(topic);
         assert!(
-            recorded.abs_diff(frames) <= 3,
-            "{topic}: {recorded} messages for {frames} frames, one per frame expected"
+            messages.abs_diff(frames) <= 3,
+            "{topic}: {messages} messages for {frames} frames, one per frame expected"
         );
     }
-    // The frames still in flight when the simulator stops may go unanswered.
+    // The frames still in flight when the simulator stops may go unanswered (and, as above, the
+    // first frames may reach the recorder's telemetry reader late).
     for topic in ["/rover/terrain", "/rover/drive_cmd"] {
-        assert!((frames - 3..=frames).contains(&count(topic)), "{topic}: {} answers to {frames} frames", count(topic));
+        let answers = count(topic);
+        assert!((frames - 3..=frames + 3).contains(&answers), "{topic}: {answers} answers to {frames} frames");
     }
     // The latched map reaches a late reader, so the map published at the mapping node's start
     // may be recorded while the statistics published with it went out before the match.

@@ -84,7 +84,7 @@ struct LayoutTable {
 impl LayoutTable {
     /// The table of `scan`'s layout and `max_range_m`, recomputed when either differs from the
     /// last one.
-    fn of(&mut self, scan: &ScanGrid, max_range_m: f64) -> &Self {
+    fn for_scan(&mut self, scan: &ScanGrid, max_range_m: f64) -> &Self {
         let layout = (
             scan.rows,
             scan.cols,
@@ -302,7 +302,7 @@ impl WorldMap {
         let full_weight_sq = self.config.full_weight_range_m * self.config.full_weight_range_m;
         let (max_range_m, margin_m) = (self.config.max_range_m, self.config.shadow_margin_m);
         let mut scan_layout = std::mem::take(&mut self.scan_layout);
-        let table = scan_layout.of(scan, max_range_m);
+        let table = scan_layout.for_scan(scan, max_range_m);
         let nearest_obstacles = (margin_m < max_range_m).then(|| NearestObstacles::of(scan.cells, table, margin_m));
         let mut landed = 0;
         let mut nearest_rock: Option<(f64, f64, f64)> = None;
