@@ -60,8 +60,8 @@ const BEARING_BIN_DEG: f64 = 1.0;
 /// Bearing bins from -90 to +90 degrees.
 const BEARING_BINS: usize = (180.0 / BEARING_BIN_DEG) as usize + 1;
 
-/// A scan cell within range of the rover: its index, rover-frame centre (x ahead, y left) and
-/// range, squared and not.
+/// A scan cell within range of the rover: its index, rover-frame centre (x ahead, y left), range
+/// (squared and not) and bearing bin.
 #[derive(Debug, Clone, Copy)]
 struct CellInRange {
     index: usize,
@@ -69,22 +69,21 @@ struct CellInRange {
     y: f64,
     range_sq: f64,
     range_m: f64,
+    bin: u8,
 }
 
-/// What one scan layout (rows, columns, resolution and origin) and range limit fix about its
-/// cells, computed once and not for every frame: the bearing bin of every cell, and the cells
-/// within range, row by row.
+/// The cells of one scan layout (rows, columns, resolution and origin) within its range limit,
+/// row by row, listed once and not for every frame.
 #[derive(Debug, Clone, Default)]
 struct LayoutTable {
     layout: Option<(usize, usize, u64, u64, u64, u64)>,
-    bins: Vec<u8>,
     in_range: Vec<CellInRange>,
 }
 
 impl LayoutTable {
-    /// The table of `scan`'s layout and `max_range_m`, recomputed when either differs from the
-    /// last one.
-    fn for_scan(&mut self, scan: &ScanGrid, max_range_m: f64) -> &Self {
+    /// The cells within `max_range_m` of `scan`'s layout, listed again when the layout or the
+    /// range differs from the last one.
+    fn for_scan(&mut self, scan: &ScanGrid, max_range_m: f64) -> &[CellInRange] {
         let layout = (
             scan.rows,
             scan.cols,
@@ -95,45 +94,39 @@ impl LayoutTable {
         );
         if self.layout != Some(layout) {
             self.layout = Some(layout);
-            self.bins = (0..scan.rows * scan.cols)
-                .map(|index| {
-                    let (x, y) = scan.cell_centre(index);
-                    Self::bin(x, y) as u8
-                })
-                .collect();
             self.in_range = scan.cells_within(max_range_m).collect();
         }
-        self
+        &self.in_range
     }
+}
 
-    /// The bearing bin of rover-frame point (x, y), x ahead.
-    fn bin(x: f64, y: f64) -> usize {
-        ((y.atan2(x).to_degrees() + 90.0) / BEARING_BIN_DEG).round().clamp(0.0, (BEARING_BINS - 1) as f64) as usize
-    }
+/// The bearing bin of rover-frame point (x, y), x ahead.
+fn bearing_bin(x: f64, y: f64) -> u8 {
+    ((y.atan2(x).to_degrees() + 90.0) / BEARING_BIN_DEG).round().clamp(0.0, (BEARING_BINS - 1) as f64) as u8
 }
 
 /// The range of the nearest obstacle cell of a scan in each bearing bin, plus a margin: obstacle
 /// cells beyond it are in the shadow of a nearer one.
-struct NearestObstacles<'t> {
+struct NearestObstacles {
     shadow_sq: [f64; BEARING_BINS],
-    bins: &'t [u8],
 }
 
-impl<'t> NearestObstacles<'t> {
-    /// The nearest obstacle of each bearing among the `cells` of `table` within range, plus
-    /// `margin_m`.
-    fn of(cells: &[u8], table: &'t LayoutTable, margin_m: f64) -> Self {
+impl NearestObstacles {
+    /// The nearest obstacle of each bearing among the scan cells `in_range` (classes `cells`),
+    /// plus `margin_m`.
+    fn of(cells: &[u8], in_range: &[CellInRange], margin_m: f64) -> Self {
         let mut range_m = [f64::INFINITY; BEARING_BINS];
-        for cell in table.in_range.iter().filter(|cell| cells[cell.index] == OBSTACLE) {
-            let bin = table.bins[cell.index] as usize;
+        for cell in in_range.iter().filter(|cell| cells[cell.index] == OBSTACLE) {
+            let bin = cell.bin as usize;
             range_m[bin] = range_m[bin].min(cell.range_m);
         }
-        NearestObstacles { shadow_sq: range_m.map(|r| (r + margin_m).powi(2)), bins: &table.bins }
+        NearestObstacles { shadow_sq: range_m.map(|r| (r + margin_m).powi(2)) }
     }
 
-    /// True if scan cell `index`, `range_sq` away, lies in the shadow of a nearer obstacle.
-    fn shadowed(&self, index: usize, range_sq: f64) -> bool {
-        range_sq > self.shadow_sq[self.bins[index] as usize]
+    /// True if a scan cell in bearing bin `bin`, `range_sq` away, lies in the shadow of a nearer
+    /// obstacle.
+    fn shadowed(&self, bin: u8, range_sq: f64) -> bool {
+        range_sq > self.shadow_sq[bin as usize]
     }
 }
 
@@ -167,15 +160,6 @@ impl<'a> ScanGrid<'a> {
         }
     }
 
-    /// The rover-frame centre (x ahead, y left) of cell `index`, metres.
-    fn cell_centre(&self, index: usize) -> (f64, f64) {
-        let (row, col) = (index / self.cols, index % self.cols);
-        (
-            self.origin_x_m + (row as f64 + 0.5) * self.resolution_m,
-            self.origin_y_m + (col as f64 + 0.5) * self.resolution_m,
-        )
-    }
-
     /// The cells within `max_range_m` of the rover, row by row.
     fn cells_within(&self, max_range_m: f64) -> impl Iterator<Item = CellInRange> + '_ {
         let max_range_sq = max_range_m * max_range_m;
@@ -192,6 +176,7 @@ impl<'a> ScanGrid<'a> {
                         y,
                         range_sq,
                         range_m: x.hypot(y),
+                        bin: bearing_bin(x, y),
                     })
                 })
             })
@@ -302,11 +287,11 @@ impl WorldMap {
         let full_weight_sq = self.config.full_weight_range_m * self.config.full_weight_range_m;
         let (max_range_m, margin_m) = (self.config.max_range_m, self.config.shadow_margin_m);
         let mut scan_layout = std::mem::take(&mut self.scan_layout);
-        let table = scan_layout.for_scan(scan, max_range_m);
-        let nearest_obstacles = (margin_m < max_range_m).then(|| NearestObstacles::of(scan.cells, table, margin_m));
+        let in_range = scan_layout.for_scan(scan, max_range_m);
+        let nearest_obstacles = (margin_m < max_range_m).then(|| NearestObstacles::of(scan.cells, in_range, margin_m));
         let mut landed = 0;
         let mut nearest_rock: Option<(f64, f64, f64)> = None;
-        for &CellInRange { index, x, y, range_sq, .. } in &table.in_range {
+        for &CellInRange { index, x, y, range_sq, bin, .. } in in_range {
             let class = scan.cells[index];
             if !(NAVIGABLE..=ROCK).contains(&class) {
                 continue;
@@ -317,7 +302,7 @@ impl WorldMap {
                 }
                 continue;
             }
-            if class == OBSTACLE && nearest_obstacles.as_ref().is_some_and(|n| n.shadowed(index, range_sq)) {
+            if class == OBSTACLE && nearest_obstacles.as_ref().is_some_and(|n| n.shadowed(bin, range_sq)) {
                 continue;
             }
             if let Some(cell) = projector.world(x, y).and_then(|(wx, wy)| cell_of_point(wx, wy)) {
