@@ -87,6 +87,69 @@ impl Thresholds {
     }
 }
 
+/// The colour tests of the RGB rules, one bit each, per channel value: a pixel's bits are the OR of
+/// its three channels' entries. Each test compares one channel with a limit, so a bilinear mean of
+/// pixels that all pass it passes it, and one of pixels that all fail it fails it (the weights
+/// are non-negative and sum to one, and the rounding stays on the same side of a whole-number
+/// limit): where the four taps of a warped pixel agree on the tests a rule needs, so does the
+/// warped pixel, and the rule's outcome follows without interpolating.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColourBits {
+    by_channel: [[u8; 256]; 3],
+}
+
+/// Bits of [`ColourBits`]: red, green and blue as the rock rule wants them...
+const ROCK_BITS: u8 = 0b000_111;
+/// ...and the three channels above the navigable limits.
+const NAVIGABLE_BITS: u8 = 0b111_000;
+
+impl ColourBits {
+    /// The tests of `thresholds`, or none when the rock rule is HSV (hue is no single-channel test).
+    pub fn of(thresholds: &Thresholds) -> Option<Self> {
+        let RockRule::Rgb { min_red, min_green, max_blue } = thresholds.rock else { return None };
+        let rock: [&dyn Fn(u8) -> bool; 3] = [&|v| v > min_red, &|v| v > min_green, &|v| v < max_blue];
+        let by_channel = std::array::from_fn(|channel| {
+            std::array::from_fn(|value| {
+                let value = value as u8;
+                (rock[channel](value) as u8) << channel
+                    | ((value > thresholds.navigable[channel]) as u8) << (channel + 3)
+            })
+        });
+        Some(ColourBits { by_channel })
+    }
+
+    /// The bits of pixel `rgb`.
+    #[inline]
+    pub fn of_pixel(&self, rgb: [u8; 3]) -> u8 {
+        self.by_channel[0][rgb[0] as usize] | self.by_channel[1][rgb[1] as usize] | self.by_channel[2][rgb[2] as usize]
+    }
+
+    /// The class of a warped pixel whose taps all have the bits `all` and together the bits `any`,
+    /// when these decide it: a rule holds if all its tests pass on every tap, fails if one test
+    /// fails on every tap, and is open otherwise.
+    #[inline]
+    pub fn class_of_taps(all: u8, any: u8, in_view: bool) -> Option<Class> {
+        let holds = |rule: u8| {
+            if all & rule == rule {
+                Some(true)
+            } else if any & rule != rule {
+                Some(false)
+            } else {
+                None
+            }
+        };
+        Some(if holds(ROCK_BITS)? {
+            Class::Rock
+        } else if holds(NAVIGABLE_BITS)? {
+            Class::Navigable
+        } else if in_view {
+            Class::Obstacle
+        } else {
+            Class::Unknown
+        })
+    }
+}
+
 const HSV_SHIFT: u32 = 12;
 
 /// OpenCV's 8-bit RGB to HSV (H in 0..180), with its fixed-point division tables.
@@ -125,6 +188,27 @@ mod tests {
         assert_eq!(t.classify([160, 200, 190], false), Class::Unknown);
         assert_eq!(t.classify([170, 140, 20], true), Class::Rock);
         assert_eq!(t.classify([30, 20, 15], true), Class::Obstacle);
+    }
+
+    #[test]
+    fn colour_bits_classify_every_colour_as_the_rules_do() {
+        let thresholds = Thresholds::default();
+        let bits = ColourBits::of(&thresholds).expect("an RGB rule");
+        let near_limits = [0, 49, 50, 51, 109, 110, 111, 159, 160, 161, 255];
+        let every = 0..=255u8;
+        let red_green = every.clone().flat_map(|r| (0..=255u8).map(move |g| (r, g)));
+        let colours = red_green
+            .flat_map(|(r, g)| near_limits.map(|b| [r, g, b]))
+            .chain(every.flat_map(|b| near_limits.into_iter().flat_map(move |r| near_limits.map(|g| [r, g, b]))));
+        for rgb in colours {
+            for in_view in [false, true] {
+                let pixel = bits.of_pixel(rgb);
+                let class = ColourBits::class_of_taps(pixel, pixel, in_view);
+                assert_eq!(class, Some(thresholds.classify(rgb, in_view)), "{rgb:?}");
+            }
+        }
+        let hsv = Thresholds { rock: RockRule::Hsv { lower: [0, 0, 0], upper: [40, 255, 255] }, ..thresholds };
+        assert_eq!(ColourBits::of(&hsv), None);
     }
 
     #[test]

@@ -14,9 +14,9 @@ pub mod warp;
 use rover_imaging::{ImageError, RgbImage};
 use rover_msgs::body::CameraMount;
 
-use crate::classify::{Class, Thresholds};
+use crate::classify::{Class, ColourBits, Thresholds};
 use crate::homography::Matrix3;
-use crate::warp::{BorderedImage, WarpTable};
+use crate::warp::{BorderedImage, WarpEntry, WarpTable};
 
 /// The calibration of the warp (the Udacity starter's values by default).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -93,6 +93,7 @@ pub enum PerceptionError {
 pub struct Perception {
     calibration: Calibration,
     thresholds: Thresholds,
+    colour_bits: Option<ColourBits>,
     table: WarpTable,
     image: RgbImage,
     source: BorderedImage,
@@ -109,6 +110,7 @@ impl Perception {
         Ok(Perception {
             calibration,
             thresholds,
+            colour_bits: ColourBits::of(&thresholds),
             table,
             image: RgbImage::default(),
             source: BorderedImage::default(),
@@ -136,7 +138,7 @@ impl Perception {
     pub fn process_jpeg(&mut self, jpeg: &[u8]) -> Result<&[Class], PerceptionError> {
         let (width, height) = (self.calibration.width, self.calibration.height);
         rover_imaging::decode_jpeg_into(jpeg, width, height, &mut self.image)?;
-        self.source.fill(&self.image.data, self.image.width, self.image.height);
+        self.source.fill(&self.image.data, self.image.width, self.image.height, self.colour_bits.as_ref());
         self.classify();
         Ok(&self.classes)
     }
@@ -146,7 +148,7 @@ impl Perception {
         if (image.width, image.height) != (self.calibration.width, self.calibration.height) {
             return Err(self.wrong_size(image.width, image.height));
         }
-        self.source.fill(&image.data, image.width, image.height);
+        self.source.fill(&image.data, image.width, image.height, self.colour_bits.as_ref());
         self.classify();
         Ok(&self.classes)
     }
@@ -160,9 +162,21 @@ impl Perception {
         })
     }
 
+    /// Classifies every table entry: from the colour bits of its taps when they decide it, else
+    /// from its interpolated colour (the same class either way, see [`ColourBits`]).
     fn classify(&mut self) {
-        for (class, entry) in self.classes.iter_mut().zip(&self.table.entries) {
-            *class = self.thresholds.classify(self.table.sample(entry, &self.source), entry.in_view);
+        let (table, source) = (&self.table, &self.source);
+        let interpolated = |entry: &WarpEntry| self.thresholds.classify(table.sample(entry, source), entry.in_view);
+        let entries = self.classes.iter_mut().zip(&table.entries);
+        if self.colour_bits.is_some() {
+            for (class, entry) in entries {
+                let (all, any) = table.tap_bits(entry, source);
+                *class = ColourBits::class_of_taps(all, any, entry.in_view).unwrap_or_else(|| interpolated(entry));
+            }
+        } else {
+            for (class, entry) in entries {
+                *class = interpolated(entry);
+            }
         }
     }
 
@@ -173,5 +187,55 @@ impl Perception {
             warped.set_pixel(entry.x as usize, entry.y as usize, self.table.sample(entry, &self.source));
         }
         warped
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The class of every entry from its interpolated colour alone.
+    fn interpolated_classes(perception: &Perception, thresholds: &Thresholds) -> Vec<Class> {
+        let warped = perception.warped_image();
+        let table = perception.table();
+        table.entries.iter().map(|e| thresholds.classify(warped.pixel(e.x as usize, e.y as usize), e.in_view)).collect()
+    }
+
+    /// An image of flat patches of floor, wall and sample colours with noise at their edges.
+    fn patchwork(seed: u32) -> RgbImage {
+        const COLOURS: [[u8; 3]; 4] = [[200, 180, 165], [110, 100, 90], [170, 140, 20], [161, 161, 161]];
+        let mut image = RgbImage::new(320, 160);
+        let mut state = seed;
+        let mut next = move || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 24) as u8
+        };
+        for y in 0..160 {
+            for x in 0..320 {
+                let colour = COLOURS[(x / 23 + y / 17 + (seed as usize)) % COLOURS.len()];
+                let jitter = if x % 23 < 2 || y % 17 < 2 { next() % 7 } else { 0 };
+                image.set_pixel(x, y, colour.map(|c| c.saturating_add(jitter)));
+            }
+        }
+        image
+    }
+
+    #[test]
+    fn classes_from_the_taps_colour_bits_are_the_classes_of_the_interpolated_colours() {
+        let thresholds = Thresholds::default();
+        let mut perception = Perception::new(Calibration::default(), thresholds).unwrap();
+        let dataset = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/udacity/test_dataset/IMG");
+        let mut frames: Vec<_> = std::fs::read_dir(dataset).unwrap().map(|e| e.unwrap().path()).collect();
+        frames.sort();
+        for path in frames.iter().step_by(7) {
+            let classes = perception.process_jpeg(&std::fs::read(path).unwrap()).unwrap().to_vec();
+            assert_eq!(classes, interpolated_classes(&perception, &thresholds), "{}", path.display());
+        }
+        for seed in 0..4 {
+            let classes = perception.process_rgb(&patchwork(seed)).unwrap().to_vec();
+            assert_eq!(classes, interpolated_classes(&perception, &thresholds), "patchwork {seed}");
+            let kinds = [Class::Navigable, Class::Obstacle, Class::Rock].map(|k| classes.contains(&k));
+            assert_eq!(kinds, [true; 3], "patchwork {seed} shows every class");
+        }
     }
 }

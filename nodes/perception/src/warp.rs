@@ -8,6 +8,7 @@
 //! 1/32 pixel and rounded half to even. Weights are 15-bit products of the 1/32 fractions; the
 //! whole-pixel entry keeps OpenCV's 32767 + 1 split, which is invisible on 8-bit images.
 
+use crate::classify::ColourBits;
 use crate::homography::{Matrix3, invert};
 
 /// Sub-pixel resolution of the source coordinates (OpenCV's INTER_BITS).
@@ -26,9 +27,9 @@ pub struct WarpEntry {
     pub x: u16,
     /// Row in the warped image.
     pub y: u16,
-    /// Byte offset, in the black-bordered source (see [`BorderedImage`]), of the top-left tap; the
-    /// others are the pixel to its right and the two below them.
-    pub offset: u32,
+    /// Index of the top-left tap among the pixels of the black-bordered source (see
+    /// [`BorderedImage`]); the others are the pixel to its right and the two below them.
+    pub tap: u32,
     /// Fixed-point weights of the four taps (sum 2^15): top-left, top-right, bottom-left, bottom-right.
     pub weights: [u16; 4],
     /// The warped pixel is inside the camera's field of view (the warped all-ones mask is 1).
@@ -44,8 +45,8 @@ pub struct WarpTable {
     pub height: usize,
     /// Warped pixels that see any of the image, in row-major order of the warped image.
     pub entries: Vec<WarpEntry>,
-    /// Bytes per row of the black-bordered source.
-    pub stride: usize,
+    /// Pixels per row of the black-bordered source.
+    pub stride_px: usize,
 }
 
 /// The bilinear weights of OpenCV's 32x32 interpolation table for fractions (fx, fy) in 1/32 px.
@@ -69,7 +70,7 @@ impl WarpTable {
     /// Builds the table of the warp by `matrix` (source to warped) for `width` x `height` images.
     pub fn new(matrix: &Matrix3, width: usize, height: usize) -> Option<Self> {
         let m = invert(matrix)?;
-        let stride = (width + 2) * 3;
+        let stride_px = width + 2;
         let mut entries = Vec::new();
         let mut rows: Vec<Vec<WarpEntry>> = vec![Vec::new(); height];
         for block_y in (0..height).step_by(BLOCK_ROWS) {
@@ -86,7 +87,8 @@ impl WarpTable {
                         let w = if w != 0.0 { INTER_TAB_SIZE as f64 / w } else { 0.0 };
                         let sx_fixed = round_to_int((x0 + m[0] * c) * w);
                         let sy_fixed = round_to_int((y0 + m[3] * c) * w);
-                        let entry = Self::entry((block_x + column, y), (sx_fixed, sy_fixed), (width, height), stride);
+                        let entry =
+                            Self::entry((block_x + column, y), (sx_fixed, sy_fixed), (width, height), stride_px);
                         rows[y].extend(entry);
                     }
                 }
@@ -96,14 +98,14 @@ impl WarpTable {
             row.sort_by_key(|e| e.x);
             entries.extend(row);
         }
-        Some(WarpTable { width, height, entries, stride })
+        Some(WarpTable { width, height, entries, stride_px })
     }
 
     fn entry(
         (x, y): (usize, usize),
         (sx_fixed, sy_fixed): (i32, i32),
         (width, height): (usize, usize),
-        stride: usize,
+        stride_px: usize,
     ) -> Option<WarpEntry> {
         let sx = (sx_fixed >> INTER_BITS).clamp(i16::MIN as i32, i16::MAX as i32);
         let sy = (sy_fixed >> INTER_BITS).clamp(i16::MIN as i32, i16::MAX as i32);
@@ -116,16 +118,16 @@ impl WarpTable {
         let inside = positions.map(|(px, py)| px >= 0 && py >= 0 && px < w && py < h);
         let coverage: i32 = (0..4).filter(|&i| inside[i]).map(|i| weights[i]).sum();
         let in_view = (coverage + (1 << (WEIGHT_BITS - 1))) >> WEIGHT_BITS >= 1;
-        let offset = ((sy + 1) as usize * stride + (sx + 1) as usize * 3) as u32;
-        Some(WarpEntry { x: x as u16, y: y as u16, offset, weights: weights.map(|w| w as u16), in_view })
+        let tap = ((sy + 1) as usize * stride_px + (sx + 1) as usize) as u32;
+        Some(WarpEntry { x: x as u16, y: y as u16, tap, weights: weights.map(|w| w as u16), in_view })
     }
 
     /// Interpolates one entry from the black-bordered source.
     #[inline]
     pub fn sample(&self, entry: &WarpEntry, source: &BorderedImage) -> [u8; 3] {
-        let at = entry.offset as usize;
+        let (at, stride) = (entry.tap as usize * 3, self.stride_px * 3);
         let top: &[u8; 6] = source.data[at..at + 6].try_into().expect("six bytes");
-        let bottom: &[u8; 6] = source.data[at + self.stride..at + self.stride + 6].try_into().expect("six bytes");
+        let bottom: &[u8; 6] = source.data[at + stride..at + stride + 6].try_into().expect("six bytes");
         let [w0, w1, w2, w3] = entry.weights;
         let (w0, w1, w2, w3) = (w0 as u32, w1 as u32, w2 as u32, w3 as u32);
         let channel = |k: usize| {
@@ -138,24 +140,46 @@ impl WarpTable {
         };
         [channel(0), channel(1), channel(2)]
     }
+
+    /// The colour bits of the four taps of `entry` (see [`ColourBits`]): those all of them have,
+    /// and those any of them has.
+    #[inline]
+    pub fn tap_bits(&self, entry: &WarpEntry, source: &BorderedImage) -> (u8, u8) {
+        let at = entry.tap as usize;
+        let (top, bottom) = (&source.bits[at..at + 2], &source.bits[at + self.stride_px..at + self.stride_px + 2]);
+        (top[0] & top[1] & bottom[0] & bottom[1], top[0] | top[1] | bottom[0] | bottom[1])
+    }
 }
 
 /// An RGB image inside a one-pixel black border: the taps of OpenCV's constant border that fall
-/// outside the image read black, without any test in the loop.
+/// outside the image read black, without any test in the loop. With [`ColourBits`], each pixel's
+/// colour bits too, in a plane of the same layout.
 #[derive(Debug, Clone, Default)]
 pub struct BorderedImage {
     data: Vec<u8>,
+    bits: Vec<u8>,
 }
 
 impl BorderedImage {
-    /// Copies the `width` x `height` RGB pixels `rgb` into the bordered buffer.
-    pub fn fill(&mut self, rgb: &[u8], width: usize, height: usize) {
-        let stride = (width + 2) * 3;
+    /// Copies the `width` x `height` RGB pixels `rgb` into the bordered buffer, and their colour
+    /// bits into the bits plane when `colour_bits` are given.
+    pub fn fill(&mut self, rgb: &[u8], width: usize, height: usize, colour_bits: Option<&ColourBits>) {
+        let stride_px = width + 2;
         self.data.clear();
-        self.data.resize(stride * (height + 2), 0);
+        self.data.resize(stride_px * 3 * (height + 2), 0);
         for (row, pixels) in rgb.chunks_exact(width * 3).take(height).enumerate() {
-            let start = (row + 1) * stride + 3;
+            let start = ((row + 1) * stride_px + 1) * 3;
             self.data[start..start + width * 3].copy_from_slice(pixels);
+        }
+        self.bits.clear();
+        if let Some(colour_bits) = colour_bits {
+            self.bits.resize(stride_px * (height + 2), colour_bits.of_pixel([0, 0, 0]));
+            for (row, pixels) in rgb.chunks_exact(width * 3).take(height).enumerate() {
+                let start = (row + 1) * stride_px + 1;
+                for (bits, pixel) in self.bits[start..start + width].iter_mut().zip(pixels.chunks_exact(3)) {
+                    *bits = colour_bits.of_pixel([pixel[0], pixel[1], pixel[2]]);
+                }
+            }
         }
     }
 }
@@ -188,7 +212,7 @@ mod tests {
         assert_eq!(table.entries.len(), 200);
         let rgb: Vec<u8> = (0..600).map(|i| (i * 7 % 256) as u8).collect();
         let mut source = BorderedImage::default();
-        source.fill(&rgb, 20, 10);
+        source.fill(&rgb, 20, 10, None);
         for entry in &table.entries {
             let at = (entry.y as usize * 20 + entry.x as usize) * 3;
             assert_eq!(table.sample(entry, &source), [rgb[at], rgb[at + 1], rgb[at + 2]]);
