@@ -134,11 +134,9 @@ impl Span {
         let (start, per_row) = if rows >= 1.0 { ((from.row - first as f64) / rows, -1.0 / rows) } else { (1.0, 0.0) };
         let (mut fixed, mut fixed_step) = (point.fixed, [0i32; FIXED_LANES]);
         if per_row != 0.0 {
-            for k in 0..FIXED_LANES {
-                let delta = (point.fixed[k] - from.fixed[k]) as f64;
-                fixed[k] = from.fixed[k] + (delta * start) as i32;
-                fixed_step[k] = (delta * per_row) as i32;
-            }
+            let delta: [f64; FIXED_LANES] = std::array::from_fn(|k| (point.fixed[k] - from.fixed[k]) as f64);
+            fixed = std::array::from_fn(|k| from.fixed[k] + (delta[k] * start) as i32);
+            fixed_step = delta.map(|d| (d * per_row) as i32);
         }
         let (mut exact, mut exact_step) = (from.exact, [0f32; EXACT_LANES]);
         for k in 0..EXACT_LANES {
