@@ -3,7 +3,8 @@
 //!
 //! Nothing is warped per frame: the table built once from the calibration lists, for each warped
 //! pixel inside the camera's view, the source pixels and weights OpenCV's `warpPerspective` would
-//! use; a frame is decoded, those entries are interpolated and classified, and that is all.
+//! use; a frame is decoded, and each entry is classified from the colour tests of its four source
+//! pixels where they decide it, else from its interpolated colour, and that is all.
 
 pub mod classify;
 pub mod homography;
