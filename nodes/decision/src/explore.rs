@@ -70,7 +70,7 @@ impl Target {
         frame: u64,
         params: &DecisionParams,
     ) -> Target {
-        let (cost, centre) = (costs.distance[cell], cell_centre_m(cell));
+        let (cost, centre) = (costs.distance(cell), cell_centre_m(cell));
         let bearing_deg = at.bearing_to(centre).to_degrees();
         tracing::debug!(frame, at = ?(at.x_m, at.y_m), target = ?centre, cost, bearing_deg = bearing_deg.round(), "new frontier target");
         Target {
@@ -147,7 +147,7 @@ impl Explorer {
     pub fn cost_to(&self, point: (f64, f64)) -> Option<f64> {
         let costs = self.costs.as_ref()?;
         let cell = costs.reachable_near(cell_of_point(point.0, point.1)?, GOAL_SLACK_CELLS)?;
-        Some(costs.distance[cell] as f64)
+        Some(costs.distance(cell) as f64)
     }
 
     /// Marks the cells in close view of the camera at `at` as inspected.
@@ -176,9 +176,7 @@ impl Explorer {
     /// or among obstacle cells, e.g. started again next to a rock), so that no frontier says
     /// anything about the world.
     pub fn walled_in(&self) -> bool {
-        self.costs
-            .as_ref()
-            .is_some_and(|costs| costs.distance.iter().filter(|d| d.is_finite()).count() < WALLED_IN_CELLS)
+        self.costs.as_ref().is_some_and(|costs| costs.reachable_cells() < WALLED_IN_CELLS)
     }
 
     /// Starts the current target's clock again after a detour (to a sample): the time away does
@@ -303,7 +301,7 @@ impl Explorer {
     fn is_candidate(&self, grid: &Grid, costs: &CostMap, cell: usize, params: &DecisionParams) -> bool {
         !self.explored[cell]
             && grid.cell(cell) == Cell::Free
-            && costs.distance[cell].is_finite()
+            && costs.distance(cell).is_finite()
             && Grid::cells_around(cell, FRONTIER_RADIUS_CELLS).filter(|&n| self.unexplored(grid, n)).count()
                 >= params.frontier_min_unknown as usize
     }
@@ -320,7 +318,7 @@ impl Explorer {
     ) -> Option<usize> {
         let score = |cell: usize| {
             let turn = at.bearing_to(cell_centre_m(cell)).abs() / std::f64::consts::PI;
-            costs.distance[cell] as f64 + params.turn_penalty_m * turn
+            costs.distance(cell) as f64 + params.turn_penalty_m * turn
         };
         let candidates = grid
             .frontiers(|n| self.unexplored(grid, n))

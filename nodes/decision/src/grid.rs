@@ -74,28 +74,36 @@ impl Grid {
         self.cells[i]
     }
 
-    /// Whether `cell` is an obstacle beyond the escape radius of a plan from `start`.
-    fn beyond_escape(&self, cell: usize, start: usize) -> bool {
-        self.cells[cell] == Cell::Blocked && chebyshev(cell, start) > ESCAPE_RADIUS_CELLS
+    /// Whether cell `i` is not an obstacle but one of its eight neighbours is.
+    pub fn near_wall(&self, i: usize) -> bool {
+        self.near_wall[i]
     }
 
-    /// The cost of entering each cell on a plan from `start` (infinite: it cannot be entered); at
-    /// least 1, as the extra costs are never negative.
-    fn step_costs(&self, start: usize, costs: &Costs) -> Vec<f32> {
+    /// The entry costs of a plan from map cell `start`, on the padded grid.
+    fn steps(&self, start: usize, costs: &Costs) -> Steps {
         debug_assert!(costs.near_wall >= 0.0 && costs.unknown >= 0.0 && costs.obstacle.is_none_or(|c| c >= 0.0));
         let blocked = 1.0 + costs.near_wall + costs.unknown;
-        (0..CELLS)
-            .map(|i| match self.cells[i] {
-                Cell::Blocked if self.beyond_escape(i, start) => {
-                    costs.obstacle.map_or(f32::INFINITY, |extra| blocked + extra)
-                }
-                Cell::Blocked => blocked,
-                Cell::Unknown if !costs.cross_unknown => f32::INFINITY,
-                Cell::Unknown => 1.0 + costs.unknown,
+        let beyond_escape = costs.obstacle.map_or(f32::INFINITY, |extra| blocked + extra);
+        let unknown = if costs.cross_unknown { 1.0 + costs.unknown } else { f32::INFINITY };
+        let mut steps = Steps {
+            straight: vec![f32::INFINITY; PADDED_CELLS],
+            diagonal: vec![f32::INFINITY; PADDED_CELLS],
+            walls: vec![false; PADDED_CELLS],
+            max: if beyond_escape.is_finite() { beyond_escape } else { blocked },
+        };
+        for (i, p) in map_cells_padded() {
+            let step = match self.cells[i] {
+                Cell::Blocked => beyond_escape,
+                Cell::Unknown => unknown,
                 Cell::Free if self.near_wall[i] => 1.0 + costs.near_wall,
                 Cell::Free => 1.0,
-            })
-            .collect()
+            };
+            steps.set(p, step, self.cells[i] == Cell::Blocked && step == f32::INFINITY);
+        }
+        for n in Grid::cells_around(start, ESCAPE_RADIUS_CELLS).filter(|&n| self.cells[n] == Cell::Blocked) {
+            steps.set(padded(n), blocked, false);
+        }
+        steps
     }
 
     /// Path costs from `start` to every cell and each cell's predecessor (Dijkstra, 8-connected,
@@ -103,36 +111,20 @@ impl Grid {
     /// obstacle cells right around it can be crossed at a premium: a rover that the map puts in or
     /// against a wall (a sample by the wall, a wall margin) can still leave.
     pub fn costs_from(&self, start: usize, costs: &Costs) -> CostMap {
-        let step = self.step_costs(start, costs);
-        let mut search = Search::new(start, &step);
+        let steps = self.steps(start, costs);
+        let mut search = Search::new(padded(start), steps.max);
         let mut k = 0;
         while search.open.len > 0 {
             let keys = search.open.take_sorted(k);
-            for (d, i) in keys.iter().map(|&key| from_order_key(key)) {
-                if d <= search.distance[i] {
-                    self.expand(i, d, &step, &mut search);
+            for (d, p) in keys.iter().map(|&key| from_order_key(key)) {
+                if d <= search.distance[p] {
+                    search.expand(p, d, &steps);
                 }
             }
             search.open.give_back(k, keys);
             k += 1;
         }
         CostMap { distance: search.distance, parent: search.parent }
-    }
-
-    /// Relaxes the neighbours of cell `i`, reached at cost `d`, with the entry costs `step`; no
-    /// diagonal step cuts the corner of a cell that walls off the plan.
-    fn expand(&self, i: usize, d: f32, step: &[f32], search: &mut Search) {
-        let walls_off = |c: usize| step[c] == f32::INFINITY && self.cells[c] == Cell::Blocked;
-        let (x, y) = cell_xy(i);
-        for (dx, dy) in NEIGHBOURS8 {
-            let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-            let Some(n) = checked_cell_at(nx, ny) else { continue };
-            if dx == 0 || dy == 0 {
-                search.relax(n, d + step[n], i);
-            } else if !walls_off(cell_at(nx as usize, y)) && !walls_off(cell_at(x, ny as usize)) {
-                search.relax(n, d + step[n] * std::f32::consts::SQRT_2, i);
-            }
-        }
     }
 
     /// Frontier cells: free cells with a 4-neighbour that is still `unexplored`.
@@ -199,8 +191,56 @@ fn from_order_key(key: u64) -> (f32, usize) {
     (f32::from_bits((key >> 32) as u32), (key & u64::from(u32::MAX)) as usize)
 }
 
-/// The state of [`Grid::costs_from`]: the best cost and predecessor found so far of each cell,
-/// and the cells still to expand.
+/// Side of the padded grid of a search: the map with a border of cells that cannot be entered,
+/// so that every cell of the map has eight neighbours at fixed offsets.
+const PADDED_SIDE: usize = SIDE_CELLS + 2;
+/// Cells of the padded grid.
+const PADDED_CELLS: usize = PADDED_SIDE * PADDED_SIDE;
+
+/// The padded index of map cell `i`. Padded indices are row-major too, so they order cells as
+/// map indices do.
+fn padded(i: usize) -> usize {
+    let (x, y) = cell_xy(i);
+    padded_at(x, y)
+}
+
+/// The padded index of the map cell at column `x`, row `y`.
+const fn padded_at(x: usize, y: usize) -> usize {
+    (y + 1) * PADDED_SIDE + x + 1
+}
+
+/// The map cell of padded index `p` (inside the border).
+fn unpadded(p: usize) -> usize {
+    cell_at(p % PADDED_SIDE - 1, p / PADDED_SIDE - 1)
+}
+
+/// Every map cell with its padded index, row by row.
+fn map_cells_padded() -> impl Iterator<Item = (usize, usize)> {
+    (0..SIDE_CELLS).flat_map(|y| (0..SIDE_CELLS).map(move |x| (cell_at(x, y), padded_at(x, y))))
+}
+
+/// The entry costs of a plan on the padded grid: straight and diagonal (SQRT_2 times as much)
+/// steps into each cell, infinite where it cannot be entered; which of those wall off the
+/// corners of diagonal steps past them (obstacles, not unknown ground); the dearest finite step
+/// a plan may take.
+struct Steps {
+    straight: Vec<f32>,
+    diagonal: Vec<f32>,
+    walls: Vec<bool>,
+    max: f32,
+}
+
+impl Steps {
+    /// Sets the straight step into padded cell `p` and whether the cell `walls` off corners.
+    fn set(&mut self, p: usize, straight: f32, walls: bool) {
+        self.straight[p] = straight;
+        self.diagonal[p] = straight * std::f32::consts::SQRT_2;
+        self.walls[p] = walls;
+    }
+}
+
+/// The state of [`Grid::costs_from`] on the padded grid: the best cost and predecessor found so
+/// far of each cell, and the cells still to expand.
 struct Search {
     distance: Vec<f32>,
     parent: Vec<u32>,
@@ -208,12 +248,11 @@ struct Search {
 }
 
 impl Search {
-    /// A search from cell `start` with the entry costs `step`.
-    fn new(start: usize, step: &[f32]) -> Self {
-        let max_step = step.iter().copied().filter(|c| c.is_finite()).fold(1.0, f32::max);
+    /// A search from padded cell `start` with steps of at most `max_step` (straight).
+    fn new(start: usize, max_step: f32) -> Self {
         let mut search = Search {
-            distance: vec![f32::INFINITY; CELLS],
-            parent: vec![NO_PARENT; CELLS],
+            distance: vec![f32::INFINITY; PADDED_CELLS],
+            parent: vec![NO_PARENT; PADDED_CELLS],
             open: UnitBuckets::new(max_step * std::f32::consts::SQRT_2),
         };
         search.distance[start] = 0.0;
@@ -221,7 +260,23 @@ impl Search {
         search
     }
 
-    /// Reaches cell `n` from cell `from` at cost `d`, if that is cheaper than before.
+    /// Relaxes the neighbours of padded cell `p`, reached at cost `d`; no diagonal step cuts the
+    /// corner of a cell that walls off the plan.
+    fn expand(&mut self, p: usize, d: f32, steps: &Steps) {
+        const ROW: usize = PADDED_SIDE;
+        for n in [p + 1, p - 1, p + ROW, p - ROW] {
+            self.relax(n, d + steps.straight[n], p);
+        }
+        let diagonals = [(p + ROW + 1, p + 1, p + ROW), (p - ROW + 1, p + 1, p - ROW)];
+        let diagonals = diagonals.into_iter().chain([(p + ROW - 1, p - 1, p + ROW), (p - ROW - 1, p - 1, p - ROW)]);
+        for (n, beside, ahead) in diagonals {
+            if !steps.walls[beside] && !steps.walls[ahead] {
+                self.relax(n, d + steps.diagonal[n], p);
+            }
+        }
+    }
+
+    /// Reaches padded cell `n` from padded cell `from` at cost `d`, if that is cheaper than before.
     fn relax(&mut self, n: usize, d: f32, from: usize) {
         if d < self.distance[n] {
             self.distance[n] = d;
@@ -279,36 +334,45 @@ impl UnitBuckets {
     }
 }
 
-/// The result of [`Grid::costs_from`].
+/// The result of [`Grid::costs_from`], on the padded grid of the search.
 #[derive(Debug, Clone)]
 pub struct CostMap {
-    /// Path cost to each cell (infinite when unreachable).
-    pub distance: Vec<f32>,
+    distance: Vec<f32>,
     parent: Vec<u32>,
 }
 
 impl CostMap {
+    /// Path cost to map cell `cell` (infinite when unreachable).
+    pub fn distance(&self, cell: usize) -> f32 {
+        self.distance[padded(cell)]
+    }
+
+    /// How many cells can be reached.
+    pub fn reachable_cells(&self) -> usize {
+        self.distance.iter().filter(|d| d.is_finite()).count()
+    }
+
     /// `goal` when it is reachable, else the cheapest reachable cell within `radius` cells of it
     /// (a sample by a wall lies on cells the map holds as obstacles).
     pub fn reachable_near(&self, goal: usize, radius: usize) -> Option<usize> {
-        if self.distance[goal].is_finite() {
+        if self.distance(goal).is_finite() {
             return Some(goal);
         }
         Grid::cells_around(goal, radius)
-            .filter(|&cell| self.distance[cell].is_finite())
-            .min_by(|&a, &b| self.distance[a].total_cmp(&self.distance[b]))
+            .filter(|&cell| self.distance(cell).is_finite())
+            .min_by(|&a, &b| self.distance(a).total_cmp(&self.distance(b)))
     }
 
     /// The cells from the start to `goal`, or `None` when unreachable.
     pub fn path_to(&self, goal: usize) -> Option<Vec<usize>> {
-        if !self.distance[goal].is_finite() {
+        if !self.distance(goal).is_finite() {
             return None;
         }
         let mut path = vec![goal];
-        let mut at = goal;
+        let mut at = padded(goal);
         while self.parent[at] != NO_PARENT {
             at = self.parent[at] as usize;
-            path.push(at);
+            path.push(unpadded(at));
         }
         path.reverse();
         Some(path)
@@ -416,24 +480,25 @@ mod tests {
     }
 
     /// The cost of the step from cell `from` into its neighbour `to`, restated from the rules of
-    /// [`Grid::costs_from`]: a diagonal step costs SQRT_2 times as much and may not cut the corner
-    /// of an obstacle that walls the plan off.
-    fn step_between(grid: &Grid, step: &[f32], from: usize, to: usize) -> f32 {
+    /// [`Grid::costs_from`] with the entry costs `steps` of straight steps: a diagonal step costs
+    /// SQRT_2 times as much and may not cut the corner of an obstacle that walls the plan off.
+    fn step_between(grid: &Grid, steps: &Steps, from: usize, to: usize) -> f32 {
+        let step = |cell: usize| steps.straight[padded(cell)];
         let ((fx, fy), (tx, ty)) = (cell_xy(from), cell_xy(to));
         if fx == tx || fy == ty {
-            return step[to];
+            return step(to);
         }
-        let walls = |c: usize| grid.cell(c) == Cell::Blocked && step[c].is_infinite();
+        let walls = |c: usize| grid.cell(c) == Cell::Blocked && step(c).is_infinite();
         if walls(cell_at(tx, fy)) || walls(cell_at(fx, ty)) {
             f32::INFINITY
         } else {
-            step[to] * std::f32::consts::SQRT_2
+            step(to) * std::f32::consts::SQRT_2
         }
     }
 
     /// Path costs by relaxing every step until nothing changes (Bellman-Ford), for comparison.
     fn costs_by_relaxation(grid: &Grid, start: usize, costs: &Costs) -> Vec<f32> {
-        let step = grid.step_costs(start, costs);
+        let steps = grid.steps(start, costs);
         let mut distance = vec![f32::INFINITY; CELLS];
         distance[start] = 0.0;
         let mut changed = true;
@@ -441,7 +506,7 @@ mod tests {
             changed = false;
             for from in 0..CELLS {
                 for to in neighbours8(from) {
-                    let via = distance[from] + step_between(grid, &step, from, to);
+                    let via = distance[from] + step_between(grid, &steps, from, to);
                     if via < distance[to] {
                         distance[to] = via;
                         changed = true;
@@ -489,14 +554,14 @@ mod tests {
             let start = cell_at(25 + seed as usize, 30);
             let found = grid.costs_from(start, costs);
             let least = costs_by_relaxation(&grid, start, costs);
-            let step = grid.step_costs(start, costs);
+            let steps = grid.steps(start, costs);
             for (cell, &want) in least.iter().enumerate() {
-                let got = found.distance[cell];
+                let got = found.distance(cell);
                 assert!(got == want || (got - want).abs() < 1e-3, "seed {seed}, cell {cell}: {got} against {want}");
                 let Some(path) = found.path_to(cell) else { continue };
                 assert_eq!((path[0], path.last()), (start, Some(&cell)));
                 if let [.., before, last] = path[..] {
-                    let via = found.distance[before] + step_between(&grid, &step, before, last);
+                    let via = found.distance(before) + step_between(&grid, &steps, before, last);
                     assert_eq!(via, got, "seed {seed}: cell {cell} is reached from its predecessor {before}");
                 }
             }

@@ -55,9 +55,9 @@ pub fn staging_cell(
         avoid.iter().all(|p| (p.0 - x).hypot(p.1 - y) >= away_m)
     };
     Grid::cells_around(goal, radius_cells)
-        .filter(|&cell| cell != goal && grid.cell(cell) == Cell::Free && costs.distance[cell].is_finite())
+        .filter(|&cell| cell != goal && grid.cell(cell) == Cell::Free && costs.distance(cell).is_finite())
         .filter(|&cell| far_from_failures(cell) && grid.line_of_sight(cell_centre_m(cell), goal, 1))
-        .min_by(|&a, &b| costs.distance[a].total_cmp(&costs.distance[b]))
+        .min_by(|&a, &b| costs.distance(a).total_cmp(&costs.distance(b)))
 }
 
 /// The map that plans are made on, and its version: a new map is a reason to plan again.
@@ -130,7 +130,7 @@ impl Route {
             let costs = grid.costs_from(start, &path_costs(params));
             let end = costs.reachable_near(self.goal, GOAL_SLACK_CELLS);
             self.path = end.and_then(|cell| costs.path_to(cell)).unwrap_or_default();
-            self.cost = end.map(|cell| costs.distance[cell] as f64);
+            self.cost = end.map(|cell| costs.distance(cell) as f64);
             self.planned = Some((frame, map.version));
         }
         let point = lookahead(grid, &self.path, at, params)?;

@@ -16,7 +16,7 @@ const MAX_STOPS: usize = 16;
 /// The anchors of the clusters of `frontiers`: the cheapest frontier cell to reach (by
 /// `costs`) that no cheaper anchor's cluster holds, cheapest first, at most [`MAX_STOPS`].
 pub(crate) fn cluster_anchors(mut frontiers: Vec<usize>, costs: &CostMap) -> Vec<usize> {
-    frontiers.sort_by(|&a, &b| costs.distance[a].total_cmp(&costs.distance[b]));
+    frontiers.sort_by(|&a, &b| costs.distance(a).total_cmp(&costs.distance(b)));
     let mut anchors: Vec<usize> = Vec::new();
     for cell in frontiers {
         let centre = cell_centre_m(cell);
@@ -55,14 +55,14 @@ impl Legs {
                 anchors
                     .iter()
                     .enumerate()
-                    .map(|(j, &to)| finite_or(reach.distance[to] as f64, from_rover[i] + from_rover[j]))
+                    .map(|(j, &to)| finite_or(reach.distance(to) as f64, from_rover[i] + from_rover[j]))
                     .collect()
             })
             .collect();
         let home = match home {
             Some(home_cell) => {
                 let reach = grid.costs_from(home_cell, &known);
-                anchors.iter().map(|&a| finite_or(reach.distance[a] as f64, crow_flies(a, home_cell))).collect()
+                anchors.iter().map(|&a| finite_or(reach.distance(a) as f64, crow_flies(a, home_cell))).collect()
             }
             None => vec![0.0; anchors.len()],
         };
@@ -177,7 +177,7 @@ mod tests {
         let rover = cell(50.5, 51.5);
         let costs = grid.costs_from(rover, &COSTS);
         let (toward_home, dead_end) = (cell(45.5, 51.5), cell(70.5, 51.5));
-        let from_rover = |a: usize| costs.distance[a] as f64;
+        let from_rover = |a: usize| costs.distance(a) as f64;
         let home = Some(cell(21.5, 51.5));
         assert!(from_rover(toward_home) < from_rover(dead_end));
         assert_eq!(first_stop(&grid, &[toward_home, dead_end], from_rover, home, &COSTS), Some(dead_end));
@@ -190,7 +190,7 @@ mod tests {
         let grid = corridor();
         let legs_of = |anchors: &[usize]| {
             let costs = grid.costs_from(cell(21.5, 51.5), &COSTS);
-            let from_rover = anchors.iter().map(|&a| costs.distance[a] as f64).collect();
+            let from_rover = anchors.iter().map(|&a| costs.distance(a) as f64).collect();
             Legs::measure(&grid, anchors, from_rover, Some(cell(21.5, 51.5)), &COSTS)
         };
         let lower: Vec<usize> = (0..5).map(|k| cell(30.5 + 10.0 * k as f64, 50.5)).collect();

@@ -1,0 +1,121 @@
+//! The decision node's path costs (`Grid::costs_from`, a Dijkstra over the 200 x 200 map) on two
+//! maps: the one perception and mapping make of the 283 recorded frames (mostly unknown, as early
+//! in a mission) and `map_bw.png` fully known (as late in one), from every recorded pose. The
+//! baseline, in the same run: a textbook Dijkstra with a binary heap over the same step costs,
+//! which also checks the costs found.
+//!
+//! Run: `cargo bench --bench planning`.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use rover::dataset::read_log;
+use rover::replay::{read_ground_truth, replay_frames};
+use rover_decision::grid::{CostMap, Costs, Grid};
+use rover_decision::params::DecisionParams;
+use rover_decision::route::path_costs;
+use rover_mapping::params::MappingParams;
+use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_of_point};
+use rover_perception::node::PerceptionParams;
+
+/// Times every start is planned from.
+const PASSES: usize = 3;
+
+fn median_ms(mut samples: Vec<Duration>) -> f64 {
+    samples.sort();
+    samples[samples.len() / 2].as_secs_f64() * 1000.0
+}
+
+/// Path costs by a textbook Dijkstra (binary heap, lazy deletion), 8-connected with diagonals at
+/// SQRT_2 and no corner cutting past cells that cannot be entered; `step` is each cell's entry cost.
+fn textbook_costs(step: &[f32], start: usize) -> Vec<f32> {
+    let mut distance = vec![f32::INFINITY; CELLS];
+    let mut open = BinaryHeap::new();
+    distance[start] = 0.0;
+    open.push(Reverse((0u32, start)));
+    while let Some(Reverse((bits, cell))) = open.pop() {
+        let d = f32::from_bits(bits);
+        if d > distance[cell] {
+            continue;
+        }
+        let (x, y) = ((cell % SIDE_CELLS) as i64, (cell / SIDE_CELLS) as i64);
+        for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)] {
+            let (nx, ny) = (x + dx, y + dy);
+            let inside = |x: i64, y: i64| (0..SIDE_CELLS as i64).contains(&x) && (0..SIDE_CELLS as i64).contains(&y);
+            if !inside(nx, ny) {
+                continue;
+            }
+            let at = |x: i64, y: i64| (y * SIDE_CELLS as i64 + x) as usize;
+            let n = at(nx, ny);
+            let diagonal = dx != 0 && dy != 0;
+            if diagonal && (step[at(nx, y)].is_infinite() || step[at(x, ny)].is_infinite()) {
+                continue;
+            }
+            let via = d + if diagonal { step[n] * std::f32::consts::SQRT_2 } else { step[n] };
+            if via < distance[n] {
+                distance[n] = via;
+                open.push(Reverse((via.to_bits(), n)));
+            }
+        }
+    }
+    distance
+}
+
+/// The entry cost of each cell for a plan far from any obstacle (the escape rule aside).
+fn step_costs(grid: &Grid, costs: &Costs) -> Vec<f32> {
+    use rover_decision::grid::Cell;
+    (0..CELLS)
+        .map(|i| match grid.cell(i) {
+            Cell::Blocked => f32::INFINITY,
+            Cell::Unknown => 1.0 + costs.unknown,
+            Cell::Free if grid.near_wall(i) => 1.0 + costs.near_wall,
+            Cell::Free => 1.0,
+        })
+        .collect()
+}
+
+fn main() -> anyhow::Result<()> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let frames = read_log(&root.join("../shared/udacity/test_dataset"))?;
+    let (_, map) = replay_frames(&frames, &PerceptionParams::default(), &MappingParams::default(), None)?;
+    let truth = read_ground_truth(&root.join("../shared/udacity/calibration_images/map_bw.png"))?;
+    let known: Vec<i8> = truth.iter().map(|&floor| if floor { 0 } else { 100 }).collect();
+    let costs = path_costs(&DecisionParams::default());
+    let starts: Vec<usize> = frames.iter().filter_map(|f| cell_of_point(f.state.x_m, f.state.y_m)).collect();
+    println!("path costs from {} recorded poses x {PASSES} passes, median per plan", starts.len());
+    for (name, data) in [("map of the recorded frames", map.occupancy()), ("map_bw.png, all known", known)] {
+        let grid = Grid::from_occupancy(&data).expect("a 200 x 200 map");
+        let step = step_costs(&grid, &costs);
+        let (mut ours, mut textbook) = (Vec::new(), Vec::new());
+        for _ in 0..PASSES {
+            for &start in &starts {
+                let started = Instant::now();
+                let found = std::hint::black_box(grid.costs_from(start, &costs));
+                ours.push(started.elapsed());
+                let started = Instant::now();
+                let reference = std::hint::black_box(textbook_costs(&step, start));
+                textbook.push(started.elapsed());
+                check_costs(&grid, start, &found, &reference);
+            }
+        }
+        let (ours_ms, textbook_ms) = (median_ms(ours), median_ms(textbook));
+        println!(
+            "{name:<28} costs_from {ours_ms:.3} ms   textbook Dijkstra {textbook_ms:.3} ms   ratio {:.2}x",
+            textbook_ms / ours_ms
+        );
+    }
+    Ok(())
+}
+
+/// Panics unless the costs found equal the textbook's away from the start's escape square.
+fn check_costs(grid: &Grid, start: usize, found: &CostMap, reference: &[f32]) {
+    if grid.cell(start) != rover_decision::grid::Cell::Free || grid.near_wall(start) {
+        return;
+    }
+    for (cell, &b) in reference.iter().enumerate() {
+        let a = found.distance(cell);
+        assert!(a == b || (a - b).abs() <= 1e-3 * b, "cell {cell} from {start}: {a} against the textbook's {b}");
+    }
+}
