@@ -115,7 +115,7 @@ impl Grid {
         let mut search = Search::new(padded(start), steps.max);
         let mut k = 0;
         while search.open.len > 0 {
-            let keys = search.open.take_sorted(k);
+            let keys = search.open.take(k);
             for (d, p) in keys.iter().map(|&key| from_order_key(key)) {
                 if d <= search.distance[p] {
                     search.expand(p, d, &steps);
@@ -177,8 +177,9 @@ fn chebyshev(a: usize, b: usize) -> usize {
     ax.abs_diff(bx).max(ay.abs_diff(by))
 }
 
-/// The predecessor of a cell that has none (the start, and cells not reached).
-const NO_PARENT: u32 = u32::MAX;
+/// The predecessor key of a cell that has none (the start, and cells not reached); above the
+/// key of any cell.
+const NO_PARENT: u64 = u64::MAX;
 
 /// The key of cell `i` at path cost `d` among the open cells: ordered by cost, then by cell (a cost is never
 /// negative or NaN, and the bits of such an `f32` order as the numbers do).
@@ -239,11 +240,11 @@ impl Steps {
     }
 }
 
-/// The state of [`Grid::costs_from`] on the padded grid: the best cost and predecessor found so
-/// far of each cell, and the cells still to expand.
+/// The state of [`Grid::costs_from`] on the padded grid: the best cost found so far of each cell
+/// and the order key of its predecessor (see [`order_key`]), and the cells still to expand.
 struct Search {
     distance: Vec<f32>,
-    parent: Vec<u32>,
+    parent: Vec<u64>,
     open: UnitBuckets,
 }
 
@@ -265,31 +266,36 @@ impl Search {
     fn expand(&mut self, p: usize, d: f32, steps: &Steps) {
         const ROW: usize = PADDED_SIDE;
         for n in [p + 1, p - 1, p + ROW, p - ROW] {
-            self.relax(n, d + steps.straight[n], p);
+            self.relax(n, d + steps.straight[n], (p, d));
         }
         let diagonals = [(p + ROW + 1, p + 1, p + ROW), (p - ROW + 1, p + 1, p - ROW)];
         let diagonals = diagonals.into_iter().chain([(p + ROW - 1, p - 1, p + ROW), (p - ROW - 1, p - 1, p - ROW)]);
         for (n, beside, ahead) in diagonals {
             if !steps.walls[beside] && !steps.walls[ahead] {
-                self.relax(n, d + steps.diagonal[n], p);
+                self.relax(n, d + steps.diagonal[n], (p, d));
             }
         }
     }
 
-    /// Reaches padded cell `n` from padded cell `from` at cost `d`, if that is cheaper than before.
-    fn relax(&mut self, n: usize, d: f32, from: usize) {
-        if d < self.distance[n] {
+    /// Reaches padded cell `n` at cost `d` from padded cell `from`, itself reached at cost
+    /// `from_d`: if that is cheaper than before, or as cheap from a predecessor that a binary heap
+    /// would have expanded first (lower cost, then lower cell), which it then keeps as the parent,
+    /// so that the paths do not depend on the order in which a bucket's cells are expanded.
+    fn relax(&mut self, n: usize, d: f32, (from, from_d): (usize, f32)) {
+        let (known, from_key) = (self.distance[n], order_key(from_d, from));
+        if d < known {
             self.distance[n] = d;
-            self.parent[n] = from as u32;
+            self.parent[n] = from_key;
             self.open.push(d, n);
+        } else if d == known && d < f32::INFINITY && from_key < self.parent[n] {
+            self.parent[n] = from_key;
         }
     }
 }
 
 /// The open cells of [`Grid::costs_from`], in buckets of unit path cost: as no step costs less
 /// than 1, a cell taken from the bucket of costs in [k, k + 1) only adds cells to later buckets
-/// and its cost is final. Each bucket is sorted once and taken in order, by cost and then by
-/// cell, as a binary heap would, so that of two paths of equal cost the same one is kept.
+/// and its cost is final, whatever the order in which the bucket's cells are taken.
 struct UnitBuckets {
     /// Keys by the integer part of their cost, modulo the number of buckets (a power of 2).
     ring: Vec<Vec<u64>>,
@@ -315,12 +321,11 @@ impl UnitBuckets {
         self.len += 1;
     }
 
-    /// The keys of bucket `k` in order, leaving it empty for reuse.
-    fn take_sorted(&mut self, k: usize) -> Vec<u64> {
+    /// The keys of bucket `k`, leaving it empty for reuse.
+    fn take(&mut self, k: usize) -> Vec<u64> {
         let slot = self.slot(k);
-        let mut keys = std::mem::take(&mut self.ring[slot]);
+        let keys = std::mem::take(&mut self.ring[slot]);
         self.len -= keys.len();
-        keys.sort_unstable();
         keys
     }
 
@@ -338,7 +343,8 @@ impl UnitBuckets {
 #[derive(Debug, Clone)]
 pub struct CostMap {
     distance: Vec<f32>,
-    parent: Vec<u32>,
+    /// The order key of each cell's predecessor.
+    parent: Vec<u64>,
 }
 
 impl CostMap {
@@ -371,7 +377,7 @@ impl CostMap {
         let mut path = vec![goal];
         let mut at = padded(goal);
         while self.parent[at] != NO_PARENT {
-            at = self.parent[at] as usize;
+            at = from_order_key(self.parent[at]).1;
             path.push(unpadded(at));
         }
         path.reverse();
@@ -564,6 +570,45 @@ mod tests {
                     let via = found.distance(before) + step_between(&grid, &steps, before, last);
                     assert_eq!(via, got, "seed {seed}: cell {cell} is reached from its predecessor {before}");
                 }
+            }
+        }
+    }
+
+    /// The predecessor of each cell as a binary heap finds it: cells expanded in order of cost,
+    /// then of cell, each predecessor kept unless a later one reaches the cell more cheaply.
+    fn parents_by_heap(grid: &Grid, start: usize, costs: &Costs) -> Vec<Option<usize>> {
+        let steps = grid.steps(start, costs);
+        let (mut distance, mut parent) = (vec![f32::INFINITY; CELLS], vec![None; CELLS]);
+        let mut open = std::collections::BinaryHeap::new();
+        distance[start] = 0.0;
+        open.push(std::cmp::Reverse(order_key(0.0, start)));
+        while let Some(std::cmp::Reverse(key)) = open.pop() {
+            let (d, from) = from_order_key(key);
+            if d > distance[from] {
+                continue;
+            }
+            for to in neighbours8(from) {
+                let via = d + step_between(grid, &steps, from, to);
+                if via < distance[to] {
+                    (distance[to], parent[to]) = (via, Some(from));
+                    open.push(std::cmp::Reverse(order_key(via, to)));
+                }
+            }
+        }
+        parent
+    }
+
+    #[test]
+    fn of_two_equally_cheap_predecessors_the_one_a_heap_expands_first_is_kept() {
+        let free = vec![0; CELLS];
+        let plans = [(free, cell_at(100, 100), COSTS), (corridor(), cell_at(11, 11), COSTS)].into_iter();
+        let patches = (0..6).map(|seed| (random_patch(seed), cell_at(25 + seed as usize, 30), COSTS));
+        for (data, start, costs) in plans.chain(patches) {
+            let grid = Grid::from_occupancy(&data).unwrap();
+            let found = grid.costs_from(start, &costs);
+            for (cell, parent) in parents_by_heap(&grid, start, &costs).into_iter().enumerate() {
+                let before = found.path_to(cell).and_then(|path| path.len().checked_sub(2).map(|i| path[i]));
+                assert_eq!(before, parent, "cell {cell}");
             }
         }
     }
