@@ -49,9 +49,7 @@ impl Grid {
                 _ => Cell::Free,
             })
             .collect();
-        let near_wall = (0..CELLS)
-            .map(|i| cells[i] != Cell::Blocked && neighbours8(i).any(|n| cells[n] == Cell::Blocked))
-            .collect();
+        let near_wall = near_walls(&cells);
         Some(Grid { cells, near_wall })
     }
 
@@ -164,6 +162,27 @@ impl Grid {
         let count = |c: Cell| self.cells.iter().filter(|&&x| x == c).count();
         (count(Cell::Free), count(Cell::Blocked), count(Cell::Unknown))
     }
+}
+
+/// Whether each cell is not an obstacle but one of its eight neighbours is: for each row, the
+/// obstacles of the rows above, at and below it column by column, then of the columns beside
+/// each cell (rows and columns off the map count as the edge ones, which changes nothing).
+fn near_walls(cells: &[Cell]) -> Vec<bool> {
+    let blocked: Vec<u8> = cells.iter().map(|&c| u8::from(c == Cell::Blocked)).collect();
+    let row = |y: usize| &blocked[cell_at(0, y)..][..SIDE_CELLS];
+    let mut near = vec![false; CELLS];
+    let mut in_rows = [0u8; SIDE_CELLS + 2];
+    for y in 0..SIDE_CELLS {
+        let (above, here, below) = (row(y.saturating_sub(1)), row(y), row((y + 1).min(SIDE_CELLS - 1)));
+        for (x, any) in in_rows[1..=SIDE_CELLS].iter_mut().enumerate() {
+            *any = above[x] | here[x] | below[x];
+        }
+        (in_rows[0], in_rows[SIDE_CELLS + 1]) = (in_rows[1], in_rows[SIDE_CELLS]);
+        for (x, near) in near[cell_at(0, y)..][..SIDE_CELLS].iter_mut().enumerate() {
+            *near = here[x] == 0 && (in_rows[x] | in_rows[x + 1] | in_rows[x + 2]) != 0;
+        }
+    }
+    near
 }
 
 /// Step along a line of sight, metres.
@@ -471,6 +490,20 @@ mod tests {
         assert!(costs.path_to(cell_of_point(5.5, 5.5).unwrap()).is_none(), "walls are not crossed");
         let no_unknown = grid.costs_from(start, &Costs { cross_unknown: false, ..COSTS });
         assert!(no_unknown.path_to(goal).is_none());
+    }
+
+    #[test]
+    fn cells_near_a_wall_are_the_free_and_unknown_cells_beside_an_obstacle() {
+        for seed in 0..4 {
+            let mut data = random_patch(seed);
+            data[cell_at(0, 7)] = 0;
+            data[cell_at(SIDE_CELLS - 1, SIDE_CELLS - 1)] = 0;
+            let grid = Grid::from_occupancy(&data).unwrap();
+            for i in 0..CELLS {
+                let beside = grid.cell(i) != Cell::Blocked && neighbours8(i).any(|n| grid.cell(n) == Cell::Blocked);
+                assert_eq!(grid.near_wall(i), beside, "seed {seed}, cell {:?}", cell_xy(i));
+            }
+        }
     }
 
     #[test]
