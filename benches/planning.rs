@@ -3,7 +3,9 @@
 //! maps: the one perception and mapping make of the 283 recorded frames (mostly unknown, as early
 //! in a mission) and `map_bw.png` fully known (as late in one), from every recorded pose. The
 //! baseline, in the same run: a textbook Dijkstra with a binary heap over the same step costs,
-//! which also checks the costs found.
+//! which also checks the costs found. Then a frontier tour's legs on the recorded frames' map
+//! (`Planner::costs_to`, the costs between the anchors of the 16 nearest frontier clusters and
+//! from home, over known ground), against a whole search from each anchor as before.
 //!
 //! Run: `cargo bench --bench planning`.
 
@@ -14,9 +16,10 @@ use std::time::{Duration, Instant};
 
 use rover::dataset::read_log;
 use rover::replay::{read_ground_truth, replay_frames};
-use rover_decision::grid::{CostMap, Costs, Grid};
+use rover_decision::grid::{Cell, CostMap, Costs, Grid, Planner};
 use rover_decision::params::DecisionParams;
 use rover_decision::route::path_costs;
+use rover_decision::tour::cluster_anchors;
 use rover_mapping::params::MappingParams;
 use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_of_point};
 use rover_perception::node::PerceptionParams;
@@ -66,7 +69,6 @@ fn textbook_costs(step: &[f32], start: usize) -> Vec<f32> {
 
 /// The entry cost of each cell for a plan far from any obstacle (the escape rule aside).
 fn step_costs(grid: &Grid, costs: &Costs) -> Vec<f32> {
-    use rover_decision::grid::Cell;
     (0..CELLS)
         .map(|i| match grid.cell(i) {
             Cell::Blocked => f32::INFINITY,
@@ -115,7 +117,40 @@ fn main() -> anyhow::Result<()> {
             textbook_ms / ours_ms
         );
     }
+    time_tour_legs(&Grid::from_occupancy(&map.occupancy()).expect("a 200 x 200 map"), &starts, &costs);
     Ok(())
+}
+
+/// Times the legs of a frontier tour from every start: the anchors of the frontier clusters
+/// nearest to it, the costs between them and from home (the first start) over known ground.
+fn time_tour_legs(grid: &Grid, starts: &[usize], costs: &Costs) {
+    let known = Costs { cross_unknown: false, obstacle: None, ..*costs };
+    let frontiers = grid.frontiers(|n| grid.cell(n) == Cell::Unknown);
+    let (mut ours, mut whole, mut legs) = (Vec::new(), Vec::new(), 0);
+    for &start in starts {
+        let anchors = cluster_anchors(frontiers.clone(), &grid.costs_from(start, costs));
+        let froms = || anchors.iter().chain(&starts[..1]);
+        let started = Instant::now();
+        let mut planner = Planner::new(grid, &known);
+        let found: Vec<Vec<f32>> = froms().map(|&from| planner.costs_to(from, &anchors)).collect();
+        ours.push(started.elapsed());
+        let started = Instant::now();
+        let reference: Vec<Vec<f32>> = froms()
+            .map(|&from| {
+                let reach = grid.costs_from(from, &known);
+                anchors.iter().map(|&to| reach.distance(to)).collect()
+            })
+            .collect();
+        whole.push(started.elapsed());
+        assert_eq!(found, reference, "the legs of the tour from {start}");
+        legs += anchors.len() * (anchors.len() + 1);
+    }
+    let (ours_ms, whole_ms) = (median_ms(ours), median_ms(whole));
+    println!(
+        "tour legs ({:.0} a tour)          Planner::costs_to {ours_ms:.3} ms   a whole search each {whole_ms:.3} ms   ratio {:.2}x",
+        legs as f64 / starts.len() as f64,
+        whole_ms / ours_ms
+    );
 }
 
 /// Panics unless the costs found equal the textbook's away from the start's escape square.

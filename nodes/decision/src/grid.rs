@@ -5,14 +5,18 @@ use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_at, cell_centre_m, cell_of_po
 
 /// What a cell of the occupancy grid says.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
 pub enum Cell {
     /// Mapped navigable (0).
-    Free,
+    Free = 0,
     /// Mapped obstacle (100, or anything above 50).
-    Blocked,
+    Blocked = 1,
     /// Not mapped yet (-1).
-    Unknown,
+    Unknown = 2,
 }
+
+/// The kinds of cell, each at the index of its discriminant.
+const CELL_KINDS: [Cell; 3] = [Cell::Free, Cell::Blocked, Cell::Unknown];
 
 /// Costs of moving through cells. The extra costs are never negative: planning relies on every
 /// step costing at least as much as a free cell's.
@@ -77,52 +81,10 @@ impl Grid {
         self.near_wall[i]
     }
 
-    /// The entry costs of a plan from map cell `start`, on the padded grid.
-    fn steps(&self, start: usize, costs: &Costs) -> Steps {
-        debug_assert!(costs.near_wall >= 0.0 && costs.unknown >= 0.0 && costs.obstacle.is_none_or(|c| c >= 0.0));
-        let blocked = 1.0 + costs.near_wall + costs.unknown;
-        let beyond_escape = costs.obstacle.map_or(f32::INFINITY, |extra| blocked + extra);
-        let unknown = if costs.cross_unknown { 1.0 + costs.unknown } else { f32::INFINITY };
-        let mut steps = Steps {
-            straight: vec![f32::INFINITY; PADDED_CELLS],
-            diagonal: vec![f32::INFINITY; PADDED_CELLS],
-            walls: vec![false; PADDED_CELLS],
-            max: if beyond_escape.is_finite() { beyond_escape } else { blocked },
-        };
-        for (i, p) in map_cells_padded() {
-            let step = match self.cells[i] {
-                Cell::Blocked => beyond_escape,
-                Cell::Unknown => unknown,
-                Cell::Free if self.near_wall[i] => 1.0 + costs.near_wall,
-                Cell::Free => 1.0,
-            };
-            steps.set(p, step, self.cells[i] == Cell::Blocked && step == f32::INFINITY);
-        }
-        for n in Grid::cells_around(start, ESCAPE_RADIUS_CELLS).filter(|&n| self.cells[n] == Cell::Blocked) {
-            steps.set(padded(n), blocked, false);
-        }
-        steps
-    }
-
-    /// Path costs from `start` to every cell and each cell's predecessor (Dijkstra, 8-connected,
-    /// no corner cutting past obstacles). The start cell is free of charge whatever it holds, and
-    /// obstacle cells right around it can be crossed at a premium: a rover that the map puts in or
-    /// against a wall (a sample by the wall, a wall margin) can still leave.
+    /// Path costs from `start` to every cell and each cell's predecessor: [`Planner::costs_from`]
+    /// for one plan.
     pub fn costs_from(&self, start: usize, costs: &Costs) -> CostMap {
-        let steps = self.steps(start, costs);
-        let mut search = Search::new(padded(start), steps.max);
-        let mut k = 0;
-        while search.open.len > 0 {
-            let keys = search.open.take(k);
-            for (d, p) in keys.iter().map(|&key| from_order_key(key)) {
-                if d <= search.distance[p] {
-                    search.expand(p, d, &steps);
-                }
-            }
-            search.open.give_back(k, keys);
-            k += 1;
-        }
-        CostMap { distance: search.distance, parent: search.parent }
+        Planner::new(self, costs).costs_from(start)
     }
 
     /// Frontier cells: free cells with a 4-neighbour that is still `unexplored`.
@@ -234,11 +196,6 @@ fn unpadded(p: usize) -> usize {
     cell_at(p % PADDED_SIDE - 1, p / PADDED_SIDE - 1)
 }
 
-/// Every map cell with its padded index, row by row.
-fn map_cells_padded() -> impl Iterator<Item = (usize, usize)> {
-    (0..SIDE_CELLS).flat_map(|y| (0..SIDE_CELLS).map(move |x| (cell_at(x, y), padded_at(x, y))))
-}
-
 /// The entry costs of a plan on the padded grid: straight and diagonal (SQRT_2 times as much)
 /// steps into each cell, infinite where it cannot be entered; which of those wall off the
 /// corners of diagonal steps past them (obstacles, not unknown ground); the dearest finite step
@@ -251,11 +208,125 @@ struct Steps {
 }
 
 impl Steps {
+    /// The steps of `grid` with `costs`, where obstacle cells cost `obstacle`.
+    fn new(grid: &Grid, costs: &Costs, obstacle: f32) -> Self {
+        let unknown = if costs.cross_unknown { 1.0 + costs.unknown } else { f32::INFINITY };
+        let step_into = |cell: Cell, near_wall: bool| match cell {
+            Cell::Blocked => obstacle,
+            Cell::Unknown => unknown,
+            Cell::Free if near_wall => 1.0 + costs.near_wall,
+            Cell::Free => 1.0,
+        };
+        let by_kind = CELL_KINDS.map(|cell| [step_into(cell, false), step_into(cell, true)]);
+        let walls_off = obstacle == f32::INFINITY;
+        let mut steps = Steps {
+            straight: vec![f32::INFINITY; PADDED_CELLS],
+            diagonal: vec![f32::INFINITY; PADDED_CELLS],
+            walls: vec![false; PADDED_CELLS],
+            max: 0.0,
+        };
+        for (y, cells) in grid.cells.chunks_exact(SIDE_CELLS).enumerate() {
+            let near_wall = &grid.near_wall[cell_at(0, y)..][..SIDE_CELLS];
+            let row = padded_at(0, y)..padded_at(0, y) + SIDE_CELLS;
+            for ((step, &cell), &near_wall) in steps.straight[row.clone()].iter_mut().zip(cells).zip(near_wall) {
+                *step = by_kind[cell as usize][usize::from(near_wall)];
+            }
+            for (walls, &cell) in steps.walls[row].iter_mut().zip(cells) {
+                *walls = walls_off && cell == Cell::Blocked;
+            }
+        }
+        for (diagonal, &straight) in steps.diagonal.iter_mut().zip(&steps.straight) {
+            *diagonal = straight * std::f32::consts::SQRT_2;
+        }
+        steps
+    }
+
     /// Sets the straight step into padded cell `p` and whether the cell `walls` off corners.
     fn set(&mut self, p: usize, straight: f32, walls: bool) {
         self.straight[p] = straight;
         self.diagonal[p] = straight * std::f32::consts::SQRT_2;
         self.walls[p] = walls;
+    }
+}
+
+/// Plans on one grid with one set of costs, from any number of starts: the entry costs of the
+/// cells are taken once (a tour's legs are many plans on the same map).
+pub struct Planner<'a> {
+    grid: &'a Grid,
+    steps: Steps,
+    /// The step into an obstacle cell, and into one right around the start (the escape).
+    obstacle_step: f32,
+    escape_step: f32,
+}
+
+impl<'a> Planner<'a> {
+    /// Plans on `grid` with `costs`.
+    pub fn new(grid: &'a Grid, costs: &Costs) -> Self {
+        debug_assert!(costs.near_wall >= 0.0 && costs.unknown >= 0.0 && costs.obstacle.is_none_or(|c| c >= 0.0));
+        let escape_step = 1.0 + costs.near_wall + costs.unknown;
+        let obstacle_step = costs.obstacle.map_or(f32::INFINITY, |extra| escape_step + extra);
+        let mut steps = Steps::new(grid, costs, obstacle_step);
+        steps.max = if obstacle_step.is_finite() { obstacle_step } else { escape_step };
+        Planner { grid, steps, obstacle_step, escape_step }
+    }
+
+    /// Path costs from map cell `start` to every cell and each cell's predecessor (Dijkstra,
+    /// 8-connected, no corner cutting past obstacles). The start cell is free of charge whatever
+    /// it holds, and obstacle cells right around it can be crossed at a premium: a rover that the
+    /// map puts in or against a wall (a sample by the wall, a wall margin) can still leave.
+    pub fn costs_from(&mut self, start: usize) -> CostMap {
+        let search = self.search(start, |_, _| false);
+        CostMap { distance: search.distance, parent: search.parent }
+    }
+
+    /// The path costs from map cell `start` to each of `goals` (infinite where unreachable), as
+    /// [`Planner::costs_from`] gives them; the search ends once they are all final.
+    pub fn costs_to(&mut self, start: usize, goals: &[usize]) -> Vec<f32> {
+        let goals: Vec<usize> = goals.iter().map(|&goal| padded(goal)).collect();
+        let search = self.search(start, |distance, below| goals.iter().all(|&goal| distance[goal] < below));
+        goals.iter().map(|&goal| search.distance[goal]).collect()
+    }
+
+    /// Runs the search from map cell `start` until no cell is left open or `done(distances,
+    /// below)` says the costs it needs are final: all costs below `below` are, as the cells
+    /// still open cost at least `below - 1` and every step at least 1.
+    fn search(&mut self, start: usize, done: impl Fn(&[f32], f32) -> bool) -> Search {
+        let escapes = self.open_escape(start);
+        let steps = &self.steps;
+        let mut search = Search::new(padded(start), steps.max);
+        let mut k = 0;
+        while search.open.len > 0 && !done(&search.distance, (k + 1) as f32) {
+            let keys = search.open.take(k);
+            for (d, p) in keys.iter().map(|&key| from_order_key(key)) {
+                if d <= search.distance[p] {
+                    search.expand(p, d, steps);
+                }
+            }
+            search.open.give_back(k, keys);
+            k += 1;
+        }
+        self.close_escape(&escapes);
+        search
+    }
+
+    /// Lets the plan cross the obstacle cells right around map cell `start`; returns their padded
+    /// indices.
+    fn open_escape(&mut self, start: usize) -> Vec<usize> {
+        let escapes: Vec<usize> = Grid::cells_around(start, ESCAPE_RADIUS_CELLS)
+            .filter(|&n| self.grid.cells[n] == Cell::Blocked)
+            .map(padded)
+            .collect();
+        for &p in &escapes {
+            self.steps.set(p, self.escape_step, false);
+        }
+        escapes
+    }
+
+    /// Makes the padded cells `escapes` obstacles again.
+    fn close_escape(&mut self, escapes: &[usize]) {
+        for &p in escapes {
+            self.steps.set(p, self.obstacle_step, self.obstacle_step == f32::INFINITY);
+        }
     }
 }
 
@@ -281,7 +352,9 @@ impl Search {
     }
 
     /// Relaxes the neighbours of padded cell `p`, reached at cost `d`; no diagonal step cuts the
-    /// corner of a cell that walls off the plan.
+    /// corner of a cell that walls off the plan. Inlined into the search loop (as `relax`): called
+    /// once for every cell searched, it is the loop.
+    #[inline(always)]
     fn expand(&mut self, p: usize, d: f32, steps: &Steps) {
         const ROW: usize = PADDED_SIDE;
         for n in [p + 1, p - 1, p + ROW, p - ROW] {
@@ -300,6 +373,7 @@ impl Search {
     /// `from_d`: if that is cheaper than before, or as cheap from a predecessor that a binary heap
     /// would have expanded first (lower cost, then lower cell), which it then keeps as the parent,
     /// so that the paths do not depend on the order in which a bucket's cells are expanded.
+    #[inline(always)]
     fn relax(&mut self, n: usize, d: f32, (from, from_d): (usize, f32)) {
         let (known, from_key) = (self.distance[n], order_key(from_d, from));
         if d < known {
@@ -518,6 +592,13 @@ mod tests {
         assert_eq!(Grid::cells_around(cell_of_point(50.5, 50.5).unwrap(), 2).count(), 25);
     }
 
+    /// The entry costs of a plan from `start`: the planner's, with the escape around the start open.
+    fn steps_from(grid: &Grid, start: usize, costs: &Costs) -> Steps {
+        let mut planner = Planner::new(grid, costs);
+        planner.open_escape(start);
+        planner.steps
+    }
+
     /// The cost of the step from cell `from` into its neighbour `to`, restated from the rules of
     /// [`Grid::costs_from`] with the entry costs `steps` of straight steps: a diagonal step costs
     /// SQRT_2 times as much and may not cut the corner of an obstacle that walls the plan off.
@@ -537,7 +618,7 @@ mod tests {
 
     /// Path costs by relaxing every step until nothing changes (Bellman-Ford), for comparison.
     fn costs_by_relaxation(grid: &Grid, start: usize, costs: &Costs) -> Vec<f32> {
-        let steps = grid.steps(start, costs);
+        let steps = steps_from(grid, start, costs);
         let mut distance = vec![f32::INFINITY; CELLS];
         distance[start] = 0.0;
         let mut changed = true;
@@ -593,7 +674,7 @@ mod tests {
             let start = cell_at(25 + seed as usize, 30);
             let found = grid.costs_from(start, costs);
             let least = costs_by_relaxation(&grid, start, costs);
-            let steps = grid.steps(start, costs);
+            let steps = steps_from(&grid, start, costs);
             for (cell, &want) in least.iter().enumerate() {
                 let got = found.distance(cell);
                 assert!(got == want || (got - want).abs() < 1e-3, "seed {seed}, cell {cell}: {got} against {want}");
@@ -610,7 +691,7 @@ mod tests {
     /// The predecessor of each cell as a binary heap finds it: cells expanded in order of cost,
     /// then of cell, each predecessor kept unless a later one reaches the cell more cheaply.
     fn parents_by_heap(grid: &Grid, start: usize, costs: &Costs) -> Vec<Option<usize>> {
-        let steps = grid.steps(start, costs);
+        let steps = steps_from(grid, start, costs);
         let (mut distance, mut parent) = (vec![f32::INFINITY; CELLS], vec![None; CELLS]);
         let mut open = std::collections::BinaryHeap::new();
         distance[start] = 0.0;
@@ -644,5 +725,27 @@ mod tests {
                 assert_eq!(before, parent, "cell {cell}");
             }
         }
+    }
+
+    #[test]
+    fn costs_to_goals_are_those_of_the_whole_search_also_where_unreachable() {
+        let (mut reached, mut unreachable) = (0, 0);
+        for seed in 0..8 {
+            let grid = Grid::from_occupancy(&random_patch(seed)).unwrap();
+            let costs = Costs { cross_unknown: seed % 2 == 0, ..COSTS };
+            let mut planner = Planner::new(&grid, &costs);
+            let start = cell_at(25 + seed as usize, 30);
+            let whole = grid.costs_from(start, &costs);
+            let patch: Vec<usize> = Grid::cells_around(cell_at(35, 35), 15).collect();
+            for &goal in &patch {
+                assert_eq!(planner.costs_to(start, &[goal]), [whole.distance(goal)], "seed {seed}, goal {goal}");
+            }
+            let goals: Vec<usize> = patch.iter().copied().step_by(97).collect();
+            let want: Vec<f32> = goals.iter().map(|&goal| whole.distance(goal)).collect();
+            assert_eq!(planner.costs_to(start, &goals), want, "seed {seed}");
+            reached += want.iter().filter(|d| d.is_finite()).count();
+            unreachable += want.iter().filter(|d| d.is_infinite()).count();
+        }
+        assert!(reached > 0 && unreachable > 0, "{reached} goals reached, {unreachable} not");
     }
 }

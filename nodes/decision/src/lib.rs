@@ -19,7 +19,7 @@ pub mod snapshot;
 pub mod stuck;
 #[cfg(test)]
 mod test_maps;
-mod tour;
+pub mod tour;
 
 use rover_msgs::msg::{Telemetry, TerrainScan};
 use rover_node::{Rejections, topics};

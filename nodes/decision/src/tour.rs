@@ -6,7 +6,7 @@
 
 use rover_msgs::map_grid::cell_centre_m;
 
-use crate::grid::{CostMap, Costs, Grid};
+use crate::grid::{CostMap, Costs, Grid, Planner};
 
 /// Frontier cells within this distance of a cluster's anchor belong to its cluster, metres.
 const CLUSTER_RADIUS_M: f64 = 3.0;
@@ -15,7 +15,7 @@ const MAX_STOPS: usize = 16;
 
 /// The anchors of the clusters of `frontiers`: the cheapest frontier cell to reach (by
 /// `costs`) that no cheaper anchor's cluster holds, cheapest first, at most [`MAX_STOPS`].
-pub(crate) fn cluster_anchors(mut frontiers: Vec<usize>, costs: &CostMap) -> Vec<usize> {
+pub fn cluster_anchors(mut frontiers: Vec<usize>, costs: &CostMap) -> Vec<usize> {
     frontiers.sort_by(|&a, &b| costs.distance(a).total_cmp(&costs.distance(b)));
     let mut anchors: Vec<usize> = Vec::new();
     for cell in frontiers {
@@ -46,23 +46,23 @@ impl Legs {
     /// anchors that known ground does not join, by way of the rover (`from_rover`); legs home
     /// that known ground does not make are as the crow flies.
     fn measure(grid: &Grid, anchors: &[usize], from_rover: Vec<f64>, home: Option<usize>, costs: &Costs) -> Self {
-        let known = Costs { cross_unknown: false, obstacle: None, ..*costs };
+        let mut planner = Planner::new(grid, &Costs { cross_unknown: false, obstacle: None, ..*costs });
         let between = anchors
             .iter()
             .enumerate()
             .map(|(i, &from)| {
-                let reach = grid.costs_from(from, &known);
-                anchors
+                let reach = planner.costs_to(from, anchors);
+                reach
                     .iter()
                     .enumerate()
-                    .map(|(j, &to)| finite_or(reach.distance(to) as f64, from_rover[i] + from_rover[j]))
+                    .map(|(j, &cost)| finite_or(cost as f64, from_rover[i] + from_rover[j]))
                     .collect()
             })
             .collect();
         let home = match home {
             Some(home_cell) => {
-                let reach = grid.costs_from(home_cell, &known);
-                anchors.iter().map(|&a| finite_or(reach.distance(a) as f64, crow_flies(a, home_cell))).collect()
+                let reach = planner.costs_to(home_cell, anchors);
+                anchors.iter().zip(reach).map(|(&a, cost)| finite_or(cost as f64, crow_flies(a, home_cell))).collect()
             }
             None => vec![0.0; anchors.len()],
         };
