@@ -98,13 +98,18 @@ fn grid_size(rows: (&str, u32), cols: (&str, u32), cells: (&str, usize)) -> Resu
     Ok(())
 }
 
-/// Checks that every value of `values` is allowed; names the first that is not.
+/// Checks that every value of `values` is allowed; names the first that is not. The check runs
+/// over all values without stopping (the compiler then takes many at once); only a message that
+/// fails it is searched for the first bad value.
 fn each_allowed<T: fmt::Display + Copy>(
     field: &str,
     values: &[T],
     allowed: impl Fn(T) -> bool,
     expected: &str,
 ) -> Result<(), InvalidField> {
+    if values.iter().fold(true, |all, &v| all & allowed(v)) {
+        return Ok(());
+    }
     match values.iter().position(|&v| !allowed(v)) {
         Some(index) => Err(invalid(format!("{field}[{index}]"), values[index].to_string(), expected)),
         None => Ok(()),
