@@ -158,9 +158,8 @@ fn chebyshev(a: usize, b: usize) -> usize {
     ax.abs_diff(bx).max(ay.abs_diff(by))
 }
 
-/// The predecessor key of a cell that has none (the start, and cells not reached); above the
-/// key of any cell.
-const NO_PARENT: u64 = u64::MAX;
+/// The predecessor of a cell that has none (the start, and cells not reached).
+const NO_PARENT: u32 = u32::MAX;
 
 /// The key of cell `i` at path cost `d` among the open cells: ordered by cost, then by cell (a cost is never
 /// negative or NaN, and the bits of such an `f32` order as the numbers do).
@@ -331,10 +330,10 @@ impl<'a> Planner<'a> {
 }
 
 /// The state of [`Grid::costs_from`] on the padded grid: the best cost found so far of each cell
-/// and the order key of its predecessor (see [`order_key`]), and the cells still to expand.
+/// and its predecessor (a padded index), and the cells still to expand.
 struct Search {
     distance: Vec<f32>,
-    parent: Vec<u64>,
+    parent: Vec<u32>,
     open: UnitBuckets,
 }
 
@@ -372,16 +371,20 @@ impl Search {
     /// Reaches padded cell `n` at cost `d` from padded cell `from`, itself reached at cost
     /// `from_d`: if that is cheaper than before, or as cheap from a predecessor that a binary heap
     /// would have expanded first (lower cost, then lower cell), which it then keeps as the parent,
-    /// so that the paths do not depend on the order in which a bucket's cells are expanded.
+    /// so that the paths do not depend on the order in which a bucket's cells are expanded. (A
+    /// kept predecessor was expanded, so its cost is final and orders it as when it was kept.)
     #[inline(always)]
     fn relax(&mut self, n: usize, d: f32, (from, from_d): (usize, f32)) {
-        let (known, from_key) = (self.distance[n], order_key(from_d, from));
+        let known = self.distance[n];
         if d < known {
             self.distance[n] = d;
-            self.parent[n] = from_key;
+            self.parent[n] = from as u32;
             self.open.push(d, n);
-        } else if d == known && d < f32::INFINITY && from_key < self.parent[n] {
-            self.parent[n] = from_key;
+        } else if d == known && d < f32::INFINITY {
+            let kept = self.parent[n] as usize;
+            if order_key(from_d, from) < order_key(self.distance[kept], kept) {
+                self.parent[n] = from as u32;
+            }
         }
     }
 }
@@ -436,8 +439,8 @@ impl UnitBuckets {
 #[derive(Debug, Clone)]
 pub struct CostMap {
     distance: Vec<f32>,
-    /// The order key of each cell's predecessor.
-    parent: Vec<u64>,
+    /// Each cell's predecessor, a padded index.
+    parent: Vec<u32>,
 }
 
 impl CostMap {
@@ -470,7 +473,7 @@ impl CostMap {
         let mut path = vec![goal];
         let mut at = padded(goal);
         while self.parent[at] != NO_PARENT {
-            at = from_order_key(self.parent[at]).1;
+            at = self.parent[at] as usize;
             path.push(unpadded(at));
         }
         path.reverse();
