@@ -249,7 +249,9 @@ async fn the_recorded_scans_played_into_a_fresh_mapping_node_give_the_recorded_m
     }
     let Replayed { recorded, played, frames_mapped, scans } = replayed;
     assert!(frames_mapped.0.is_some() && frames_mapped.0 == frames_mapped.1, "{scans}");
-    assert!(recorded.mapped_pct > 5.0, "the recorded mission mapped {} %", recorded.mapped_pct);
+    // A map worth comparing: a 40 s mission maps 4-17 % (less when a loaded machine makes
+    // late frames and the rover's way differs), hundreds of cells.
+    assert!(recorded.mapped_pct > 2.0, "the recorded mission mapped {} %", recorded.mapped_pct);
     assert!(
         (played.mapped_pct - recorded.mapped_pct).abs() <= 0.1,
         "mapped {} vs {}; {scans}",
