@@ -155,7 +155,7 @@ fn time_tour_legs(grid: &Grid, starts: &[usize], costs: &Costs) {
 
 /// Panics unless the costs found equal the textbook's away from the start's escape square.
 fn check_costs(grid: &Grid, start: usize, found: &CostMap, reference: &[f32]) {
-    if grid.cell(start) != rover_decision::grid::Cell::Free || grid.near_wall(start) {
+    if grid.cell(start) != Cell::Free || grid.near_wall(start) {
         return;
     }
     for (cell, &b) in reference.iter().enumerate() {

@@ -207,8 +207,9 @@ struct Steps {
 }
 
 impl Steps {
-    /// The steps of `grid` with `costs`, where obstacle cells cost `obstacle`.
-    fn new(grid: &Grid, costs: &Costs, obstacle: f32) -> Self {
+    /// The steps of `grid` with `costs`, where obstacle cells cost `obstacle` and those around a
+    /// start `escape`.
+    fn new(grid: &Grid, costs: &Costs, (obstacle, escape): (f32, f32)) -> Self {
         let unknown = if costs.cross_unknown { 1.0 + costs.unknown } else { f32::INFINITY };
         let step_into = |cell: Cell, near_wall: bool| match cell {
             Cell::Blocked => obstacle,
@@ -222,7 +223,7 @@ impl Steps {
             straight: vec![f32::INFINITY; PADDED_CELLS],
             diagonal: vec![f32::INFINITY; PADDED_CELLS],
             walls: vec![false; PADDED_CELLS],
-            max: 0.0,
+            max: if obstacle.is_finite() { obstacle } else { escape },
         };
         for (y, cells) in grid.cells.chunks_exact(SIDE_CELLS).enumerate() {
             let near_wall = &grid.near_wall[cell_at(0, y)..][..SIDE_CELLS];
@@ -264,8 +265,7 @@ impl<'a> Planner<'a> {
         debug_assert!(costs.near_wall >= 0.0 && costs.unknown >= 0.0 && costs.obstacle.is_none_or(|c| c >= 0.0));
         let escape_step = 1.0 + costs.near_wall + costs.unknown;
         let obstacle_step = costs.obstacle.map_or(f32::INFINITY, |extra| escape_step + extra);
-        let mut steps = Steps::new(grid, costs, obstacle_step);
-        steps.max = if obstacle_step.is_finite() { obstacle_step } else { escape_step };
+        let steps = Steps::new(grid, costs, (obstacle_step, escape_step));
         Planner { grid, steps, obstacle_step, escape_step }
     }
 
