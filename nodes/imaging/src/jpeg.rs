@@ -1,0 +1,299 @@
+//! JPEG coding through the system's libjpeg-turbo (`csrc/jpeg.c`), the codec that OpenCV, PIL and
+//! ROS's `compressed` image transport use: frames are written the way Unity's `EncodeToJPG()`
+//! writes the simulator's camera frames (JFIF, IJG quality 75, 4:2:0) and read into RGB exactly as
+//! the Python tools read them.
+
+use std::ffi::{CStr, c_char, c_int, c_ulong};
+
+use crate::{ImageError, RgbImage};
+
+/// JPEG quality of Unity's `Texture2D.EncodeToJPG()` default.
+pub const UNITY_JPEG_QUALITY: u8 = 75;
+
+/// The start-of-image marker every JPEG begins with.
+const START_OF_IMAGE: [u8; 2] = [0xFF, 0xD8];
+/// The end-of-image marker every complete JPEG ends with.
+const END_OF_IMAGE: [u8; 2] = [0xFF, 0xD9];
+/// Room for libjpeg's message of a failed call (its `JMSG_LENGTH_MAX`).
+const MESSAGE_BYTES: usize = 200;
+
+/// What a call of `csrc/jpeg.c` returns.
+const OK: c_int = 0;
+const WRONG_SIZE: c_int = 2;
+
+unsafe extern "C" {
+    fn rover_jpeg_encode(
+        rgb: *const u8,
+        width: c_int,
+        height: c_int,
+        quality: c_int,
+        out: *mut *mut u8,
+        out_len: *mut c_ulong,
+        message: *mut c_char,
+        message_len: usize,
+    ) -> c_int;
+    fn rover_jpeg_free(buffer: *mut u8);
+    fn rover_jpeg_dimensions(
+        jpeg: *const u8,
+        len: c_ulong,
+        width: *mut c_int,
+        height: *mut c_int,
+        message: *mut c_char,
+        message_len: usize,
+    ) -> c_int;
+    fn rover_jpeg_decode_rgb(
+        jpeg: *const u8,
+        len: c_ulong,
+        rgb: *mut u8,
+        width: c_int,
+        height: c_int,
+        message: *mut c_char,
+        message_len: usize,
+    ) -> c_int;
+}
+
+/// The message libjpeg left in `buffer`.
+fn message_of(buffer: &[c_char; MESSAGE_BYTES]) -> String {
+    // SAFETY: the buffer is zeroed before each call and the C side writes at most
+    // `MESSAGE_BYTES` bytes, NUL included (snprintf), so it holds a NUL-terminated string.
+    unsafe { CStr::from_ptr(buffer.as_ptr()) }.to_string_lossy().into_owned()
+}
+
+/// A side of an image as a C int, if it is one a JPEG can have (1..=65535).
+fn jpeg_side(side: usize) -> Option<c_int> {
+    u16::try_from(side).ok().filter(|&s| s > 0).map(c_int::from)
+}
+
+/// Checks the JPEG markers and header and returns the image size, without decoding the pixels.
+pub fn jpeg_dimensions(jpeg: &[u8]) -> Result<(usize, usize), ImageError> {
+    check_markers(jpeg)?;
+    let (mut width, mut height) = (0, 0);
+    let mut message = [0; MESSAGE_BYTES];
+    // SAFETY: `jpeg` is valid for its length; the outputs are valid for writes; the message buffer
+    // holds `MESSAGE_BYTES` bytes.
+    let status = unsafe {
+        rover_jpeg_dimensions(
+            jpeg.as_ptr(),
+            jpeg.len() as c_ulong,
+            &mut width,
+            &mut height,
+            message.as_mut_ptr(),
+            MESSAGE_BYTES,
+        )
+    };
+    if status != OK {
+        return Err(ImageError::Corrupt(message_of(&message)));
+    }
+    Ok((width as usize, height as usize))
+}
+
+/// A JPEG starts with the start-of-image marker and, unless cut short, ends with end-of-image.
+fn check_markers(jpeg: &[u8]) -> Result<(), ImageError> {
+    if !jpeg.starts_with(&START_OF_IMAGE) {
+        return Err(ImageError::NotJpeg(jpeg.len()));
+    }
+    if !jpeg.ends_with(&END_OF_IMAGE) {
+        return Err(ImageError::Truncated);
+    }
+    Ok(())
+}
+
+/// Checks that the JPEG header describes a `width` x `height` image.
+pub fn check_jpeg(jpeg: &[u8], width: usize, height: usize) -> Result<(), ImageError> {
+    expect_size(jpeg_dimensions(jpeg)?, (width, height))
+}
+
+/// Decodes a `width` x `height` JPEG into `out` (reusing its buffer), as RGB. The size in the
+/// header is checked before the pixel buffer is sized, so a small JPEG that claims a huge image
+/// costs no memory. Corrupt data fails the decoding (libjpeg would decode on past it).
+pub fn decode_jpeg_into(jpeg: &[u8], width: usize, height: usize, out: &mut RgbImage) -> Result<(), ImageError> {
+    check_jpeg(jpeg, width, height)?;
+    let (c_width, c_height) = jpeg_side(width)
+        .zip(jpeg_side(height))
+        .ok_or(ImageError::Corrupt(format!("a JPEG cannot be {width}x{height}")))?;
+    out.width = width;
+    out.height = height;
+    out.data.resize(width * height * 3, 0);
+    let mut message = [0; MESSAGE_BYTES];
+    // SAFETY: `jpeg` is valid for its length; `out.data` holds `width * height * 3` bytes, what
+    // the C side writes for a `width` x `height` image (it checks the header's size first).
+    let status = unsafe {
+        rover_jpeg_decode_rgb(
+            jpeg.as_ptr(),
+            jpeg.len() as c_ulong,
+            out.data.as_mut_ptr(),
+            c_width,
+            c_height,
+            message.as_mut_ptr(),
+            MESSAGE_BYTES,
+        )
+    };
+    match status {
+        OK => Ok(()),
+        WRONG_SIZE => Err(ImageError::Corrupt("the image size changed between two reads of the header".into())),
+        _ => Err(ImageError::Corrupt(message_of(&message))),
+    }
+}
+
+/// Decodes a `width` x `height` JPEG into a new RGB image.
+pub fn decode_jpeg(jpeg: &[u8], width: usize, height: usize) -> Result<RgbImage, ImageError> {
+    let mut image = RgbImage::default();
+    decode_jpeg_into(jpeg, width, height, &mut image)?;
+    Ok(image)
+}
+
+/// Checks an image size (width, height) against the expected one.
+fn expect_size(size: (usize, usize), expected: (usize, usize)) -> Result<(), ImageError> {
+    if size != expected {
+        let ((width, height), (expected_width, expected_height)) = (size, expected);
+        return Err(ImageError::WrongSize { width, height, expected_width, expected_height });
+    }
+    Ok(())
+}
+
+/// Encodes RGB as a baseline JFIF JPEG with 4:2:0 chroma subsampling at `quality` (1..=100).
+pub fn encode_jpeg(image: &RgbImage, quality: u8) -> Result<Vec<u8>, ImageError> {
+    let mut out = Vec::with_capacity(8 * 1024);
+    encode_jpeg_into(image, quality, &mut out)?;
+    Ok(out)
+}
+
+/// Like [`encode_jpeg`], appending to `out` (cleared first).
+pub fn encode_jpeg_into(image: &RgbImage, quality: u8, out: &mut Vec<u8>) -> Result<(), ImageError> {
+    out.clear();
+    let (width, height) = jpeg_side(image.width)
+        .zip(jpeg_side(image.height))
+        .ok_or_else(|| ImageError::Encode(format!("a JPEG cannot be {}x{}", image.width, image.height)))?;
+    if image.data.len() != image.width * image.height * 3 {
+        return Err(ImageError::Encode(format!(
+            "{} bytes for a {}x{} RGB image",
+            image.data.len(),
+            image.width,
+            image.height
+        )));
+    }
+    let (mut buffer, mut len): (*mut u8, c_ulong) = (std::ptr::null_mut(), 0);
+    let mut message = [0; MESSAGE_BYTES];
+    // SAFETY: `image.data` holds `width * height * 3` bytes (checked above), what the C side reads;
+    // the outputs are valid for writes; the message buffer holds `MESSAGE_BYTES` bytes.
+    let status = unsafe {
+        rover_jpeg_encode(
+            image.data.as_ptr(),
+            width,
+            height,
+            c_int::from(quality.clamp(1, 100)),
+            &mut buffer,
+            &mut len,
+            message.as_mut_ptr(),
+            MESSAGE_BYTES,
+        )
+    };
+    if status != OK {
+        return Err(ImageError::Encode(message_of(&message)));
+    }
+    // SAFETY: on success the C side hands over a buffer of `len` bytes, freed once copied.
+    unsafe {
+        out.extend_from_slice(std::slice::from_raw_parts(buffer, len as usize));
+        rover_jpeg_free(buffer);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gradient(width: usize, height: usize) -> RgbImage {
+        let mut image = RgbImage::new(width, height);
+        for y in 0..height {
+            for x in 0..width {
+                image.set_pixel(x, y, [(x * 255 / width) as u8, (y * 255 / height) as u8, 128]);
+            }
+        }
+        image
+    }
+
+    #[test]
+    fn jpeg_round_trip_keeps_size_and_colours() {
+        let image = gradient(320, 160);
+        let jpeg = encode_jpeg(&image, UNITY_JPEG_QUALITY).unwrap();
+        assert!(jpeg.starts_with(&[0xFF, 0xD8, 0xFF, 0xE0]), "JFIF APP0 first");
+        assert_eq!(jpeg_dimensions(&jpeg).unwrap(), (320, 160));
+        let decoded = decode_jpeg(&jpeg, 320, 160).unwrap();
+        assert_eq!((decoded.width, decoded.height), (320, 160));
+        let max_error = image.data.iter().zip(&decoded.data).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+        assert!(max_error < 16, "max error {max_error}");
+    }
+
+    #[test]
+    fn frames_are_baseline_4_2_0_at_the_quality_asked() {
+        let jpeg = encode_jpeg(&gradient(64, 32), UNITY_JPEG_QUALITY).unwrap();
+        let start_of_frame = jpeg.windows(2).position(|w| w == [0xFF, 0xC0]).expect("a baseline frame header");
+        let components = &jpeg[start_of_frame + 10..start_of_frame + 19];
+        assert_eq!([components[1], components[4], components[7]], [0x22, 0x11, 0x11], "luma 2x2, chroma 1x1");
+        let lower = encode_jpeg(&gradient(64, 32), 30).unwrap();
+        assert!(lower.len() < jpeg.len(), "quality 30: {} bytes, 75: {}", lower.len(), jpeg.len());
+    }
+
+    #[test]
+    fn corrupt_and_truncated_jpegs_are_named() {
+        let jpeg = encode_jpeg(&gradient(64, 32), 75).unwrap();
+        assert_eq!(jpeg_dimensions(b"hello"), Err(ImageError::NotJpeg(5)));
+        assert_eq!(jpeg_dimensions(&jpeg[..jpeg.len() / 2]), Err(ImageError::Truncated));
+        assert!(matches!(check_jpeg(&jpeg, 320, 160), Err(ImageError::WrongSize { width: 64, .. })));
+        let mut garbage = jpeg.clone();
+        let len = garbage.len();
+        garbage[20..len - 2].fill(0xFF);
+        assert!(matches!(decode_jpeg(&garbage, 64, 32), Err(ImageError::Corrupt(message)) if !message.is_empty()));
+        let mut cut_scan = jpeg[..jpeg.len() - 40].to_vec();
+        cut_scan.extend_from_slice(&END_OF_IMAGE);
+        let error = decode_jpeg(&cut_scan, 64, 32).unwrap_err();
+        assert!(matches!(&error, ImageError::Corrupt(message) if message.contains("Corrupt JPEG")), "{error}");
+    }
+
+    #[test]
+    fn a_jpeg_of_the_wrong_size_is_rejected_before_its_buffer_is_sized() {
+        let jpeg = encode_jpeg(&gradient(64, 32), 75).unwrap();
+        let mut out = RgbImage::default();
+        let error = decode_jpeg_into(&jpeg, 320, 160, &mut out).unwrap_err();
+        assert_eq!(error.to_string(), "image is 64x32, expected 320x160");
+        assert_eq!((out.width, out.height, out.data.capacity()), (0, 0, 0));
+    }
+
+    #[test]
+    fn images_no_jpeg_can_hold_are_refused() {
+        assert!(matches!(encode_jpeg(&RgbImage::new(0, 10), 75), Err(ImageError::Encode(_))));
+        assert!(matches!(encode_jpeg(&RgbImage::new(70_000, 1), 75), Err(ImageError::Encode(_))));
+        let short = RgbImage { width: 8, height: 8, data: vec![0; 10] };
+        assert!(matches!(encode_jpeg(&short, 75), Err(ImageError::Encode(_))));
+    }
+
+    /// Fuzz targets: a mutated JPEG (flipped, inserted or removed bytes, truncated) is checked and
+    /// decoded without panicking, and its pixel buffer is only sized when the header gives the
+    /// expected size.
+    mod fuzz {
+        use proptest::prelude::*;
+        use rover_fuzzing::mutation::mutated_bytes;
+
+        use super::*;
+
+        const SIZE: (usize, usize) = (16, 8);
+
+        fn small_jpeg() -> Vec<u8> {
+            encode_jpeg(&gradient(SIZE.0, SIZE.1), 75).unwrap()
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_jpeg_mutated_bytes(jpeg in mutated_bytes(small_jpeg())) {
+                let header_size = jpeg_dimensions(&jpeg);
+                prop_assert_eq!(check_jpeg(&jpeg, SIZE.0, SIZE.1).is_ok(), header_size == Ok(SIZE));
+                let mut out = RgbImage::default();
+                match decode_jpeg_into(&jpeg, SIZE.0, SIZE.1, &mut out) {
+                    Ok(()) => prop_assert_eq!(out.data.len(), SIZE.0 * SIZE.1 * 3),
+                    Err(_) => prop_assert!(out.data.capacity() == 0 || out.data.len() == SIZE.0 * SIZE.1 * 3),
+                }
+            }
+        }
+    }
+}
