@@ -181,7 +181,9 @@ pub fn run_in_process(
             machine.receive_rocks(frame, mapping.rocks());
             mapped_pct = mapping.map().scores(&truth).mapped_pct;
         }
-        let drive = machine.step(&rover_decision::observation(&message, &scan, &mut rays));
+        let observation = rover_decision::observation(&message, &scan, &mut rays);
+        let drive = machine.step(&observation);
+        machine.prepare_next_frame(&observation.position);
         let arm = checked_arm_input(&message, &mut pickup_rejections);
         let command = if arm.is_some_and(|arm| pickup.on_telemetry(&arm, &settings.pickup)) {
             Command::Pickup

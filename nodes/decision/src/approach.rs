@@ -88,7 +88,7 @@ impl Chase {
         let in_view = (CHECK_RANGE_M.0..=CHECK_RANGE_M.1).contains(&rover.distance_to(self.at))
             && rover.bearing_to(self.at).abs() <= CHECK_BEARING_DEG.to_radians()
             && cell_of_point(self.at.0, self.at.1)
-                .is_some_and(|cell| from.map.grid.line_of_sight((rover.x_m, rover.y_m), cell, 0));
+                .is_some_and(|cell| from.map.grid().line_of_sight((rover.x_m, rover.y_m), cell, 0));
         self.unseen_since = (in_view && !rock_seen).then(|| self.unseen_since.unwrap_or(frame));
         self.unseen_since.is_some_and(|since| frame >= since + from.params.frames(UNSEEN_S))
     }

@@ -6,7 +6,7 @@ use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_at, cell_centre_m, cell_of_po
 use crate::grid::{Cell, CostMap, Costs, Grid};
 use crate::params::DecisionParams;
 use crate::pose::Position;
-use crate::route::{GOAL_SLACK_CELLS, PlanStart, lookahead, path_costs};
+use crate::route::{GOAL_SLACK_CELLS, PlanStart, PlanningMap, lookahead, path_costs};
 use crate::tour;
 
 /// A frontier needs enough unknown cells within this many cells.
@@ -229,7 +229,7 @@ impl Explorer {
     /// new targets are the first stops of tours that end at `home`.
     pub fn waypoint(&mut self, from: &PlanStart, home: Option<(f64, f64)>) -> Option<(f64, f64)> {
         let PlanStart { map, at, frame, params } = *from;
-        let (grid, start) = (&map.grid, cell_of_point(at.x_m, at.y_m)?);
+        let (grid, start) = (map.grid(), cell_of_point(at.x_m, at.y_m)?);
         if let Some(point) = self.look_point(grid, frame) {
             return Some(point);
         }
@@ -249,8 +249,8 @@ impl Explorer {
         }
         if self.target.is_none() || from.replan_due(self.planned) {
             let home = home.and_then(|(x, y)| cell_of_point(x, y));
-            self.replan((grid, map.version), (start, home), at, frame, params);
-            self.planned = Some((frame, map.version));
+            self.replan(map, (start, home), at, frame, params);
+            self.planned = Some((frame, map.version()));
         }
         lookahead(grid, &self.target.as_ref()?.path, at, params)
     }
@@ -276,13 +276,14 @@ impl Explorer {
     /// one it was chosen on has come (which keeps it if it is still the best).
     fn replan(
         &mut self,
-        (grid, version): (&Grid, u64),
+        map: &PlanningMap,
         (start, home): (usize, Option<usize>),
         at: &Position,
         frame: u64,
         params: &DecisionParams,
     ) {
-        let costs = grid.costs_from(start, &self.costs(params));
+        let (grid, version) = (map.grid(), map.version());
+        let costs = map.costs_from(start, &self.costs(params), frame);
         let frontier = self.target.as_ref().is_some_and(|t| self.is_candidate(grid, &costs, t.cell, params));
         let confirmed = self.target.as_ref().is_some_and(|t| t.unconfirmed_on_map.is_none_or(|v| v == version));
         if !(frontier && confirmed) {
@@ -384,7 +385,7 @@ mod tests {
 
         /// A new version of the same map.
         fn new_map_version(&mut self) {
-            self.map.version += 1;
+            self.map = PlanningMap::new(self.map.grid().clone(), self.map.version() + 1);
         }
     }
 
@@ -470,7 +471,7 @@ mod tests {
             (probe, behind)
         };
         let (mut opened, _) = turned_around();
-        opened.map = PlanningMap { version: 2, ..corridor(true) };
+        opened.map = PlanningMap::new(corridor(true).grid().clone(), 2);
         opened.waypoint(facing_west, 2);
         let ahead = opened.explorer.target().unwrap();
         assert!(ahead.0 < 20.0, "the next map opens the west end ahead: {ahead:?}");
@@ -479,7 +480,7 @@ mod tests {
         confirmed.new_map_version();
         confirmed.waypoint(facing_west, 2);
         assert_eq!(confirmed.explorer.target(), Some(behind), "the next map still says east");
-        confirmed.map = PlanningMap { version: 3, ..corridor(true) };
+        confirmed.map = PlanningMap::new(corridor(true).grid().clone(), 3);
         confirmed.waypoint(facing_west, 3);
         assert_eq!(confirmed.explorer.target(), Some(behind), "a confirmed target is kept while it is a frontier");
     }

@@ -2,7 +2,7 @@
 //! home, done. One [`Machine::step`] per frame turns an observation into a drive command.
 
 use rover_msgs::body::ARM_REACH_M;
-use rover_msgs::map_grid::cell_centre_m;
+use rover_msgs::map_grid::{cell_centre_m, cell_of_point};
 use rover_msgs::tally::SampleTally;
 
 use crate::approach::{Aim, Chase};
@@ -213,7 +213,7 @@ impl Machine {
             received_map: Grid::unknown(),
             arriving_maps: Delayed::default(),
             arriving_rocks: Delayed::default(),
-            planning: PlanningMap { grid: Grid::unknown(), version: 0 },
+            planning: PlanningMap::new(Grid::unknown(), 0),
             samples: SampleMemory::default(),
             explorer: Explorer::default(),
             steering: Steering::default(),
@@ -284,8 +284,7 @@ impl Machine {
     }
 
     fn apply_stuck_marks(&mut self) {
-        self.planning =
-            PlanningMap { grid: self.stuck_marks.applied_to(&self.received_map), version: self.planning.version + 1 };
+        self.planning = PlanningMap::new(self.stuck_marks.applied_to(&self.received_map), self.planning.version() + 1);
     }
 
     /// Forgets the cells marked where the rover got stuck; returns whether there were any.
@@ -371,6 +370,15 @@ impl Machine {
         );
         self.last_drive = drive;
         drive
+    }
+
+    /// Between frames, after the drive command of the last one went out: makes ahead the path
+    /// costs the next frame will likely ask for, the rover at `at` ([`PlanningMap::prepare`]).
+    /// What the machine decides does not change, only when the search runs.
+    pub fn prepare_next_frame(&self, at: &Position) {
+        if let Some(start) = cell_of_point(at.x_m, at.y_m) {
+            self.planning.prepare(start, self.frame + 1, self.params.replan_frames as u64);
+        }
     }
 
     fn target(&self) -> Option<(f64, f64)> {
@@ -495,7 +503,7 @@ impl Machine {
                 tracing::trace!(bearing_deg = bearing.to_degrees(), free_ahead = obs.free.toward(0.0), best = ?obs.free.best_toward(bearing as f32, p.clearance_m as f32), "explore");
                 self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, p)
             }
-            None if self.planning.version == 0 => {
+            None if self.planning.version() == 0 => {
                 self.steering.around_obstacles(0.0, p.max_speed_mps, obs.speed_mps, &obs.free, p)
             }
             None if self.explorer.walled_in() && self.walled_in_recoveries < WALLED_IN_RECOVERIES => {
@@ -543,7 +551,7 @@ impl Machine {
                         free_cells,
                         obstacle_cells,
                         unknown_cells,
-                        map_version = self.planning.version,
+                        map_version = self.planning.version(),
                         at = ?(obs.position.x_m, obs.position.y_m),
                         rocks = ?self.samples.located(),
                         given_up = ?self.samples.ignored(),
@@ -566,7 +574,7 @@ impl Machine {
         let max_cost = if self.all_missing_samples_located(obs) { f64::INFINITY } else { max_cost };
         let new = |(at, way_m): ((f64, f64), f64)| {
             let give_up_frame = obs.frame + p.frames_for_way(p.sample_timeout_s, way_m);
-            let (map, failed) = ((&self.planning.grid, &obs.position), &self.samples.failed_from(at));
+            let (map, failed) = ((self.planning.grid(), &obs.position), &self.samples.failed_from(at));
             Chase::new(at, (give_up_frame, max_cost), map, failed, p)
         };
         let seen = obs
@@ -1034,20 +1042,20 @@ mod tests {
         let params = DecisionParams::default();
         let mut machine = machine_on(corridor());
         let ahead = cell_of_point(101.4, 100.5).unwrap();
-        assert_eq!(machine.planning.grid.cell(ahead), Cell::Free);
+        assert_eq!(machine.planning.grid().cell(ahead), Cell::Free);
         machine.mark_stuck_cell(&observation(10, 100.5, 100.5));
-        assert_eq!(machine.planning.grid.cell(ahead), Cell::Blocked, "stuck here: the cell ahead is an obstacle");
+        assert_eq!(machine.planning.grid().cell(ahead), Cell::Blocked, "stuck here: the cell ahead is an obstacle");
         assert_eq!(machine.received_map.cell(ahead), Cell::Free, "the map itself is kept");
         machine.set_map(corridor());
-        assert_eq!(machine.planning.grid.cell(ahead), Cell::Blocked, "and stays marked in the next map");
-        assert!(machine.forget_stuck_marks() && machine.planning.grid.cell(ahead) == Cell::Free);
+        assert_eq!(machine.planning.grid().cell(ahead), Cell::Blocked, "and stays marked in the next map");
+        assert!(machine.forget_stuck_marks() && machine.planning.grid().cell(ahead) == Cell::Free);
         machine.mark_stuck_cell(&observation(300, 100.5, 100.5));
         machine.frame = 300 + params.frames(STUCK_MARK_S) - 1;
         machine.set_map(corridor());
-        assert_eq!(machine.planning.grid.cell(ahead), Cell::Blocked, "marked again");
+        assert_eq!(machine.planning.grid().cell(ahead), Cell::Blocked, "marked again");
         machine.frame += 1;
         machine.set_map(corridor());
-        assert_eq!(machine.planning.grid.cell(ahead), Cell::Free, "until the mark expires");
+        assert_eq!(machine.planning.grid().cell(ahead), Cell::Free, "until the mark expires");
     }
 
     #[test]

@@ -71,8 +71,12 @@ struct Decision {
 }
 
 impl Decision {
+    /// Decides the frame's drive command and publishes it, then prepares the next frame's plan
+    /// while the simulator and the other nodes work on that frame.
     fn decide(&mut self, telemetry: &Telemetry, scan: &TerrainScan) {
-        let drive = match checked_observation(telemetry, scan, &mut self.rays, &mut self.rejections) {
+        let observation = checked_observation(telemetry, scan, &mut self.rays, &mut self.rejections);
+        let position = observation.as_ref().map(|o| o.position);
+        let drive = match observation {
             Some(observation) => {
                 self.first_frame.get_or_insert(telemetry.frame);
                 self.frames += 1;
@@ -96,6 +100,9 @@ impl Decision {
         if self.machine.path() != self.planned {
             self.planned = self.machine.path().to_vec();
             self.publish_plan(telemetry);
+        }
+        if let Some(position) = position {
+            self.machine.prepare_next_frame(&position);
         }
     }
 

@@ -3,7 +3,9 @@
 
 use rover_msgs::map_grid::{cell_centre_m, cell_of_point};
 
-use crate::grid::{Cell, Costs, Grid};
+use std::cell::RefCell;
+
+use crate::grid::{Cell, CostMap, Costs, Grid};
 use crate::params::DecisionParams;
 use crate::pose::Position;
 
@@ -60,13 +62,65 @@ pub fn staging_cell(
         .min_by(|&a, &b| costs.distance(a).total_cmp(&costs.distance(b)))
 }
 
-/// The map that plans are made on, and its version: a new map is a reason to plan again.
+/// The map that plans are made on, and its version: a new map is a reason to plan again. It also
+/// makes the path costs of a periodic replan ahead of time ([`PlanningMap::prepare`]), between two
+/// frames, so that the frame that asks for them does not wait for the search.
 #[derive(Debug, Clone)]
 pub struct PlanningMap {
+    grid: Grid,
+    version: u64,
+    ahead: RefCell<CostsAhead>,
+}
+
+/// The path costs last asked of a planning map, and those made ahead for the next request.
+#[derive(Debug, Clone, Default)]
+struct CostsAhead {
+    /// Start cell, costs and frame of the last request.
+    last: Option<(usize, Costs, u64)>,
+    /// Path costs made ahead, with their start cell and costs.
+    made: Option<(usize, Costs, CostMap)>,
+}
+
+impl PlanningMap {
+    /// `grid` as version `version` of the map.
+    pub fn new(grid: Grid, version: u64) -> Self {
+        PlanningMap { grid, version, ahead: RefCell::default() }
+    }
+
     /// The map.
-    pub grid: Grid,
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
     /// Goes up by one with every new map.
-    pub version: u64,
+    pub fn version(&self) -> u64 {
+        self.version
+    }
+
+    /// Path costs from cell `start` with `costs` for a plan at `frame` ([`Grid::costs_from`]):
+    /// the ones made ahead when they are those, else searched now (the same costs either way).
+    pub fn costs_from(&self, start: usize, costs: &Costs, frame: u64) -> CostMap {
+        let mut ahead = self.ahead.borrow_mut();
+        ahead.last = Some((start, *costs, frame));
+        match ahead.made.take() {
+            Some((made_start, made_costs, made)) if made_start == start && made_costs == *costs => made,
+            _ => self.grid.costs_from(start, costs),
+        }
+    }
+
+    /// Makes the path costs that frame `next_frame` will ask for from cell `start` if the last
+    /// request (its start aside) is repeated `replan_frames` after it, as a route's or the
+    /// explorer's periodic replan is; nothing on other frames. A guess: when the next request
+    /// differs (the rover crossed into another cell, the map changed), it is searched as before.
+    pub fn prepare(&self, start: usize, next_frame: u64, replan_frames: u64) {
+        let mut ahead = self.ahead.borrow_mut();
+        let Some((_, costs, frame)) = ahead.last else { return };
+        let made =
+            ahead.made.as_ref().is_some_and(|(made_start, made_costs, _)| (*made_start, *made_costs) == (start, costs));
+        if next_frame == frame + replan_frames && !made {
+            ahead.made = Some((start, costs, self.grid.costs_from(start, &costs)));
+        }
+    }
 }
 
 /// Where a plan on the map starts this frame.
@@ -87,7 +141,7 @@ impl PlanStart<'_> {
     /// made on another map, or `replan_frames` old.
     pub(crate) fn replan_due(&self, planned: Option<(u64, u64)>) -> bool {
         planned.is_none_or(|(at_frame, version)| {
-            version != self.map.version || self.frame >= at_frame + self.params.replan_frames as u64
+            version != self.map.version() || self.frame >= at_frame + self.params.replan_frames as u64
         })
     }
 }
@@ -125,13 +179,13 @@ impl Route {
     /// rover circling its own cell); `None` when the goal cannot be reached on the map.
     pub fn waypoint(&mut self, from: &PlanStart) -> Option<(f64, f64)> {
         let PlanStart { map, at, frame, params } = *from;
-        let (grid, start) = (&map.grid, cell_of_point(at.x_m, at.y_m)?);
+        let (grid, start) = (map.grid(), cell_of_point(at.x_m, at.y_m)?);
         if from.replan_due(self.planned) {
-            let costs = grid.costs_from(start, &path_costs(params));
+            let costs = map.costs_from(start, &path_costs(params), frame);
             let end = costs.reachable_near(self.goal, GOAL_SLACK_CELLS);
             self.path = end.and_then(|cell| costs.path_to(cell)).unwrap_or_default();
             self.cost = end.map(|cell| costs.distance(cell) as f64);
-            self.planned = Some((frame, map.version));
+            self.planned = Some((frame, map.version()));
         }
         let point = lookahead(grid, &self.path, at, params)?;
         Some(if at.distance_to(point) < params.lookahead_m { cell_centre_m(self.goal) } else { point })
@@ -193,6 +247,36 @@ mod tests {
         assert!(point.1 < 42.0 && point.0 < 40.0, "short of the corner at (40, 40): {point:?}");
         assert!(grid.clear_line((35.5, 30.5), cell_of_point(point.0, point.1).unwrap()));
         assert!(!grid.clear_line((35.5, 30.5), cell_of_point(45.5, 45.5).unwrap()), "the corner is in the way");
+    }
+
+    /// Whether `costs` holds every cell's cost and path of a search from `start` on `grid`.
+    fn searched_from(costs: &CostMap, grid: &Grid, start: usize, with: &Costs) -> bool {
+        let searched = grid.costs_from(start, with);
+        (0..CELLS).all(|cell| {
+            costs.distance(cell).to_bits() == searched.distance(cell).to_bits()
+                && costs.path_to(cell) == searched.path_to(cell)
+        })
+    }
+
+    #[test]
+    fn a_periodic_replans_costs_are_made_ahead_once_and_only_used_when_they_are_the_ones_asked_for() {
+        let map = planning(&half_explored(), 1);
+        let costs = path_costs(&DecisionParams::default());
+        let made = || map.ahead.borrow().made.as_ref().map(|(start, ..)| *start);
+        let (here, next) = (cell_of_point(25.5, 51.5).unwrap(), cell_of_point(26.5, 51.5).unwrap());
+        map.costs_from(here, &costs, 100);
+        map.prepare(next, 111, 12);
+        assert_eq!(made(), None, "not due before 12 frames");
+        map.prepare(next, 112, 12);
+        assert_eq!(made(), Some(next));
+        assert!(searched_from(&map.costs_from(next, &costs, 112), map.grid(), next, &costs));
+        assert_eq!(made(), None, "taken by the request");
+        map.prepare(next, 124, 12);
+        assert!(searched_from(&map.costs_from(here, &costs, 124), map.grid(), here, &costs), "another start");
+        assert_eq!(made(), None, "dropped by the request it did not fit");
+        map.prepare(here, 136, 12);
+        let other = Costs { cross_unknown: false, ..costs };
+        assert!(searched_from(&map.costs_from(here, &other, 136), map.grid(), here, &other), "other costs");
     }
 
     #[test]

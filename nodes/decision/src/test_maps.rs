@@ -24,7 +24,7 @@ pub(crate) fn at(x_m: f64, y_m: f64) -> Position {
 
 /// `grid` as version `version` of the planning map.
 pub(crate) fn planning(grid: &Grid, version: u64) -> PlanningMap {
-    PlanningMap { grid: grid.clone(), version }
+    PlanningMap::new(grid.clone(), version)
 }
 
 /// A plan on `map` from `at` at `frame` with `params`.
