@@ -12,10 +12,10 @@
 #include <string.h>
 
 #include <jpeglib.h>
+#include <jerror.h>
 
 #define ROVER_JPEG_OK 0
 #define ROVER_JPEG_FAILED 1
-#define ROVER_JPEG_WRONG_SIZE 2
 
 /* The error manager of one call: libjpeg's, the way back, and where the message goes. */
 struct guard {
@@ -50,23 +50,61 @@ static struct jpeg_error_mgr *guarded(struct guard *guard, char *message, size_t
     return manager;
 }
 
-/* Encodes width x height RGB pixels as a baseline JFIF JPEG, 4:2:0, IJG `quality`. On success
- * *out is a buffer of *out_len bytes for rover_jpeg_free. */
-int rover_jpeg_encode(const unsigned char *rgb, int width, int height, int quality, unsigned char **out,
-                      unsigned long *out_len, char *message, size_t message_len) {
+/* A destination that grows one malloc'ed buffer, which the error path can free. */
+struct growing_destination {
+    struct jpeg_destination_mgr manager;
+    unsigned char *buffer;
+    size_t capacity;
+};
+
+static void start_destination(j_compress_ptr info) { (void)info; }
+
+/* Called when the buffer is full: doubles it and carries on after what is written. */
+static boolean grow_destination(j_compress_ptr info) {
+    struct growing_destination *destination = (struct growing_destination *)info->dest;
+    size_t capacity = destination->capacity * 2;
+    unsigned char *buffer = realloc(destination->buffer, capacity);
+    if (buffer == NULL) {
+        ERREXIT1(info, JERR_OUT_OF_MEMORY, 0);
+    }
+    destination->manager.next_output_byte = buffer + destination->capacity;
+    destination->manager.free_in_buffer = capacity - destination->capacity;
+    destination->buffer = buffer;
+    destination->capacity = capacity;
+    return TRUE;
+}
+
+static void end_destination(j_compress_ptr info) { (void)info; }
+
+/* Encodes width x height RGB pixels as a baseline JFIF JPEG, 4:2:0, IJG `quality`, into a buffer
+ * that starts at `capacity_hint` bytes (at least 1 kB) and grows as needed. On success *out is a
+ * buffer of *out_len bytes for rover_jpeg_free. */
+int rover_jpeg_encode(const unsigned char *rgb, int width, int height, int quality, size_t capacity_hint,
+                      unsigned char **out, unsigned long *out_len, char *message, size_t message_len) {
     struct jpeg_compress_struct info;
     struct guard guard;
+    struct growing_destination destination;
     *out = NULL;
     *out_len = 0;
+    destination.capacity = capacity_hint < 1024 ? 1024 : capacity_hint;
+    destination.buffer = malloc(destination.capacity);
+    if (destination.buffer == NULL) {
+        snprintf(message, message_len, "cannot allocate %zu bytes for the JPEG", destination.capacity);
+        return ROVER_JPEG_FAILED;
+    }
+    destination.manager.next_output_byte = destination.buffer;
+    destination.manager.free_in_buffer = destination.capacity;
+    destination.manager.init_destination = start_destination;
+    destination.manager.empty_output_buffer = grow_destination;
+    destination.manager.term_destination = end_destination;
     info.err = guarded(&guard, message, message_len);
     if (setjmp(guard.back)) {
         jpeg_destroy_compress(&info);
-        free(*out);
-        *out = NULL;
+        free(destination.buffer);
         return ROVER_JPEG_FAILED;
     }
     jpeg_create_compress(&info);
-    jpeg_mem_dest(&info, out, out_len);
+    info.dest = &destination.manager;
     info.image_width = (JDIMENSION)width;
     info.image_height = (JDIMENSION)height;
     info.input_components = 3;
@@ -79,6 +117,8 @@ int rover_jpeg_encode(const unsigned char *rgb, int width, int height, int quali
         jpeg_write_scanlines(&info, &row, 1);
     }
     jpeg_finish_compress(&info);
+    *out = destination.buffer;
+    *out_len = (unsigned long)(destination.capacity - destination.manager.free_in_buffer);
     jpeg_destroy_compress(&info);
     return ROVER_JPEG_OK;
 }
@@ -112,7 +152,7 @@ int rover_jpeg_dimensions(const unsigned char *jpeg, unsigned long len, int *wid
 
 /* Decodes `jpeg` into width x height RGB pixels at `rgb` (width * height * 3 bytes), the way
  * libjpeg-turbo's defaults do (accurate integer IDCT, smooth chroma upsampling), as OpenCV and PIL
- * decode. A JPEG of another size is not decoded: ROVER_JPEG_WRONG_SIZE. */
+ * decode. A JPEG of another size is not decoded. */
 int rover_jpeg_decode_rgb(const unsigned char *jpeg, unsigned long len, unsigned char *rgb, int width, int height,
                           char *message, size_t message_len) {
     struct jpeg_decompress_struct info;
@@ -124,8 +164,10 @@ int rover_jpeg_decode_rgb(const unsigned char *jpeg, unsigned long len, unsigned
     }
     read_header(&info, jpeg, len);
     if (info.image_width != (JDIMENSION)width || info.image_height != (JDIMENSION)height) {
+        snprintf(message, message_len, "the image is %ux%u, expected %dx%d", (unsigned)info.image_width,
+                 (unsigned)info.image_height, width, height);
         jpeg_destroy_decompress(&info);
-        return ROVER_JPEG_WRONG_SIZE;
+        return ROVER_JPEG_FAILED;
     }
     info.out_color_space = JCS_RGB;
     jpeg_start_decompress(&info);

@@ -14,12 +14,12 @@ pub const UNITY_JPEG_QUALITY: u8 = 75;
 const START_OF_IMAGE: [u8; 2] = [0xFF, 0xD8];
 /// The end-of-image marker every complete JPEG ends with.
 const END_OF_IMAGE: [u8; 2] = [0xFF, 0xD9];
-/// Room for libjpeg's message of a failed call (its `JMSG_LENGTH_MAX`).
+/// Room for the message of a failed call (libjpeg's `JMSG_LENGTH_MAX`).
 const MESSAGE_BYTES: usize = 200;
-
-/// What a call of `csrc/jpeg.c` returns.
+/// The longest side of an image that libjpeg codes (its `JPEG_MAX_DIMENSION`), pixels.
+const MAX_SIDE_PX: usize = 65_500;
+/// What a call of `csrc/jpeg.c` returns when it succeeded.
 const OK: c_int = 0;
-const WRONG_SIZE: c_int = 2;
 
 unsafe extern "C" {
     fn rover_jpeg_encode(
@@ -27,6 +27,7 @@ unsafe extern "C" {
         width: c_int,
         height: c_int,
         quality: c_int,
+        capacity_hint: usize,
         out: *mut *mut u8,
         out_len: *mut c_ulong,
         message: *mut c_char,
@@ -52,37 +53,47 @@ unsafe extern "C" {
     ) -> c_int;
 }
 
-/// The message libjpeg left in `buffer`.
-fn message_of(buffer: &[c_char; MESSAGE_BYTES]) -> String {
-    // SAFETY: the buffer is zeroed before each call and the C side writes at most
-    // `MESSAGE_BYTES` bytes, NUL included (snprintf), so it holds a NUL-terminated string.
-    unsafe { CStr::from_ptr(buffer.as_ptr()) }.to_string_lossy().into_owned()
+/// The message a failed call left in `buffer` (zeroed before the call, a NUL-terminated string
+/// after it).
+fn message_of(buffer: &[u8; MESSAGE_BYTES]) -> String {
+    CStr::from_bytes_until_nul(buffer).map_or_else(|_| "no message".into(), |m| m.to_string_lossy().into_owned())
 }
 
-/// A side of an image as a C int, if it is one a JPEG can have (1..=65535).
-fn jpeg_side(side: usize) -> Option<c_int> {
-    u16::try_from(side).ok().filter(|&s| s > 0).map(c_int::from)
+/// The width and height of an image as C ints, if a JPEG can be that size (1..=65,500 a side).
+fn jpeg_size(width: usize, height: usize) -> Option<(c_int, c_int)> {
+    let side = |px: usize| (1..=MAX_SIDE_PX).contains(&px).then_some(px as c_int);
+    side(width).zip(side(height))
+}
+
+/// The length of `jpeg` as the C side takes it.
+fn c_len(jpeg: &[u8]) -> Result<c_ulong, ImageError> {
+    c_ulong::try_from(jpeg.len()).map_err(|_| ImageError::Corrupt(format!("{} bytes is too long a JPEG", jpeg.len())))
+}
+
+/// The error of a failed call on `jpeg`: libjpeg's message, and the size of what it read.
+fn corrupt(jpeg: &[u8], message: &[u8; MESSAGE_BYTES]) -> ImageError {
+    ImageError::Corrupt(format!("{} (in {} bytes)", message_of(message), jpeg.len()))
 }
 
 /// Checks the JPEG markers and header and returns the image size, without decoding the pixels.
 pub fn jpeg_dimensions(jpeg: &[u8]) -> Result<(usize, usize), ImageError> {
     check_markers(jpeg)?;
     let (mut width, mut height) = (0, 0);
-    let mut message = [0; MESSAGE_BYTES];
+    let mut message = [0u8; MESSAGE_BYTES];
     // SAFETY: `jpeg` is valid for its length; the outputs are valid for writes; the message buffer
     // holds `MESSAGE_BYTES` bytes.
     let status = unsafe {
         rover_jpeg_dimensions(
             jpeg.as_ptr(),
-            jpeg.len() as c_ulong,
+            c_len(jpeg)?,
             &mut width,
             &mut height,
-            message.as_mut_ptr(),
+            message.as_mut_ptr().cast::<c_char>(),
             MESSAGE_BYTES,
         )
     };
     if status != OK {
-        return Err(ImageError::Corrupt(message_of(&message)));
+        return Err(corrupt(jpeg, &message));
     }
     Ok((width as usize, height as usize))
 }
@@ -108,31 +119,29 @@ pub fn check_jpeg(jpeg: &[u8], width: usize, height: usize) -> Result<(), ImageE
 /// costs no memory. Corrupt data fails the decoding (libjpeg would decode on past it).
 pub fn decode_jpeg_into(jpeg: &[u8], width: usize, height: usize, out: &mut RgbImage) -> Result<(), ImageError> {
     check_jpeg(jpeg, width, height)?;
-    let (c_width, c_height) = jpeg_side(width)
-        .zip(jpeg_side(height))
-        .ok_or(ImageError::Corrupt(format!("a JPEG cannot be {width}x{height}")))?;
     out.width = width;
     out.height = height;
     out.data.resize(width * height * 3, 0);
-    let mut message = [0; MESSAGE_BYTES];
+    let mut message = [0u8; MESSAGE_BYTES];
     // SAFETY: `jpeg` is valid for its length; `out.data` holds `width * height * 3` bytes, what
-    // the C side writes for a `width` x `height` image (it checks the header's size first).
+    // the C side writes for a `width` x `height` image, and nothing for another size (it checks
+    // the header again). The header gave this size, so each side fits a C int (libjpeg reads at
+    // most 65,500).
     let status = unsafe {
         rover_jpeg_decode_rgb(
             jpeg.as_ptr(),
-            jpeg.len() as c_ulong,
+            c_len(jpeg)?,
             out.data.as_mut_ptr(),
-            c_width,
-            c_height,
-            message.as_mut_ptr(),
+            width as c_int,
+            height as c_int,
+            message.as_mut_ptr().cast::<c_char>(),
             MESSAGE_BYTES,
         )
     };
-    match status {
-        OK => Ok(()),
-        WRONG_SIZE => Err(ImageError::Corrupt("the image size changed between two reads of the header".into())),
-        _ => Err(ImageError::Corrupt(message_of(&message))),
+    if status != OK {
+        return Err(corrupt(jpeg, &message));
     }
+    Ok(())
 }
 
 /// Decodes a `width` x `height` JPEG into a new RGB image.
@@ -158,12 +167,12 @@ pub fn encode_jpeg(image: &RgbImage, quality: u8) -> Result<Vec<u8>, ImageError>
     Ok(out)
 }
 
-/// Like [`encode_jpeg`], appending to `out` (cleared first).
+/// Like [`encode_jpeg`], into `out` (cleared first; its capacity is the first guess of the size).
 pub fn encode_jpeg_into(image: &RgbImage, quality: u8, out: &mut Vec<u8>) -> Result<(), ImageError> {
     out.clear();
-    let (width, height) = jpeg_side(image.width)
-        .zip(jpeg_side(image.height))
-        .ok_or_else(|| ImageError::Encode(format!("a JPEG cannot be {}x{}", image.width, image.height)))?;
+    let (width, height) = jpeg_size(image.width, image.height).ok_or_else(|| {
+        ImageError::Encode(format!("a JPEG cannot be {}x{} (1..={MAX_SIDE_PX} a side)", image.width, image.height))
+    })?;
     if image.data.len() != image.width * image.height * 3 {
         return Err(ImageError::Encode(format!(
             "{} bytes for a {}x{} RGB image",
@@ -173,7 +182,7 @@ pub fn encode_jpeg_into(image: &RgbImage, quality: u8, out: &mut Vec<u8>) -> Res
         )));
     }
     let (mut buffer, mut len): (*mut u8, c_ulong) = (std::ptr::null_mut(), 0);
-    let mut message = [0; MESSAGE_BYTES];
+    let mut message = [0u8; MESSAGE_BYTES];
     // SAFETY: `image.data` holds `width * height * 3` bytes (checked above), what the C side reads;
     // the outputs are valid for writes; the message buffer holds `MESSAGE_BYTES` bytes.
     let status = unsafe {
@@ -182,9 +191,10 @@ pub fn encode_jpeg_into(image: &RgbImage, quality: u8, out: &mut Vec<u8>) -> Res
             width,
             height,
             c_int::from(quality.clamp(1, 100)),
+            out.capacity(),
             &mut buffer,
             &mut len,
-            message.as_mut_ptr(),
+            message.as_mut_ptr().cast::<c_char>(),
             MESSAGE_BYTES,
         )
     };
@@ -263,9 +273,28 @@ mod tests {
     #[test]
     fn images_no_jpeg_can_hold_are_refused() {
         assert!(matches!(encode_jpeg(&RgbImage::new(0, 10), 75), Err(ImageError::Encode(_))));
-        assert!(matches!(encode_jpeg(&RgbImage::new(70_000, 1), 75), Err(ImageError::Encode(_))));
+        let too_wide = encode_jpeg(&RgbImage::new(MAX_SIDE_PX + 1, 1), 75).unwrap_err();
+        assert_eq!(too_wide.to_string(), "cannot encode the image: a JPEG cannot be 65501x1 (1..=65500 a side)");
         let short = RgbImage { width: 8, height: 8, data: vec![0; 10] };
         assert!(matches!(encode_jpeg(&short, 75), Err(ImageError::Encode(_))));
+    }
+
+    #[test]
+    fn a_jpeg_many_times_the_first_buffer_is_written_whole() {
+        let mut noise = RgbImage::new(320, 160);
+        let mut state = 1u32;
+        for pixel in noise.data.chunks_exact_mut(3) {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            pixel.fill((state >> 24) as u8);
+        }
+        let mut jpeg = Vec::new();
+        encode_jpeg_into(&noise, 100, &mut jpeg).unwrap();
+        assert!(jpeg.len() > 64 * 1024, "{} bytes grow a 1 kB buffer many times", jpeg.len());
+        assert!(jpeg.ends_with(&END_OF_IMAGE));
+        let decoded = decode_jpeg(&jpeg, 320, 160).unwrap();
+        let mean_error = noise.data.iter().zip(&decoded.data).map(|(a, b)| a.abs_diff(*b) as f64).sum::<f64>()
+            / noise.data.len() as f64;
+        assert!(mean_error < 4.0, "grey noise at quality 100: mean error {mean_error}");
     }
 
     /// Fuzz targets: a mutated JPEG (flipped, inserted or removed bytes, truncated) is checked and
