@@ -183,6 +183,8 @@ pub fn run_in_process(
         }
         let observation = rover_decision::observation(&message, &scan, &mut rays);
         let drive = machine.step(&observation);
+        // As the decision node does after publishing; here nothing runs beside it, but the missions
+        // that check decisions to the metre go through the plans it makes ahead.
         machine.prepare_next_frame(&observation.position);
         let arm = checked_arm_input(&message, &mut pickup_rejections);
         let command = if arm.is_some_and(|arm| pickup.on_telemetry(&arm, &settings.pickup)) {

@@ -34,6 +34,11 @@ impl<T> Delayed<T> {
         self.waiting.push_back((made_at_frame, value));
     }
 
+    /// Whether a value is due at `frame` (or earlier).
+    pub fn any_due(&self, frame: u64) -> bool {
+        self.waiting.front().is_some_and(|&(made_at, _)| made_at.saturating_add(ARRIVAL_DELAY_FRAMES) <= frame)
+    }
+
     /// The newest value due at `frame` (older due ones are dropped: each value is a whole state).
     pub fn take_due(&mut self, frame: u64) -> Option<T> {
         let mut due = None;
@@ -57,6 +62,7 @@ mod tests {
         maps.push(10, "a");
         maps.push(11, "b");
         maps.push(20, "c");
+        assert!(!maps.any_due(10 + ARRIVAL_DELAY_FRAMES - 1) && maps.any_due(10 + ARRIVAL_DELAY_FRAMES));
         assert_eq!(maps.take_due(10 + ARRIVAL_DELAY_FRAMES - 1), None);
         assert_eq!(maps.take_due(11 + ARRIVAL_DELAY_FRAMES), Some("b"), "a is superseded");
         assert_eq!(maps.take_due(19 + ARRIVAL_DELAY_FRAMES), None);

@@ -373,11 +373,16 @@ impl Machine {
     }
 
     /// Between frames, after the drive command of the last one went out: makes ahead the path
-    /// costs the next frame will likely ask for, the rover at `at` ([`PlanningMap::prepare`]).
-    /// What the machine decides does not change, only when the search runs.
+    /// costs the next frame will likely ask for, the rover at `at` ([`PlanningMap::prepare`]),
+    /// unless a new map takes effect then. What the machine decides does not change, only when
+    /// the search runs.
     pub fn prepare_next_frame(&self, at: &Position) {
+        let next_frame = self.frame.saturating_add(1);
+        if self.arriving_maps.any_due(next_frame) {
+            return;
+        }
         if let Some(start) = cell_of_point(at.x_m, at.y_m) {
-            self.planning.prepare(start, self.frame + 1, self.params.replan_frames as u64);
+            self.planning.prepare(start, next_frame, self.params.replan_frames as u64);
         }
     }
 

@@ -72,13 +72,19 @@ pub struct PlanningMap {
     ahead: RefCell<CostsAhead>,
 }
 
-/// The path costs last asked of a planning map, and those made ahead for the next request.
+/// What path costs are asked for: from which cell, with which costs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct CostsRequest {
+    start_cell: usize,
+    costs: Costs,
+}
+
+/// The path costs last asked of a planning map (and on which frame), and those made ahead for the
+/// next request.
 #[derive(Debug, Clone, Default)]
 struct CostsAhead {
-    /// Start cell, costs and frame of the last request.
-    last: Option<(usize, Costs, u64)>,
-    /// Path costs made ahead, with their start cell and costs.
-    made: Option<(usize, Costs, CostMap)>,
+    last: Option<(CostsRequest, u64)>,
+    made: Option<(CostsRequest, CostMap)>,
 }
 
 impl PlanningMap {
@@ -100,10 +106,11 @@ impl PlanningMap {
     /// Path costs from cell `start` with `costs` for a plan at `frame` ([`Grid::costs_from`]):
     /// the ones made ahead when they are those, else searched now (the same costs either way).
     pub fn costs_from(&self, start: usize, costs: &Costs, frame: u64) -> CostMap {
+        let request = CostsRequest { start_cell: start, costs: *costs };
         let mut ahead = self.ahead.borrow_mut();
-        ahead.last = Some((start, *costs, frame));
+        ahead.last = Some((request, frame));
         match ahead.made.take() {
-            Some((made_start, made_costs, made)) if made_start == start && made_costs == *costs => made,
+            Some((made_for, made)) if made_for == request => made,
             _ => self.grid.costs_from(start, costs),
         }
     }
@@ -114,11 +121,11 @@ impl PlanningMap {
     /// differs (the rover crossed into another cell, the map changed), it is searched as before.
     pub fn prepare(&self, start: usize, next_frame: u64, replan_frames: u64) {
         let mut ahead = self.ahead.borrow_mut();
-        let Some((_, costs, frame)) = ahead.last else { return };
-        let made =
-            ahead.made.as_ref().is_some_and(|(made_start, made_costs, _)| (*made_start, *made_costs) == (start, costs));
-        if next_frame == frame + replan_frames && !made {
-            ahead.made = Some((start, costs, self.grid.costs_from(start, &costs)));
+        let Some((last, frame)) = ahead.last else { return };
+        let request = CostsRequest { start_cell: start, costs: last.costs };
+        let already_made = ahead.made.as_ref().is_some_and(|(made_for, _)| *made_for == request);
+        if frame.checked_add(replan_frames) == Some(next_frame) && !already_made {
+            ahead.made = Some((request, self.grid.costs_from(start, &request.costs)));
         }
     }
 }
@@ -262,7 +269,7 @@ mod tests {
     fn a_periodic_replans_costs_are_made_ahead_once_and_only_used_when_they_are_the_ones_asked_for() {
         let map = planning(&half_explored(), 1);
         let costs = path_costs(&DecisionParams::default());
-        let made = || map.ahead.borrow().made.as_ref().map(|(start, ..)| *start);
+        let made = || map.ahead.borrow().made.as_ref().map(|(made_for, _)| made_for.start_cell);
         let (here, next) = (cell_of_point(25.5, 51.5).unwrap(), cell_of_point(26.5, 51.5).unwrap());
         map.costs_from(here, &costs, 100);
         map.prepare(next, 111, 12);
