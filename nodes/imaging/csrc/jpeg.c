@@ -76,6 +76,15 @@ static boolean grow_destination(j_compress_ptr info) {
 
 static void end_destination(j_compress_ptr info) { (void)info; }
 
+/* Compresses the image's rows from `rgb`, 3 bytes a pixel. */
+static void write_rows(j_compress_ptr info, const unsigned char *rgb) {
+    size_t row_bytes = (size_t)info->image_width * 3;
+    while (info->next_scanline < info->image_height) {
+        JSAMPROW row = (JSAMPROW)(rgb + info->next_scanline * row_bytes);
+        jpeg_write_scanlines(info, &row, 1);
+    }
+}
+
 /* Encodes width x height RGB pixels as a baseline JFIF JPEG, 4:2:0, IJG `quality`, into a buffer
  * that starts at `capacity_hint` bytes (at least 1 kB) and grows as needed. On success *out is a
  * buffer of *out_len bytes for rover_jpeg_free. */
@@ -112,10 +121,7 @@ int rover_jpeg_encode(const unsigned char *rgb, int width, int height, int quali
     jpeg_set_defaults(&info);
     jpeg_set_quality(&info, quality, TRUE);
     jpeg_start_compress(&info, TRUE);
-    while (info.next_scanline < info.image_height) {
-        JSAMPROW row = (JSAMPROW)(rgb + (size_t)info.next_scanline * (size_t)width * 3);
-        jpeg_write_scanlines(&info, &row, 1);
-    }
+    write_rows(&info, rgb);
     jpeg_finish_compress(&info);
     *out = destination.buffer;
     *out_len = (unsigned long)(destination.capacity - destination.manager.free_in_buffer);
@@ -126,16 +132,21 @@ int rover_jpeg_encode(const unsigned char *rgb, int width, int height, int quali
 /* Frees a buffer of rover_jpeg_encode. */
 void rover_jpeg_free(unsigned char *buffer) { free(buffer); }
 
-/* Reads the headers of `jpeg` into `info` (created here; the caller destroys it). */
-static void read_header(struct jpeg_decompress_struct *info, const unsigned char *jpeg, unsigned long len) {
-    jpeg_create_decompress(info);
-    jpeg_mem_src(info, jpeg, len);
-    jpeg_read_header(info, TRUE);
+/* Decompresses the image's rows into `rgb`, 3 bytes a pixel. */
+static void read_rows(j_decompress_ptr info, unsigned char *rgb) {
+    size_t row_bytes = (size_t)info->output_width * 3;
+    while (info->output_scanline < info->output_height) {
+        JSAMPROW row = (JSAMPROW)(rgb + info->output_scanline * row_bytes);
+        jpeg_read_scanlines(info, &row, 1);
+    }
 }
 
-/* The image size that the headers of `jpeg` give. */
-int rover_jpeg_dimensions(const unsigned char *jpeg, unsigned long len, int *width, int *height, char *message,
-                          size_t message_len) {
+/* Reads the headers of `jpeg` and puts the image size in *width and *height. With `rgb`, and when
+ * that size is rgb_width x rgb_height, also decodes the pixels into `rgb` (rgb_width * rgb_height *
+ * 3 bytes) the way libjpeg-turbo's defaults do (accurate integer IDCT, smooth chroma upsampling),
+ * as OpenCV and PIL decode; a JPEG of another size is not decoded. */
+int rover_jpeg_decode(const unsigned char *jpeg, unsigned long len, unsigned char *rgb, int rgb_width, int rgb_height,
+                      int *width, int *height, char *message, size_t message_len) {
     struct jpeg_decompress_struct info;
     struct guard guard;
     info.err = guarded(&guard, message, message_len);
@@ -143,38 +154,23 @@ int rover_jpeg_dimensions(const unsigned char *jpeg, unsigned long len, int *wid
         jpeg_destroy_decompress(&info);
         return ROVER_JPEG_FAILED;
     }
-    read_header(&info, jpeg, len);
+    jpeg_create_decompress(&info);
+    jpeg_mem_src(&info, jpeg, len);
+    jpeg_read_header(&info, TRUE);
     *width = (int)info.image_width;
     *height = (int)info.image_height;
-    jpeg_destroy_decompress(&info);
-    return ROVER_JPEG_OK;
-}
-
-/* Decodes `jpeg` into width x height RGB pixels at `rgb` (width * height * 3 bytes), the way
- * libjpeg-turbo's defaults do (accurate integer IDCT, smooth chroma upsampling), as OpenCV and PIL
- * decode. A JPEG of another size is not decoded. */
-int rover_jpeg_decode_rgb(const unsigned char *jpeg, unsigned long len, unsigned char *rgb, int width, int height,
-                          char *message, size_t message_len) {
-    struct jpeg_decompress_struct info;
-    struct guard guard;
-    info.err = guarded(&guard, message, message_len);
-    if (setjmp(guard.back)) {
+    if (rgb == NULL) {
         jpeg_destroy_decompress(&info);
-        return ROVER_JPEG_FAILED;
+        return ROVER_JPEG_OK;
     }
-    read_header(&info, jpeg, len);
-    if (info.image_width != (JDIMENSION)width || info.image_height != (JDIMENSION)height) {
-        snprintf(message, message_len, "the image is %ux%u, expected %dx%d", (unsigned)info.image_width,
-                 (unsigned)info.image_height, width, height);
+    if (*width != rgb_width || *height != rgb_height) {
+        snprintf(message, message_len, "the image is %dx%d, expected %dx%d", *width, *height, rgb_width, rgb_height);
         jpeg_destroy_decompress(&info);
         return ROVER_JPEG_FAILED;
     }
     info.out_color_space = JCS_RGB;
     jpeg_start_decompress(&info);
-    while (info.output_scanline < info.output_height) {
-        JSAMPROW row = (JSAMPROW)(rgb + (size_t)info.output_scanline * (size_t)width * 3);
-        jpeg_read_scanlines(&info, &row, 1);
-    }
+    read_rows(&info, rgb);
     jpeg_finish_decompress(&info);
     jpeg_destroy_decompress(&info);
     return ROVER_JPEG_OK;

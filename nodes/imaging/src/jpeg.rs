@@ -34,20 +34,14 @@ unsafe extern "C" {
         message_len: usize,
     ) -> c_int;
     fn rover_jpeg_free(buffer: *mut u8);
-    fn rover_jpeg_dimensions(
-        jpeg: *const u8,
-        len: c_ulong,
-        width: *mut c_int,
-        height: *mut c_int,
-        message: *mut c_char,
-        message_len: usize,
-    ) -> c_int;
-    fn rover_jpeg_decode_rgb(
+    fn rover_jpeg_decode(
         jpeg: *const u8,
         len: c_ulong,
         rgb: *mut u8,
-        width: c_int,
-        height: c_int,
+        rgb_width: c_int,
+        rgb_height: c_int,
+        width: *mut c_int,
+        height: *mut c_int,
         message: *mut c_char,
         message_len: usize,
     ) -> c_int;
@@ -78,14 +72,32 @@ fn corrupt(jpeg: &[u8], message: &[u8; MESSAGE_BYTES]) -> ImageError {
 /// Checks the JPEG markers and header and returns the image size, without decoding the pixels.
 pub fn jpeg_dimensions(jpeg: &[u8]) -> Result<(usize, usize), ImageError> {
     check_markers(jpeg)?;
+    decode(jpeg, None)
+}
+
+/// Reads the headers of `jpeg` and returns the image size; with `rgb`, a buffer for an image of
+/// the given size (width, height), also decodes the pixels into it when the JPEG has that size.
+fn decode(jpeg: &[u8], rgb: Option<(&mut [u8], (usize, usize))>) -> Result<(usize, usize), ImageError> {
+    let (pixels, (rgb_width, rgb_height)) = match rgb {
+        Some((buffer, size)) => {
+            assert_eq!(buffer.len(), size.0 * size.1 * 3, "a buffer for the whole image");
+            (buffer.as_mut_ptr(), size)
+        }
+        None => (std::ptr::null_mut(), (0, 0)),
+    };
     let (mut width, mut height) = (0, 0);
     let mut message = [0u8; MESSAGE_BYTES];
-    // SAFETY: `jpeg` is valid for its length; the outputs are valid for writes; the message buffer
-    // holds `MESSAGE_BYTES` bytes.
+    // SAFETY: `jpeg` is valid for its length; `pixels` is null (the header only) or holds
+    // `rgb_width * rgb_height * 3` bytes (asserted), which the C side writes only for an image of
+    // that size (callers pass a size the header gave, so the sides fit a C int: libjpeg reads at
+    // most 65,500); the outputs are valid for writes; the message buffer holds `MESSAGE_BYTES`.
     let status = unsafe {
-        rover_jpeg_dimensions(
+        rover_jpeg_decode(
             jpeg.as_ptr(),
             c_len(jpeg)?,
+            pixels,
+            rgb_width as c_int,
+            rgb_height as c_int,
             &mut width,
             &mut height,
             message.as_mut_ptr().cast::<c_char>(),
@@ -122,25 +134,7 @@ pub fn decode_jpeg_into(jpeg: &[u8], width: usize, height: usize, out: &mut RgbI
     out.width = width;
     out.height = height;
     out.data.resize(width * height * 3, 0);
-    let mut message = [0u8; MESSAGE_BYTES];
-    // SAFETY: `jpeg` is valid for its length; `out.data` holds `width * height * 3` bytes, what
-    // the C side writes for a `width` x `height` image, and nothing for another size (it checks
-    // the header again). The header gave this size, so each side fits a C int (libjpeg reads at
-    // most 65,500).
-    let status = unsafe {
-        rover_jpeg_decode_rgb(
-            jpeg.as_ptr(),
-            c_len(jpeg)?,
-            out.data.as_mut_ptr(),
-            width as c_int,
-            height as c_int,
-            message.as_mut_ptr().cast::<c_char>(),
-            MESSAGE_BYTES,
-        )
-    };
-    if status != OK {
-        return Err(corrupt(jpeg, &message));
-    }
+    decode(jpeg, Some((&mut out.data, (width, height))))?;
     Ok(())
 }
 
