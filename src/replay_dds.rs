@@ -1,6 +1,6 @@
 //! `rover replay --via-dds`: the recorded frames published as the bridge would publish them,
 //! one at a time, each waiting for its terrain scan from the perception node; the map statistics
-//! of the mapping node are read at the end.
+//! of the mapping node are read once it has gone quiet after the last frame.
 
 use std::time::{Duration, Instant};
 
@@ -17,6 +17,12 @@ use crate::replay::ReplayReport;
 const SCAN_TIMEOUT: Duration = Duration::from_secs(5);
 /// How long to wait for the nodes to appear.
 const DISCOVERY_TIMEOUT: Duration = Duration::from_secs(20);
+/// After the last frame, the mapping node has mapped every scan once it publishes no statistics for
+/// this long (it publishes while scans are left unpublished, at least every `publish_max_delay_ms`,
+/// 500 ms by default).
+const MAPPING_QUIET: Duration = Duration::from_millis(1500);
+/// The longest wait for the mapping node to go quiet after the last frame.
+const MAPPING_DONE_TIMEOUT: Duration = Duration::from_secs(30);
 
 rover_node::node_params! {
     /// The replay node has no parameters.
@@ -67,20 +73,13 @@ pub async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> any
             tracing::warn!("no terrain scan for frame {number} within {SCAN_TIMEOUT:?}");
         }
     }
-    let after_last = Instant::now();
-    let final_stats = tokio::time::timeout(SCAN_TIMEOUT, async {
-        while let Some(s) = stats.next().await {
-            if after_last.elapsed() > Duration::from_millis(50) {
-                return Some(s);
-            }
+    let until_quiet = async {
+        while let Ok(Some(s)) = tokio::time::timeout(MAPPING_QUIET, stats.next()).await {
+            latest = Some(s);
         }
-        None
-    })
-    .await
-    .ok()
-    .flatten()
-    .or(latest)
-    .ok_or_else(|| anyhow::anyhow!("the mapping node published no statistics"))?;
+    };
+    let _ = tokio::time::timeout(MAPPING_DONE_TIMEOUT, until_quiet).await;
+    let final_stats = latest.ok_or_else(|| anyhow::anyhow!("the mapping node published no statistics"))?;
     round_trips.sort();
     let median = round_trips.get(round_trips.len() / 2).map_or(0.0, |d| d.as_secs_f64() * 1000.0);
     let finite = |v: f32| v.is_finite().then_some((v as f64 * 10.0).round() / 10.0);

@@ -108,9 +108,9 @@ async fn bad_frames_are_logged_counted_and_skipped() {
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
     assert!(scans.last().is_some(), "the perception node answers good frames");
-    let mut corrupt = good.clone();
-    corrupt.truncate(good.len() / 2);
-    send(1001, 1001, corrupt, 99.7);
+    let mut truncated = good.clone();
+    truncated.truncate(good.len() / 2);
+    send(1001, 1001, truncated, 99.7);
     send(1002, 1002, small, 99.7);
     send(1003, 1003, good.clone(), f64::NAN);
     send(1004, 1004, good.clone(), 99.7);
@@ -132,7 +132,7 @@ async fn bad_frames_are_logged_counted_and_skipped() {
         "perception",
         &perception_log,
         &[
-            "rejected the camera image of frame 1001: corrupt JPEG",
+            "rejected the camera image of frame 1001: truncated JPEG (no FF D9 end-of-image marker)",
             "rejected the camera image of frame 1002: image is 64x32, expected 320x160",
             "rejected a rover/telemetry message: field `x_m` = NaN (expected a number in [-10000, 10000])",
             "rejected 2 camera/image_raw/compressed, 1 rover/telemetry",
