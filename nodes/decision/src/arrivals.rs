@@ -25,6 +25,11 @@ impl<T> Default for Delayed<T> {
     }
 }
 
+/// Whether a value made at mission frame `made_at` is in effect at `frame`.
+fn due_at(made_at: u64, frame: u64) -> bool {
+    made_at.saturating_add(ARRIVAL_DELAY_FRAMES) <= frame
+}
+
 impl<T> Delayed<T> {
     /// Keeps `value`, made from the scans up to mission frame `made_at_frame`, until it is due.
     pub fn push(&mut self, made_at_frame: u64, value: T) {
@@ -36,14 +41,14 @@ impl<T> Delayed<T> {
 
     /// Whether a value is due at `frame` (or earlier).
     pub fn any_due(&self, frame: u64) -> bool {
-        self.waiting.front().is_some_and(|&(made_at, _)| made_at.saturating_add(ARRIVAL_DELAY_FRAMES) <= frame)
+        self.waiting.front().is_some_and(|&(made_at, _)| due_at(made_at, frame))
     }
 
     /// The newest value due at `frame` (older due ones are dropped: each value is a whole state).
     pub fn take_due(&mut self, frame: u64) -> Option<T> {
         let mut due = None;
         while let Some(&(made_at, _)) = self.waiting.front() {
-            if made_at.saturating_add(ARRIVAL_DELAY_FRAMES) > frame {
+            if !due_at(made_at, frame) {
                 break;
             }
             due = self.waiting.pop_front().map(|(_, value)| value);

@@ -382,7 +382,7 @@ impl Machine {
             return;
         }
         if let Some(start) = cell_of_point(at.x_m, at.y_m) {
-            self.planning.prepare(start, next_frame, self.params.replan_frames as u64);
+            self.planning.prepare(start, next_frame, &self.params);
         }
     }
 

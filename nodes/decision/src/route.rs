@@ -116,18 +116,23 @@ impl PlanningMap {
     }
 
     /// Makes the path costs that frame `next_frame` will ask for from cell `start` if the last
-    /// request (its start aside) is repeated `replan_frames` after it, as a route's or the
-    /// explorer's periodic replan is; nothing on other frames. A guess: when the next request
+    /// request (its start aside) is repeated there as a route's or the explorer's periodic replan
+    /// ([`periodic_replan_frame`]); nothing on other frames. A guess: when the next request
     /// differs (the rover crossed into another cell, the map changed), it is searched as before.
-    pub fn prepare(&self, start: usize, next_frame: u64, replan_frames: u64) {
+    pub fn prepare(&self, start: usize, next_frame: u64, params: &DecisionParams) {
         let mut ahead = self.ahead.borrow_mut();
         let Some((last, frame)) = ahead.last else { return };
         let request = CostsRequest { start_cell: start, costs: last.costs };
         let already_made = ahead.made.as_ref().is_some_and(|(made_for, _)| *made_for == request);
-        if frame.checked_add(replan_frames) == Some(next_frame) && !already_made {
+        if next_frame == periodic_replan_frame(frame, params) && !already_made {
             ahead.made = Some((request, self.grid.costs_from(start, &request.costs)));
         }
     }
+}
+
+/// The frame on which a plan made at frame `planned_at` is made again for its age alone.
+fn periodic_replan_frame(planned_at: u64, params: &DecisionParams) -> u64 {
+    planned_at.saturating_add(params.replan_frames as u64)
 }
 
 /// Where a plan on the map starts this frame.
@@ -148,7 +153,7 @@ impl PlanStart<'_> {
     /// made on another map, or `replan_frames` old.
     pub(crate) fn replan_due(&self, planned: Option<(u64, u64)>) -> bool {
         planned.is_none_or(|(at_frame, version)| {
-            version != self.map.version() || self.frame >= at_frame + self.params.replan_frames as u64
+            version != self.map.version() || self.frame >= periodic_replan_frame(at_frame, self.params)
         })
     }
 }
@@ -268,20 +273,21 @@ mod tests {
     #[test]
     fn a_periodic_replans_costs_are_made_ahead_once_and_only_used_when_they_are_the_ones_asked_for() {
         let map = planning(&half_explored(), 1);
-        let costs = path_costs(&DecisionParams::default());
+        let params = DecisionParams { replan_frames: 12, ..DecisionParams::default() };
+        let costs = path_costs(&params);
         let made = || map.ahead.borrow().made.as_ref().map(|(made_for, _)| made_for.start_cell);
         let (here, next) = (cell_of_point(25.5, 51.5).unwrap(), cell_of_point(26.5, 51.5).unwrap());
         map.costs_from(here, &costs, 100);
-        map.prepare(next, 111, 12);
+        map.prepare(next, 111, &params);
         assert_eq!(made(), None, "not due before 12 frames");
-        map.prepare(next, 112, 12);
+        map.prepare(next, 112, &params);
         assert_eq!(made(), Some(next));
         assert!(searched_from(&map.costs_from(next, &costs, 112), map.grid(), next, &costs));
         assert_eq!(made(), None, "taken by the request");
-        map.prepare(next, 124, 12);
+        map.prepare(next, 124, &params);
         assert!(searched_from(&map.costs_from(here, &costs, 124), map.grid(), here, &costs), "another start");
         assert_eq!(made(), None, "dropped by the request it did not fit");
-        map.prepare(here, 136, 12);
+        map.prepare(here, 136, &params);
         let other = Costs { cross_unknown: false, ..costs };
         assert!(searched_from(&map.costs_from(here, &other, 136), map.grid(), here, &other), "other costs");
     }
