@@ -9,6 +9,7 @@ use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::msg::{Telemetry, TerrainScan};
 use rover_msgs::sensor_msgs::CompressedImage;
 use rover_msgs::std_msgs::Header;
+use rover_node::{Publisher, RosNode, Runtime, topics};
 use support::{Domain, Latest, Process, STOP_TIMEOUT, eventually, rover, shared_dir, start_process, test_runtime};
 
 fn ground_truth() -> String {
@@ -42,9 +43,12 @@ fn the_libraries_map_the_test_dataset_with_at_least_85_percent_fidelity_and_20_p
     assert!(report["rocks_located"].as_u64().is_some());
 }
 
-fn start_nodes(domain: &Domain) -> (Process, Process) {
-    let perception = start_process(&rover(), &["perception"], domain, "perception");
-    let mapping = start_process(
+fn start_perception(domain: &Domain) -> Process {
+    start_process(&rover(), &["perception"], domain, "perception")
+}
+
+fn start_mapping(domain: &Domain) -> Process {
+    start_process(
         &rover(),
         &[
             "mapping",
@@ -56,8 +60,11 @@ fn start_nodes(domain: &Domain) -> (Process, Process) {
         ],
         domain,
         "mapping",
-    );
-    (perception, mapping)
+    )
+}
+
+fn start_nodes(domain: &Domain) -> (Process, Process) {
+    (start_perception(domain), start_mapping(domain))
 }
 
 #[test]
@@ -82,47 +89,78 @@ fn telemetry(frame: u64, sec: i32, x_m: f64) -> Telemetry {
     Telemetry { header: stamp(sec), frame, x_m, y_m: 85.6, yaw_rad: 1.0, ..Telemetry::default() }
 }
 
+/// The test's own node: it sends camera frames and telemetry to perception, sees the terrain scans
+/// that perception publishes and sends scans of its own to mapping.
+struct Tester {
+    camera: Publisher<CompressedImage>,
+    telemetry: Publisher<Telemetry>,
+    scans_out: Publisher<TerrainScan>,
+    scans: Latest<TerrainScan>,
+    node: RosNode,
+}
+
+impl Tester {
+    fn new(runtime: &Runtime) -> Self {
+        let (mut node, _) = runtime.node::<support::NoParams>("tester").unwrap();
+        Tester {
+            camera: node.publisher(&topics::CAMERA_COMPRESSED).unwrap(),
+            telemetry: node.publisher(&topics::TELEMETRY).unwrap(),
+            scans_out: node.publisher(&topics::TERRAIN).unwrap(),
+            scans: Latest::subscribe(&mut node, &topics::TERRAIN),
+            node,
+        }
+    }
+
+    /// Sends frame `frame`, stamped `sec`: its camera image and its telemetry at `x_m`.
+    fn send(&self, sec: i32, frame: u64, jpeg: Vec<u8>, x_m: f64) {
+        self.camera.publish(CompressedImage { header: stamp(sec), format: "jpeg".into(), data: jpeg }).unwrap();
+        self.telemetry.publish(telemetry(frame, sec, x_m)).unwrap();
+    }
+
+    /// Sends the recorded frame `good` (frames 1, 2, ...) every 100 ms until perception answers;
+    /// its first scan.
+    async fn first_scan(&self, good: &[u8]) -> TerrainScan {
+        let deadline = Instant::now() + Duration::from_secs(20);
+        let mut sec = 1;
+        while self.scans.last().is_none() && Instant::now() < deadline {
+            self.send(sec, sec as u64, good.to_vec(), 99.7);
+            sec += 1;
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+        self.scans.last().expect("the perception node answers good frames")
+    }
+}
+
+/// A recorded camera frame of the dataset.
+fn good_jpeg() -> Vec<u8> {
+    std::fs::read(rover::dataset::read_log(std::path::Path::new(&dataset())).unwrap()[20].image.clone()).unwrap()
+}
+
 #[tokio::test(flavor = "multi_thread")]
 async fn bad_frames_are_logged_counted_and_skipped() {
     support::assert_isolated();
     let domain = Domain::reserve();
     let (mut perception, mut mapping) = start_nodes(&domain);
     let runtime = test_runtime(&domain);
-    let (mut node, _) = runtime.node::<support::NoParams>("tester").unwrap();
-    let camera = node.publisher(&rover_node::topics::CAMERA_COMPRESSED).unwrap();
-    let telemetry_out = node.publisher(&rover_node::topics::TELEMETRY).unwrap();
-    let scans_out = node.publisher(&rover_node::topics::TERRAIN).unwrap();
-    let scans = Latest::subscribe(&mut node, &rover_node::topics::TERRAIN);
-    let good =
-        std::fs::read(rover::dataset::read_log(std::path::Path::new(&dataset())).unwrap()[20].image.clone()).unwrap();
+    let tester = Tester::new(&runtime);
+    let good = good_jpeg();
     let small = rover_imaging::encode_jpeg(&rover_imaging::RgbImage::new(64, 32), 75).unwrap();
-    let send = |sec: i32, frame: u64, jpeg: Vec<u8>, x_m: f64| {
-        camera.publish(CompressedImage { header: stamp(sec), format: "jpeg".into(), data: jpeg }).unwrap();
-        telemetry_out.publish(telemetry(frame, sec, x_m)).unwrap();
-    };
-    let deadline = Instant::now() + Duration::from_secs(20);
-    let mut sec = 1;
-    while scans.last().is_none() && Instant::now() < deadline {
-        send(sec, sec as u64, good.clone(), 99.7);
-        sec += 1;
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
-    assert!(scans.last().is_some(), "the perception node answers good frames");
+    tester.first_scan(&good).await;
     let mut truncated = good.clone();
     truncated.truncate(good.len() / 2);
-    send(1001, 1001, truncated, 99.7);
-    send(1002, 1002, small, 99.7);
-    send(1003, 1003, good.clone(), f64::NAN);
-    send(1004, 1004, good.clone(), 99.7);
+    tester.send(1001, 1001, truncated, 99.7);
+    tester.send(1002, 1002, small, 99.7);
+    tester.send(1003, 1003, good.clone(), f64::NAN);
+    tester.send(1004, 1004, good.clone(), 99.7);
     assert!(
-        eventually(Duration::from_secs(10), || scans.all().iter().any(|s| s.frame == 1004)),
+        eventually(Duration::from_secs(10), || tester.scans.all().iter().any(|s| s.frame == 1004)),
         "a good frame after the bad ones is processed"
     );
-    assert!(!scans.all().iter().any(|s| (1001..=1003).contains(&s.frame)), "bad frames produce no scan");
-    let scan = scans.all().into_iter().find(|s| s.frame == 1004).unwrap();
-    scans_out.publish(TerrainScan { frame: 1000, ..scan.clone() }).unwrap();
-    scans_out.publish(TerrainScan { frame: 1005, x_m: f64::NAN, ..scan.clone() }).unwrap();
-    scans_out.publish(TerrainScan { frame: 1006, rows: 3, cells: vec![1; 5], ..scan }).unwrap();
+    assert!(!tester.scans.all().iter().any(|s| (1001..=1003).contains(&s.frame)), "bad frames produce no scan");
+    let scan = tester.scans.all().into_iter().find(|s| s.frame == 1004).unwrap();
+    tester.scans_out.publish(TerrainScan { frame: 1000, ..scan.clone() }).unwrap();
+    tester.scans_out.publish(TerrainScan { frame: 1005, x_m: f64::NAN, ..scan.clone() }).unwrap();
+    tester.scans_out.publish(TerrainScan { frame: 1006, rows: 3, cells: vec![1; 5], ..scan }).unwrap();
     tokio::time::sleep(Duration::from_millis(500)).await;
     perception.interrupt(STOP_TIMEOUT);
     mapping.interrupt(STOP_TIMEOUT);
@@ -148,6 +186,30 @@ async fn bad_frames_are_logged_counted_and_skipped() {
             "rejected 1 out_of_order, 1 rover/telemetry, 2 rover/terrain",
         ],
     );
+}
+
+/// Scans sent to the mapping node right before it is asked to stop: fewer than its queue holds.
+const SCANS_BEFORE_STOP: u64 = 8;
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_mapping_node_asked_to_stop_first_maps_the_scans_already_sent_to_it() {
+    support::assert_isolated();
+    let domain = Domain::reserve();
+    let runtime = test_runtime(&domain);
+    let tester = Tester::new(&runtime);
+    let mut perception = start_perception(&domain);
+    let scan = tester.first_scan(&good_jpeg()).await;
+    perception.interrupt(STOP_TIMEOUT);
+    let mut mapping = start_mapping(&domain);
+    let matched = tokio::time::timeout(Duration::from_secs(20), tester.node.subscription_matched(&tester.scans_out));
+    matched.await.expect("the mapping node subscribes to rover/terrain");
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    for frame in 1..=SCANS_BEFORE_STOP {
+        tester.scans_out.publish(TerrainScan { header: stamp(frame as i32), frame, ..scan.clone() }).unwrap();
+    }
+    mapping.interrupt(STOP_TIMEOUT);
+    let log = mapping.log_text();
+    assert_log_has("mapping", &log, &[&format!("mapping: {SCANS_BEFORE_STOP} frames mapped")]);
 }
 
 fn assert_log_has(node: &str, log: &str, needles: &[&str]) {

@@ -22,6 +22,12 @@ use crate::params::MappingParams;
 use crate::score::ground_truth_from_png;
 use crate::snapshot;
 
+/// Once asked to stop, the node still maps the scans already sent to it, until none has come for
+/// this long...
+const DRAIN_QUIET: Duration = Duration::from_millis(100);
+/// ...or this long has passed.
+const DRAIN_LIMIT: Duration = Duration::from_secs(1);
+
 /// The ground truth that `params` name, if any.
 fn ground_truth(params: &MappingParams) -> anyhow::Result<Option<Vec<bool>>> {
     if params.ground_truth_png.is_empty() {
@@ -182,6 +188,18 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             Some(samples) = truth.next() => mapping.set_samples_truth(&samples),
             () = tokio::time::sleep_until(flush_at.into()), if mapping.has_unpublished_scans() => outputs.publish(&mut mapping, node.header(frame_ids::MAP)),
             Ok(()) = changes.changed() => mapping.set_params(changes.borrow_and_update().clone()),
+        }
+    }
+    let drain_until = tokio::time::Instant::now() + DRAIN_LIMIT;
+    let mut quiet_until = tokio::time::Instant::now() + DRAIN_QUIET;
+    loop {
+        tokio::select! {
+            Some(scan) = scans.next() => {
+                mapping.add_scan(&scan);
+                quiet_until = tokio::time::Instant::now() + DRAIN_QUIET;
+            }
+            Some(t) = telemetry.next() => mapping.on_telemetry(&t),
+            () = tokio::time::sleep_until(quiet_until.min(drain_until)) => break,
         }
     }
     outputs.publish(&mut mapping, node.header(frame_ids::MAP));
