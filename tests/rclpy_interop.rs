@@ -20,6 +20,13 @@ const SEED: &str = "7";
 /// imported rclpy already and joins the domain once the bridge listens: a Fast DDS participant that
 /// exists while the RustDDS participants start can miss some of them for good (see the README).
 const DISCOVERY_LIMIT_S: f64 = 2.0;
+/// The same for the topics of images (120-154 kB, several datagrams each): on a loaded host an
+/// image that the probe's full receive buffer lost waits for the writer's next heartbeat, up to
+/// 1 s in RustDDS (seen: the first `/map/image` 2.15 s after the start, the `/rover/map_stats`
+/// published with it 1.00 s).
+const IMAGE_DISCOVERY_LIMIT_S: f64 = 3.0;
+/// The image topics among [`STREAMING_TOPICS`].
+const IMAGE_TOPICS: [&str; 3] = ["/camera/image_raw", "/map/image", "/rover/vision"];
 /// The probe normally finishes in about 20 s.
 const PROBE_TIMEOUT: Duration = Duration::from_secs(90);
 /// Topics that carry messages continuously while the rover drives (DESIGN.md "Topics", without
@@ -162,15 +169,15 @@ fn failed_checks(report: &serde_json::Value) -> Vec<String> {
 fn assert_discovery_within_limit(mode: Mode, discovery: &[(&str, Option<f64>)]) {
     let silent: Vec<&str> = discovery.iter().filter(|(_, s)| s.is_none()).map(|(t, _)| *t).collect();
     assert!(silent.is_empty(), "{mode:?}: no message on {silent:?}");
-    let (slowest, seconds) = discovery
+    let late: Vec<String> = discovery
         .iter()
-        .filter_map(|&(t, s)| s.map(|s| (t, s)))
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .expect("at least one topic");
-    assert!(
-        seconds <= DISCOVERY_LIMIT_S,
-        "{mode:?}: the first message on {slowest} came {seconds:.3} s after the nodes started (limit {DISCOVERY_LIMIT_S} s)"
-    );
+        .filter_map(|&(topic, seconds)| {
+            let limit_s = if IMAGE_TOPICS.contains(&topic) { IMAGE_DISCOVERY_LIMIT_S } else { DISCOVERY_LIMIT_S };
+            let seconds = seconds?;
+            (seconds > limit_s).then(|| format!("{topic} after {seconds:.3} s (limit {limit_s} s)"))
+        })
+        .collect();
+    assert!(late.is_empty(), "{mode:?}: first messages after the nodes started: {}", late.join(", "));
 }
 
 fn print_report(mode: Mode, report: &serde_json::Value, discovery: &[(&str, Option<f64>)], wall: Duration) {
