@@ -18,7 +18,7 @@ use support::{Domain, Process, start_process};
 const SEED: &str = "7";
 /// From the start of the node processes to the first message on every graph topic. The probe has
 /// imported rclpy already and joins the domain once the bridge listens: a Fast DDS participant that
-/// exists while the RustDDS participants start can miss some of them for good (see the README).
+/// exists while the RustDDS participants start can miss some of them for good (see docs/ros2-tools.md).
 const DISCOVERY_LIMIT_S: f64 = 2.0;
 /// The same for the topics of images (120-154 kB, several datagrams each): on a loaded host an
 /// image that the probe's full receive buffer lost waits for the writer's next heartbeat, up to
