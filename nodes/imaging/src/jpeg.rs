@@ -61,12 +61,13 @@ fn jpeg_size(width: usize, height: usize) -> Option<(c_int, c_int)> {
 
 /// The length of `jpeg` as the C side takes it.
 fn c_len(jpeg: &[u8]) -> Result<c_ulong, ImageError> {
-    c_ulong::try_from(jpeg.len()).map_err(|_| ImageError::Corrupt(format!("{} bytes is too long a JPEG", jpeg.len())))
+    c_ulong::try_from(jpeg.len())
+        .map_err(|_| ImageError::Corrupt(format!("the JPEG: {} bytes is more than libjpeg reads", jpeg.len())))
 }
 
 /// The error of a failed call on `jpeg`: libjpeg's message, and the size of what it read.
 fn corrupt(jpeg: &[u8], message: &[u8; MESSAGE_BYTES]) -> ImageError {
-    ImageError::Corrupt(format!("{} (in {} bytes)", message_of(message), jpeg.len()))
+    ImageError::Corrupt(format!("the JPEG: {} (in {} bytes)", message_of(message), jpeg.len()))
 }
 
 /// Checks the JPEG markers and header and returns the image size, without decoding the pixels.
@@ -253,6 +254,7 @@ mod tests {
         cut_scan.extend_from_slice(&END_OF_IMAGE);
         let error = decode_jpeg(&cut_scan, 64, 32).unwrap_err();
         assert!(matches!(&error, ImageError::Corrupt(message) if message.contains("Corrupt JPEG")), "{error}");
+        assert!(error.to_string().starts_with("cannot decode the JPEG: Corrupt JPEG data"), "{error}");
     }
 
     #[test]

@@ -53,8 +53,8 @@ pub enum ImageError {
     /// The JPEG does not end with an end-of-image marker (truncated).
     #[error("truncated JPEG (no FF D9 end-of-image marker)")]
     Truncated,
-    /// The decoder rejected the data.
-    #[error("corrupt JPEG: {0}")]
+    /// The decoder rejected the data: what it read (the JPEG or the PNG) and its words.
+    #[error("cannot decode {0}")]
     Corrupt(String),
     /// The image is not the expected size.
     #[error("image is {width}x{height}, expected {expected_width}x{expected_height}")]
@@ -77,9 +77,9 @@ pub enum ImageError {
 pub fn decode_png(bytes: &[u8]) -> Result<RgbImage, ImageError> {
     let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
     decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
-    let mut reader = decoder.read_info().map_err(|e| ImageError::Corrupt(format!("PNG: {e}")))?;
+    let mut reader = decoder.read_info().map_err(|e| ImageError::Corrupt(format!("the PNG: {e}")))?;
     let mut buffer = vec![0; reader.output_buffer_size().unwrap_or_default()];
-    let info = reader.next_frame(&mut buffer).map_err(|e| ImageError::Corrupt(format!("PNG: {e}")))?;
+    let info = reader.next_frame(&mut buffer).map_err(|e| ImageError::Corrupt(format!("the PNG: {e}")))?;
     let (width, height) = (info.width as usize, info.height as usize);
     let channels = info.color_type.samples();
     let mut image = RgbImage::new(width, height);
@@ -115,5 +115,11 @@ mod tests {
             *byte = (i * 7 % 251) as u8;
         }
         assert_eq!(decode_png(&encode_png(&image).unwrap()).unwrap(), image);
+    }
+
+    #[test]
+    fn a_png_that_cannot_be_read_is_named_a_png() {
+        let error = decode_png(b"not a PNG at all").unwrap_err();
+        assert!(error.to_string().starts_with("cannot decode the PNG: "), "{error}");
     }
 }
