@@ -169,6 +169,7 @@ fn failed_checks(report: &serde_json::Value) -> Vec<String> {
 fn assert_discovery_within_limit(mode: Mode, discovery: &[(&str, Option<f64>)]) {
     let silent: Vec<&str> = discovery.iter().filter(|(_, s)| s.is_none()).map(|(t, _)| *t).collect();
     assert!(silent.is_empty(), "{mode:?}: no message on {silent:?}");
+    assert!(IMAGE_TOPICS.iter().all(|t| STREAMING_TOPICS.contains(t)), "{IMAGE_TOPICS:?} are streaming topics");
     let late: Vec<String> = discovery
         .iter()
         .filter_map(|&(topic, seconds)| {

@@ -53,9 +53,14 @@ pub enum ImageError {
     /// The JPEG does not end with an end-of-image marker (truncated).
     #[error("truncated JPEG (no FF D9 end-of-image marker)")]
     Truncated,
-    /// The decoder rejected the data: what it read (the JPEG or the PNG) and its words.
-    #[error("cannot decode {0}")]
-    Corrupt(String),
+    /// The decoder rejected the data.
+    #[error("cannot decode the {format}: {reason}")]
+    Corrupt {
+        /// What was read: `"JPEG"` or `"PNG"`.
+        format: &'static str,
+        /// The decoder's words.
+        reason: String,
+    },
     /// The image is not the expected size.
     #[error("image is {width}x{height}, expected {expected_width}x{expected_height}")]
     WrongSize {
@@ -73,13 +78,18 @@ pub enum ImageError {
     Encode(String),
 }
 
+/// The error of a PNG that cannot be read.
+fn png_error(error: png::DecodingError) -> ImageError {
+    ImageError::Corrupt { format: "PNG", reason: error.to_string() }
+}
+
 /// Reads an 8-bit grayscale, RGB or RGBA PNG as RGB.
 pub fn decode_png(bytes: &[u8]) -> Result<RgbImage, ImageError> {
     let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
     decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
-    let mut reader = decoder.read_info().map_err(|e| ImageError::Corrupt(format!("the PNG: {e}")))?;
+    let mut reader = decoder.read_info().map_err(|e| png_error(e))?;
     let mut buffer = vec![0; reader.output_buffer_size().unwrap_or_default()];
-    let info = reader.next_frame(&mut buffer).map_err(|e| ImageError::Corrupt(format!("the PNG: {e}")))?;
+    let info = reader.next_frame(&mut buffer).map_err(|e| png_error(e))?;
     let (width, height) = (info.width as usize, info.height as usize);
     let channels = info.color_type.samples();
     let mut image = RgbImage::new(width, height);

@@ -22,10 +22,10 @@ use crate::params::MappingParams;
 use crate::score::ground_truth_from_png;
 use crate::snapshot;
 
-/// Once asked to stop, the node still maps the scans already sent to it, until none has come for
-/// this long...
+/// Once asked to stop, the node still maps the scans already sent to it until none has come for
+/// this long.
 const DRAIN_QUIET: Duration = Duration::from_millis(100);
-/// ...or this long has passed.
+/// Once asked to stop, the node maps scans for at most this long.
 const DRAIN_LIMIT: Duration = Duration::from_secs(1);
 
 /// The ground truth that `params` name, if any.
@@ -147,7 +147,8 @@ fn warn_on_error<E: std::fmt::Debug>(topic: &str, result: Result<(), E>) {
     }
 }
 
-/// Runs the mapping node until shutdown.
+/// Runs the mapping node until shutdown, then maps the scans still arriving (see [`DRAIN_QUIET`]
+/// and [`DRAIN_LIMIT`]), publishes the map a last time and writes its snapshot.
 pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let (mut node, params) = runtime.node::<MappingParams>("mapping")?;
     let span = node.span();
@@ -190,16 +191,16 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             Ok(()) = changes.changed() => mapping.set_params(changes.borrow_and_update().clone()),
         }
     }
-    let drain_until = tokio::time::Instant::now() + DRAIN_LIMIT;
-    let mut quiet_until = tokio::time::Instant::now() + DRAIN_QUIET;
+    let stopped_at = Instant::now();
+    let mut quiet_until = stopped_at + DRAIN_QUIET;
     loop {
         tokio::select! {
             Some(scan) = scans.next() => {
                 mapping.add_scan(&scan);
-                quiet_until = tokio::time::Instant::now() + DRAIN_QUIET;
+                quiet_until = Instant::now() + DRAIN_QUIET;
             }
             Some(t) = telemetry.next() => mapping.on_telemetry(&t),
-            () = tokio::time::sleep_until(quiet_until.min(drain_until)) => break,
+            () = tokio::time::sleep_until(quiet_until.min(stopped_at + DRAIN_LIMIT).into()) => break,
         }
     }
     outputs.publish(&mut mapping, node.header(frame_ids::MAP));
