@@ -1,6 +1,8 @@
 //! Frontier exploration: which cells the camera has seen up close, which frontier to head for
 //! next, and when to give a target up.
 
+use std::sync::Arc;
+
 use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_at, cell_centre_m, cell_of_point};
 
 use crate::grid::{Cell, CostMap, Costs, Grid};
@@ -39,7 +41,7 @@ pub struct Explorer {
     past_obstacles: bool,
     inspected: Vec<bool>,
     explored: Vec<bool>,
-    costs: Option<CostMap>,
+    costs: Option<Arc<CostMap>>,
     planned: Option<(u64, u64)>,
 }
 

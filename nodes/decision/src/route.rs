@@ -4,6 +4,7 @@
 use rover_msgs::map_grid::{cell_centre_m, cell_of_point};
 
 use std::cell::RefCell;
+use std::sync::Arc;
 
 use crate::grid::{Cell, CostMap, Costs, Grid};
 use crate::params::DecisionParams;
@@ -62,14 +63,16 @@ pub fn staging_cell(
         .min_by(|&a, &b| costs.distance(a).total_cmp(&costs.distance(b)))
 }
 
-/// The map that plans are made on, and its version: a new map is a reason to plan again. It also
-/// makes the path costs of a periodic replan ahead of time ([`PlanningMap::prepare`]), between two
-/// frames, so that the frame that asks for them does not wait for the search.
+/// The map that plans are made on, and its version: a new map is a reason to plan again. It keeps
+/// the path costs it gave last, for a request that repeats (a rover that has not left its cell
+/// since the last plan), and makes the path costs of a periodic replan ahead of time
+/// ([`PlanningMap::prepare`]), between two frames, so that the frame that asks for them does not
+/// wait for the search.
 #[derive(Debug, Clone)]
 pub struct PlanningMap {
     grid: Grid,
     version: u64,
-    ahead: RefCell<CostsAhead>,
+    searched: RefCell<Searched>,
 }
 
 /// What path costs are asked for: from which cell, with which costs.
@@ -79,18 +82,33 @@ struct CostsRequest {
     costs: Costs,
 }
 
-/// The path costs last asked of a planning map (and on which frame), and those made ahead for the
+/// Path costs searched on a planning map, and the request they answer.
+#[derive(Debug, Clone)]
+struct Answer {
+    request: CostsRequest,
+    costs: Arc<CostMap>,
+}
+
+/// The path costs last given by a planning map (and on which frame), and those made ahead for the
 /// next request.
 #[derive(Debug, Clone, Default)]
-struct CostsAhead {
-    last: Option<(CostsRequest, u64)>,
-    made: Option<(CostsRequest, CostMap)>,
+struct Searched {
+    last: Option<(Answer, u64)>,
+    made: Option<Answer>,
+}
+
+impl Searched {
+    /// Whether the last costs given or those made ahead answer `request`.
+    fn knows(&self, request: &CostsRequest) -> bool {
+        self.last.as_ref().is_some_and(|(answer, _)| answer.request == *request)
+            || self.made.as_ref().is_some_and(|answer| answer.request == *request)
+    }
 }
 
 impl PlanningMap {
     /// `grid` as version `version` of the map.
     pub fn new(grid: Grid, version: u64) -> Self {
-        PlanningMap { grid, version, ahead: RefCell::default() }
+        PlanningMap { grid, version, searched: RefCell::default() }
     }
 
     /// The map.
@@ -104,28 +122,33 @@ impl PlanningMap {
     }
 
     /// Path costs from cell `start` with `costs` for a plan at `frame` ([`Grid::costs_from`]):
-    /// the ones made ahead when they are those, else searched now (the same costs either way).
-    pub fn costs_from(&self, start: usize, costs: &Costs, frame: u64) -> CostMap {
+    /// the last ones given or those made ahead when they are those, else searched now (the same
+    /// costs either way: the map does not change).
+    pub fn costs_from(&self, start: usize, costs: &Costs, frame: u64) -> Arc<CostMap> {
         let request = CostsRequest { start_cell: start, costs: *costs };
-        let mut ahead = self.ahead.borrow_mut();
-        ahead.last = Some((request, frame));
-        match ahead.made.take() {
-            Some((made_for, made)) if made_for == request => made,
-            _ => self.grid.costs_from(start, costs),
-        }
+        let mut searched = self.searched.borrow_mut();
+        let made = searched.made.take();
+        let known = searched.last.as_ref().map(|(answer, _)| answer).into_iter().chain(&made);
+        let costs = match known.into_iter().find(|answer| answer.request == request) {
+            Some(answer) => Arc::clone(&answer.costs),
+            None => Arc::new(self.grid.costs_from(start, costs)),
+        };
+        searched.last = Some((Answer { request, costs: Arc::clone(&costs) }, frame));
+        costs
     }
 
     /// Makes the path costs that frame `next_frame` will ask for from cell `start` if the last
     /// request (its start aside) is repeated there as a route's or the explorer's periodic replan
-    /// ([`periodic_replan_frame`]); nothing on other frames. A guess: when the next request
-    /// differs (the rover crossed into another cell, the map changed), it is searched as before.
+    /// ([`periodic_replan_frame`]) and they are not known yet; nothing on other frames. A guess:
+    /// when the next request differs (the rover crossed into another cell, the map changed), it is
+    /// searched as before.
     pub fn prepare(&self, start: usize, next_frame: u64, params: &DecisionParams) {
-        let mut ahead = self.ahead.borrow_mut();
-        let Some((last, frame)) = ahead.last else { return };
-        let request = CostsRequest { start_cell: start, costs: last.costs };
-        let already_made = ahead.made.as_ref().is_some_and(|(made_for, _)| *made_for == request);
-        if next_frame == periodic_replan_frame(frame, params) && !already_made {
-            ahead.made = Some((request, self.grid.costs_from(start, &request.costs)));
+        let mut searched = self.searched.borrow_mut();
+        let Some((last, frame)) = &searched.last else { return };
+        let request = CostsRequest { start_cell: start, costs: last.request.costs };
+        if next_frame == periodic_replan_frame(*frame, params) && !searched.knows(&request) {
+            let costs = Arc::new(self.grid.costs_from(start, &request.costs));
+            searched.made = Some(Answer { request, costs });
         }
     }
 }
@@ -275,7 +298,7 @@ mod tests {
         let map = planning(&half_explored(), 1);
         let params = DecisionParams { replan_frames: 12, ..DecisionParams::default() };
         let costs = path_costs(&params);
-        let made = || map.ahead.borrow().made.as_ref().map(|(made_for, _)| made_for.start_cell);
+        let made = || map.searched.borrow().made.as_ref().map(|answer| answer.request.start_cell);
         let (here, next) = (cell_of_point(25.5, 51.5).unwrap(), cell_of_point(26.5, 51.5).unwrap());
         map.costs_from(here, &costs, 100);
         map.prepare(next, 111, &params);
@@ -290,6 +313,22 @@ mod tests {
         map.prepare(here, 136, &params);
         let other = Costs { cross_unknown: false, ..costs };
         assert!(searched_from(&map.costs_from(here, &other, 136), map.grid(), here, &other), "other costs");
+    }
+
+    #[test]
+    fn a_repeated_request_gets_the_costs_given_last_without_a_search() {
+        let map = planning(&half_explored(), 1);
+        let params = DecisionParams { replan_frames: 12, ..DecisionParams::default() };
+        let costs = path_costs(&params);
+        let (here, next) = (cell_of_point(25.5, 51.5).unwrap(), cell_of_point(26.5, 51.5).unwrap());
+        let first = map.costs_from(here, &costs, 100);
+        map.prepare(here, 112, &params);
+        assert!(map.searched.borrow().made.is_none(), "nothing made ahead for a request already answered");
+        assert!(Arc::ptr_eq(&first, &map.costs_from(here, &costs, 112)), "the same costs, not searched again");
+        let elsewhere = map.costs_from(next, &costs, 124);
+        assert!(!Arc::ptr_eq(&first, &elsewhere) && searched_from(&elsewhere, map.grid(), next, &costs));
+        let other = Costs { cross_unknown: false, ..costs };
+        assert!(searched_from(&map.costs_from(next, &other, 125), map.grid(), next, &other), "other costs");
     }
 
     #[test]
