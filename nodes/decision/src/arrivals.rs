@@ -39,21 +39,20 @@ impl<T> Delayed<T> {
         self.waiting.push_back((made_at_frame, value));
     }
 
-    /// Whether a value is due at `frame` (or earlier).
-    pub fn any_due(&self, frame: u64) -> bool {
-        self.waiting.front().is_some_and(|&(made_at, _)| due_at(made_at, frame))
+    /// The newest value due at `frame`: the one [`Delayed::take_due`] would take.
+    pub fn newest_due(&self, frame: u64) -> Option<&T> {
+        self.due_count(frame).checked_sub(1).and_then(|last| self.waiting.get(last)).map(|(_, value)| value)
     }
 
     /// The newest value due at `frame` (older due ones are dropped: each value is a whole state).
     pub fn take_due(&mut self, frame: u64) -> Option<T> {
-        let mut due = None;
-        while let Some(&(made_at, _)) = self.waiting.front() {
-            if !due_at(made_at, frame) {
-                break;
-            }
-            due = self.waiting.pop_front().map(|(_, value)| value);
-        }
-        due
+        let due = self.due_count(frame);
+        self.waiting.drain(..due).last().map(|(_, value)| value)
+    }
+
+    /// How many values, from the oldest on, are due at `frame`.
+    fn due_count(&self, frame: u64) -> usize {
+        self.waiting.iter().take_while(|&&(made_at, _)| due_at(made_at, frame)).count()
     }
 }
 
@@ -67,8 +66,10 @@ mod tests {
         maps.push(10, "a");
         maps.push(11, "b");
         maps.push(20, "c");
-        assert!(!maps.any_due(10 + ARRIVAL_DELAY_FRAMES - 1) && maps.any_due(10 + ARRIVAL_DELAY_FRAMES));
+        assert_eq!(maps.newest_due(10 + ARRIVAL_DELAY_FRAMES - 1), None);
+        assert_eq!(maps.newest_due(10 + ARRIVAL_DELAY_FRAMES), Some(&"a"));
         assert_eq!(maps.take_due(10 + ARRIVAL_DELAY_FRAMES - 1), None);
+        assert_eq!(maps.newest_due(11 + ARRIVAL_DELAY_FRAMES), Some(&"b"));
         assert_eq!(maps.take_due(11 + ARRIVAL_DELAY_FRAMES), Some("b"), "a is superseded");
         assert_eq!(maps.take_due(19 + ARRIVAL_DELAY_FRAMES), None);
         assert_eq!(maps.take_due(20 + ARRIVAL_DELAY_FRAMES), Some("c"));

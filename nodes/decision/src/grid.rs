@@ -33,7 +33,7 @@ pub struct Costs {
 }
 
 /// The occupancy grid with planning helpers.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Grid {
     cells: Vec<Cell>,
     near_wall: Vec<bool>,

@@ -177,6 +177,9 @@ pub struct Machine {
     arriving_maps: Delayed<Grid>,
     arriving_rocks: Delayed<Vec<(f64, f64)>>,
     planning: PlanningMap,
+    /// The planning map of the map due on the next frame, made between frames with the path costs
+    /// its first plan will likely ask for ([`Machine::prepare_next_frame`]).
+    next_planning: Option<PlanningMap>,
     samples: SampleMemory,
     explorer: Explorer,
     steering: Steering,
@@ -214,6 +217,7 @@ impl Machine {
             arriving_maps: Delayed::default(),
             arriving_rocks: Delayed::default(),
             planning: PlanningMap::new(Grid::unknown(), 0),
+            next_planning: None,
             samples: SampleMemory::default(),
             explorer: Explorer::default(),
             steering: Steering::default(),
@@ -283,8 +287,14 @@ impl Machine {
         self.apply_stuck_marks();
     }
 
+    /// Plans on the received map with the stuck marks as a new version: the planning map made
+    /// ahead for it when that is the same map.
     fn apply_stuck_marks(&mut self) {
-        self.planning = PlanningMap::new(self.stuck_marks.applied_to(&self.received_map), self.planning.version() + 1);
+        let (grid, version) = (self.stuck_marks.applied_to(&self.received_map), self.planning.version() + 1);
+        self.planning = match self.next_planning.take() {
+            Some(made) if made.version() == version && *made.grid() == grid => made,
+            _ => PlanningMap::new(grid, version),
+        };
     }
 
     /// Forgets the cells marked where the rover got stuck; returns whether there were any.
@@ -351,6 +361,7 @@ impl Machine {
         }
         self.frame = obs.frame;
         self.take_arrivals(obs.frame);
+        self.next_planning = None;
         self.explorer.inspect(&obs.position, &self.params);
         self.tally.update(obs.samples_remaining);
         self.status.samples_collected = self.tally.collected();
@@ -373,17 +384,29 @@ impl Machine {
     }
 
     /// Between frames, after the drive command of the last one went out: makes ahead the path
-    /// costs the next frame will likely ask for, the rover at `at` ([`PlanningMap::prepare`]),
-    /// unless a new map takes effect then. What the machine decides does not change, only when
-    /// the search runs.
-    pub fn prepare_next_frame(&self, at: &Position) {
+    /// costs the next frame will likely ask for, the rover at `at`: for a periodic replan
+    /// ([`PlanningMap::prepare`]), or for the first plan on a new map that takes effect then. What
+    /// the machine decides does not change, only when the search runs.
+    pub fn prepare_next_frame(&mut self, at: &Position) {
         let next_frame = self.frame.saturating_add(1);
-        if self.arriving_maps.any_due(next_frame) {
-            return;
+        let Some(start) = cell_of_point(at.x_m, at.y_m) else { return };
+        match self.arriving_maps.newest_due(next_frame) {
+            Some(map) => self.next_planning = self.planning_ahead(map, start, next_frame),
+            None => self.planning.prepare(start, next_frame, &self.params),
         }
-        if let Some(start) = cell_of_point(at.x_m, at.y_m) {
-            self.planning.prepare(start, next_frame, &self.params);
+    }
+
+    /// The planning map that `map`, due at `next_frame`, will make (as [`Machine::set_map`] will,
+    /// the stuck marks as they are then), with the path costs from cell `start` made on it; none
+    /// when the map will be ignored or nothing plans.
+    fn planning_ahead(&self, map: &Grid, start: usize, next_frame: u64) -> Option<PlanningMap> {
+        let costs = self.planning.costs_in_use(next_frame, &self.params)?;
+        if map.counts().0 == 0 {
+            return None;
         }
+        let planning = PlanningMap::new(self.stuck_marks.applied_at(map, next_frame), self.planning.version() + 1);
+        planning.make_ahead(start, &costs);
+        Some(planning)
     }
 
     fn target(&self) -> Option<(f64, f64)> {
@@ -1071,6 +1094,25 @@ mod tests {
         assert_eq!(machine.received_map.counts(), Grid::unknown().counts(), "not yet due");
         machine.step(&observation(5 + ARRIVAL_DELAY_FRAMES, 100.5, 100.5));
         assert_eq!(machine.received_map.counts(), corridor().counts(), "due");
+    }
+
+    #[test]
+    fn the_first_plan_on_a_map_due_next_frame_is_searched_between_frames() {
+        let (mut machine, _) = started_at_home_in_the_corridor();
+        let here = observation(3, 100.5, 100.5);
+        machine.receive_map(here.frame + 1 - ARRIVAL_DELAY_FRAMES, corridor());
+        machine.step(&here);
+        let version = machine.planning.version();
+        machine.prepare_next_frame(&here.position);
+        let made = machine.next_planning.as_ref().map(|planning| (planning.version(), planning.made_from()));
+        assert_eq!(made, Some((version + 1, cell_of_point(100.5, 100.5))), "made on the map due next");
+        machine.step(&observation(here.frame + 1, 100.5, 100.5));
+        assert!(machine.next_planning.is_none());
+        assert_eq!(machine.planning.version(), version + 1);
+        assert_eq!(machine.planning.made_from(), None, "the first plan on it took the costs made ahead");
+        machine.receive_map(here.frame + 2 - ARRIVAL_DELAY_FRAMES, Grid::unknown());
+        machine.prepare_next_frame(&here.position);
+        assert!(machine.next_planning.is_none(), "nothing made for a map that will be ignored");
     }
 
     /// A machine that started its mission at (100.5, 100.5) in [`corridor`], and the frame of its

@@ -143,12 +143,35 @@ impl PlanningMap {
     /// when the next request differs (the rover crossed into another cell, the map changed), it is
     /// searched as before.
     pub fn prepare(&self, start: usize, next_frame: u64, params: &DecisionParams) {
+        let last = self.searched.borrow().last.as_ref().map(|(answer, frame)| (answer.request.costs, *frame));
+        if let Some((costs, frame)) = last
+            && next_frame == periodic_replan_frame(frame, params)
+        {
+            self.make_ahead(start, &costs);
+        }
+    }
+
+    /// The costs of the last request if it came at most `replan_frames` before `next_frame`: a
+    /// route or the explorer is planning on this map and will plan again on the next one.
+    pub fn costs_in_use(&self, next_frame: u64, params: &DecisionParams) -> Option<Costs> {
+        let searched = self.searched.borrow();
+        let (answer, frame) = searched.last.as_ref()?;
+        (next_frame <= periodic_replan_frame(*frame, params)).then_some(answer.request.costs)
+    }
+
+    /// The start cell of the path costs made ahead, if any.
+    #[cfg(test)]
+    pub(crate) fn made_from(&self) -> Option<usize> {
+        self.searched.borrow().made.as_ref().map(|answer| answer.request.start_cell)
+    }
+
+    /// Searches the path costs from cell `start` with `costs` now, for the next request to take,
+    /// unless they are known already.
+    pub fn make_ahead(&self, start: usize, costs: &Costs) {
+        let request = CostsRequest { start_cell: start, costs: *costs };
         let mut searched = self.searched.borrow_mut();
-        let Some((last, frame)) = &searched.last else { return };
-        let request = CostsRequest { start_cell: start, costs: last.request.costs };
-        if next_frame == periodic_replan_frame(*frame, params) && !searched.knows(&request) {
-            let costs = Arc::new(self.grid.costs_from(start, &request.costs));
-            searched.made = Some(Answer { request, costs });
+        if !searched.knows(&request) {
+            searched.made = Some(Answer { request, costs: Arc::new(self.grid.costs_from(start, costs)) });
         }
     }
 }
@@ -298,7 +321,7 @@ mod tests {
         let map = planning(&half_explored(), 1);
         let params = DecisionParams { replan_frames: 12, ..DecisionParams::default() };
         let costs = path_costs(&params);
-        let made = || map.searched.borrow().made.as_ref().map(|answer| answer.request.start_cell);
+        let made = || map.made_from();
         let (here, next) = (cell_of_point(25.5, 51.5).unwrap(), cell_of_point(26.5, 51.5).unwrap());
         map.costs_from(here, &costs, 100);
         map.prepare(next, 111, &params);
@@ -329,6 +352,17 @@ mod tests {
         assert!(!Arc::ptr_eq(&first, &elsewhere) && searched_from(&elsewhere, map.grid(), next, &costs));
         let other = Costs { cross_unknown: false, ..costs };
         assert!(searched_from(&map.costs_from(next, &other, 125), map.grid(), next, &other), "other costs");
+    }
+
+    #[test]
+    fn the_costs_in_use_are_those_last_asked_for_within_a_replan_period() {
+        let map = planning(&half_explored(), 1);
+        let params = DecisionParams { replan_frames: 12, ..DecisionParams::default() };
+        let costs = path_costs(&params);
+        assert_eq!(map.costs_in_use(1, &params), None, "nothing asked yet");
+        map.costs_from(cell_of_point(25.5, 51.5).unwrap(), &costs, 100);
+        assert_eq!(map.costs_in_use(112, &params), Some(costs));
+        assert_eq!(map.costs_in_use(113, &params), None, "no plan for longer than a replan period");
     }
 
     #[test]

@@ -65,6 +65,20 @@ impl DrivingWatch {
     }
 }
 
+/// `map` with `cells` blocked.
+fn blocked(map: &Grid, cells: impl Iterator<Item = usize>) -> Grid {
+    let mut grid = map.clone();
+    for cell in cells {
+        grid.block(cell);
+    }
+    grid
+}
+
+/// Whether a mark kept until `until_frame` still holds at `frame`.
+fn marked_at(until_frame: u64, frame: u64) -> bool {
+    frame < until_frame
+}
+
 /// The cells marked as obstacles for planning where the rover got stuck lately.
 #[derive(Debug, Clone, Default)]
 pub struct StuckMarks {
@@ -83,16 +97,19 @@ impl StuckMarks {
 
     /// Drops the marks that have expired by `frame`.
     pub fn expire(&mut self, frame: u64) {
-        self.marks.retain(|&(_, until_frame)| frame < until_frame);
+        self.marks.retain(|&(_, until_frame)| marked_at(until_frame, frame));
     }
 
     /// `map` with the marked cells blocked.
     pub fn applied_to(&self, map: &Grid) -> Grid {
-        let mut grid = map.clone();
-        for &(cell, _) in &self.marks {
-            grid.block(cell);
-        }
-        grid
+        blocked(map, self.marks.iter().map(|&(cell, _)| cell))
+    }
+
+    /// `map` with the cells blocked that are still marked at `frame` (those that
+    /// [`StuckMarks::expire`] at `frame` keeps).
+    pub fn applied_at(&self, map: &Grid, frame: u64) -> Grid {
+        let live = self.marks.iter().filter(|&&(_, until_frame)| marked_at(until_frame, frame));
+        blocked(map, live.map(|&(cell, _)| cell))
     }
 
     /// Forgets every mark; returns whether there were any.
