@@ -275,11 +275,10 @@ impl Machine {
         self.params = params;
     }
 
-    /// Takes a new map, with the cells where the rover got stuck lately marked as obstacles.
-    /// A map without free cells (the mapping node's first publication, before any scan) says
-    /// nothing yet and is ignored, so that it cannot end the exploration.
+    /// Takes a new map, with the cells where the rover got stuck lately marked as obstacles,
+    /// unless it is ignored ([`is_ignored`]).
     pub fn set_map(&mut self, map: Grid) {
-        if map.counts().0 == 0 {
+        if is_ignored(&map) {
             return;
         }
         self.stuck_marks.expire(self.frame);
@@ -390,7 +389,7 @@ impl Machine {
     pub fn prepare_next_frame(&mut self, at: &Position) {
         let next_frame = self.frame.saturating_add(1);
         let Some(start) = cell_of_point(at.x_m, at.y_m) else { return };
-        match self.arriving_maps.newest_due(next_frame) {
+        match self.arriving_maps.newest_due(next_frame).filter(|map| !is_ignored(map)) {
             Some(map) => self.next_planning = self.planning_ahead(map, start, next_frame),
             None => self.planning.prepare(start, next_frame, &self.params),
         }
@@ -398,12 +397,9 @@ impl Machine {
 
     /// The planning map that `map`, due at `next_frame`, will make (as [`Machine::set_map`] will,
     /// the stuck marks as they are then), with the path costs from cell `start` made on it; none
-    /// when the map will be ignored or nothing plans.
+    /// when nothing plans.
     fn planning_ahead(&self, map: &Grid, start: usize, next_frame: u64) -> Option<PlanningMap> {
         let costs = self.planning.costs_in_use(next_frame, &self.params)?;
-        if map.counts().0 == 0 {
-            return None;
-        }
         let planning = PlanningMap::new(self.stuck_marks.applied_at(map, next_frame), self.planning.version() + 1);
         planning.make_ahead(start, &costs);
         Some(planning)
@@ -761,8 +757,16 @@ impl Machine {
     }
 }
 
+/// Whether `map` says nothing yet and is ignored: a map without free cells (the mapping node's
+/// first publication, before any scan), which could otherwise end the exploration.
+fn is_ignored(map: &Grid) -> bool {
+    map.counts().0 == 0
+}
+
 #[cfg(test)]
 mod tests {
+    use std::sync::Arc;
+
     use super::*;
     use rover_msgs::map_grid::{CELLS, cell_at, cell_of_point};
 
@@ -1104,15 +1108,34 @@ mod tests {
         machine.step(&here);
         let version = machine.planning.version();
         machine.prepare_next_frame(&here.position);
-        let made = machine.next_planning.as_ref().map(|planning| (planning.version(), planning.made_from()));
-        assert_eq!(made, Some((version + 1, cell_of_point(100.5, 100.5))), "made on the map due next");
+        let next = machine.next_planning.as_ref().expect("made for the map due next");
+        assert_eq!((next.version(), next.made_from()), (version + 1, cell_of_point(100.5, 100.5)));
+        let made = next.made_costs().expect("costs made ahead");
         machine.step(&observation(here.frame + 1, 100.5, 100.5));
-        assert!(machine.next_planning.is_none());
         assert_eq!(machine.planning.version(), version + 1);
-        assert_eq!(machine.planning.made_from(), None, "the first plan on it took the costs made ahead");
+        let taken = machine.planning.last_costs().expect("planned on the new map");
+        assert!(Arc::ptr_eq(&made, &taken), "the first plan on it took the costs made ahead");
         machine.receive_map(here.frame + 2 - ARRIVAL_DELAY_FRAMES, Grid::unknown());
         machine.prepare_next_frame(&here.position);
         assert!(machine.next_planning.is_none(), "nothing made for a map that will be ignored");
+    }
+
+    #[test]
+    fn a_planning_map_made_ahead_for_another_map_is_not_taken() {
+        let (mut machine, _) = started_at_home_in_the_corridor();
+        let here = observation(3, 100.5, 100.5);
+        machine.receive_map(here.frame + 1 - ARRIVAL_DELAY_FRAMES, corridor());
+        machine.step(&here);
+        machine.prepare_next_frame(&here.position);
+        let made = machine.next_planning.as_ref().and_then(PlanningMap::made_costs).expect("made ahead");
+        let mut other = corridor();
+        other.block(cell_of_point(100.5, 101.5).unwrap());
+        machine.receive_map(here.frame + 1 - ARRIVAL_DELAY_FRAMES, other.clone());
+        machine.step(&observation(here.frame + 1, 100.5, 100.5));
+        assert!(machine.next_planning.is_none(), "dropped once the frame has begun");
+        assert_eq!(*machine.planning.grid(), other, "the newer map");
+        let taken = machine.planning.last_costs().expect("planned on the new map");
+        assert!(!Arc::ptr_eq(&made, &taken), "searched on the newer map");
     }
 
     /// A machine that started its mission at (100.5, 100.5) in [`corridor`], and the frame of its

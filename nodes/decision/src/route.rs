@@ -65,9 +65,9 @@ pub fn staging_cell(
 
 /// The map that plans are made on, and its version: a new map is a reason to plan again. It keeps
 /// the path costs it gave last, for a request that repeats (a rover that has not left its cell
-/// since the last plan), and makes the path costs of a periodic replan ahead of time
-/// ([`PlanningMap::prepare`]), between two frames, so that the frame that asks for them does not
-/// wait for the search.
+/// since the last plan), and makes path costs ahead of time, between two frames, so that the frame
+/// that asks for them does not wait for the search: a periodic replan's ([`PlanningMap::prepare`]),
+/// or the first plan's on a map built before it takes effect ([`PlanningMap::make_ahead`]).
 #[derive(Debug, Clone)]
 pub struct PlanningMap {
     grid: Grid,
@@ -128,8 +128,8 @@ impl PlanningMap {
         let request = CostsRequest { start_cell: start, costs: *costs };
         let mut searched = self.searched.borrow_mut();
         let made = searched.made.take();
-        let known = searched.last.as_ref().map(|(answer, _)| answer).into_iter().chain(&made);
-        let costs = match known.into_iter().find(|answer| answer.request == request) {
+        let mut known = searched.last.as_ref().map(|(answer, _)| answer).into_iter().chain(&made);
+        let costs = match known.find(|answer| answer.request == request) {
             Some(answer) => Arc::clone(&answer.costs),
             None => Arc::new(self.grid.costs_from(start, costs)),
         };
@@ -153,7 +153,7 @@ impl PlanningMap {
 
     /// The costs of the last request if it came at most `replan_frames` before `next_frame`: a
     /// route or the explorer is planning on this map and will plan again on the next one.
-    pub fn costs_in_use(&self, next_frame: u64, params: &DecisionParams) -> Option<Costs> {
+    pub(crate) fn costs_in_use(&self, next_frame: u64, params: &DecisionParams) -> Option<Costs> {
         let searched = self.searched.borrow();
         let (answer, frame) = searched.last.as_ref()?;
         (next_frame <= periodic_replan_frame(*frame, params)).then_some(answer.request.costs)
@@ -165,9 +165,21 @@ impl PlanningMap {
         self.searched.borrow().made.as_ref().map(|answer| answer.request.start_cell)
     }
 
+    /// The path costs made ahead, if any.
+    #[cfg(test)]
+    pub(crate) fn made_costs(&self) -> Option<Arc<CostMap>> {
+        self.searched.borrow().made.as_ref().map(|answer| Arc::clone(&answer.costs))
+    }
+
+    /// The path costs given last, if any.
+    #[cfg(test)]
+    pub(crate) fn last_costs(&self) -> Option<Arc<CostMap>> {
+        self.searched.borrow().last.as_ref().map(|(answer, _)| Arc::clone(&answer.costs))
+    }
+
     /// Searches the path costs from cell `start` with `costs` now, for the next request to take,
     /// unless they are known already.
-    pub fn make_ahead(&self, start: usize, costs: &Costs) {
+    pub(crate) fn make_ahead(&self, start: usize, costs: &Costs) {
         let request = CostsRequest { start_cell: start, costs: *costs };
         let mut searched = self.searched.borrow_mut();
         if !searched.knows(&request) {
@@ -321,18 +333,17 @@ mod tests {
         let map = planning(&half_explored(), 1);
         let params = DecisionParams { replan_frames: 12, ..DecisionParams::default() };
         let costs = path_costs(&params);
-        let made = || map.made_from();
         let (here, next) = (cell_of_point(25.5, 51.5).unwrap(), cell_of_point(26.5, 51.5).unwrap());
         map.costs_from(here, &costs, 100);
         map.prepare(next, 111, &params);
-        assert_eq!(made(), None, "not due before 12 frames");
+        assert_eq!(map.made_from(), None, "not due before 12 frames");
         map.prepare(next, 112, &params);
-        assert_eq!(made(), Some(next));
+        assert_eq!(map.made_from(), Some(next));
         assert!(searched_from(&map.costs_from(next, &costs, 112), map.grid(), next, &costs));
-        assert_eq!(made(), None, "taken by the request");
+        assert_eq!(map.made_from(), None, "taken by the request");
         map.prepare(next, 124, &params);
         assert!(searched_from(&map.costs_from(here, &costs, 124), map.grid(), here, &costs), "another start");
-        assert_eq!(made(), None, "dropped by the request it did not fit");
+        assert_eq!(map.made_from(), None, "dropped by the request it did not fit");
         map.prepare(here, 136, &params);
         let other = Costs { cross_unknown: false, ..costs };
         assert!(searched_from(&map.costs_from(here, &other, 136), map.grid(), here, &other), "other costs");

@@ -75,7 +75,7 @@ fn blocked(map: &Grid, cells: impl Iterator<Item = usize>) -> Grid {
 }
 
 /// Whether a mark kept until `until_frame` still holds at `frame`.
-fn marked_at(until_frame: u64, frame: u64) -> bool {
+fn holds_at(frame: u64, until_frame: u64) -> bool {
     frame < until_frame
 }
 
@@ -97,7 +97,7 @@ impl StuckMarks {
 
     /// Drops the marks that have expired by `frame`.
     pub fn expire(&mut self, frame: u64) {
-        self.marks.retain(|&(_, until_frame)| marked_at(until_frame, frame));
+        self.marks.retain(|&(_, until_frame)| holds_at(frame, until_frame));
     }
 
     /// `map` with the marked cells blocked.
@@ -108,7 +108,7 @@ impl StuckMarks {
     /// `map` with the cells blocked that are still marked at `frame` (those that
     /// [`StuckMarks::expire`] at `frame` keeps).
     pub fn applied_at(&self, map: &Grid, frame: u64) -> Grid {
-        let live = self.marks.iter().filter(|&&(_, until_frame)| marked_at(until_frame, frame));
+        let live = self.marks.iter().filter(|&&(_, until_frame)| holds_at(frame, until_frame));
         blocked(map, live.map(|&(cell, _)| cell))
     }
 
@@ -156,6 +156,8 @@ mod tests {
         let map = half_explored();
         assert_eq!((map.cell(cell), marks.applied_to(&map).cell(cell)), (Cell::Free, Cell::Blocked));
         let until = 10 + params.frames(STUCK_MARK_S);
+        assert_eq!(marks.applied_at(&map, until - 1).cell(cell), Cell::Blocked, "still marked then");
+        assert_eq!(marks.applied_at(&map, until), Grid::clone(&map), "expired then");
         marks.expire(until - 1);
         assert_eq!(marks.applied_to(&map).cell(cell), Cell::Blocked, "not yet expired");
         marks.expire(until);
