@@ -1100,38 +1100,41 @@ mod tests {
         assert_eq!(machine.received_map.counts(), corridor().counts(), "due");
     }
 
-    #[test]
-    fn the_first_plan_on_a_map_due_next_frame_is_searched_between_frames() {
+    /// A machine planning in [`corridor`] at frame 3 that has prepared the next frame, on which
+    /// a copy of the corridor map takes effect; that frame's observation.
+    fn prepared_for_a_map_due_next() -> (Machine, Observation) {
         let (mut machine, _) = started_at_home_in_the_corridor();
         let here = observation(3, 100.5, 100.5);
         machine.receive_map(here.frame + 1 - ARRIVAL_DELAY_FRAMES, corridor());
         machine.step(&here);
-        let version = machine.planning.version();
         machine.prepare_next_frame(&here.position);
+        (machine, observation(here.frame + 1, 100.5, 100.5))
+    }
+
+    #[test]
+    fn the_first_plan_on_a_map_due_next_frame_is_searched_between_frames() {
+        let (mut machine, next_frame) = prepared_for_a_map_due_next();
+        let version = machine.planning.version();
         let next = machine.next_planning.as_ref().expect("made for the map due next");
         assert_eq!((next.version(), next.made_from()), (version + 1, cell_of_point(100.5, 100.5)));
         let made = next.made_costs().expect("costs made ahead");
-        machine.step(&observation(here.frame + 1, 100.5, 100.5));
+        machine.step(&next_frame);
         assert_eq!(machine.planning.version(), version + 1);
         let taken = machine.planning.last_costs().expect("planned on the new map");
         assert!(Arc::ptr_eq(&made, &taken), "the first plan on it took the costs made ahead");
-        machine.receive_map(here.frame + 2 - ARRIVAL_DELAY_FRAMES, Grid::unknown());
-        machine.prepare_next_frame(&here.position);
+        machine.receive_map(next_frame.frame + 1 - ARRIVAL_DELAY_FRAMES, Grid::unknown());
+        machine.prepare_next_frame(&next_frame.position);
         assert!(machine.next_planning.is_none(), "nothing made for a map that will be ignored");
     }
 
     #[test]
     fn a_planning_map_made_ahead_for_another_map_is_not_taken() {
-        let (mut machine, _) = started_at_home_in_the_corridor();
-        let here = observation(3, 100.5, 100.5);
-        machine.receive_map(here.frame + 1 - ARRIVAL_DELAY_FRAMES, corridor());
-        machine.step(&here);
-        machine.prepare_next_frame(&here.position);
+        let (mut machine, next_frame) = prepared_for_a_map_due_next();
         let made = machine.next_planning.as_ref().and_then(PlanningMap::made_costs).expect("made ahead");
         let mut other = corridor();
         other.block(cell_of_point(100.5, 101.5).unwrap());
-        machine.receive_map(here.frame + 1 - ARRIVAL_DELAY_FRAMES, other.clone());
-        machine.step(&observation(here.frame + 1, 100.5, 100.5));
+        machine.receive_map(next_frame.frame - ARRIVAL_DELAY_FRAMES, other.clone());
+        machine.step(&next_frame);
         assert!(machine.next_planning.is_none(), "dropped once the frame has begun");
         assert_eq!(*machine.planning.grid(), other, "the newer map");
         let taken = machine.planning.last_costs().expect("planned on the new map");

@@ -328,12 +328,18 @@ mod tests {
         })
     }
 
-    #[test]
-    fn a_periodic_replans_costs_are_made_ahead_once_and_only_used_when_they_are_the_ones_asked_for() {
-        let map = planning(&half_explored(), 1);
+    /// A planning map of [`half_explored`], parameters replanning every 12 frames, their path
+    /// costs, and two neighbouring start cells.
+    fn replanning_map() -> (PlanningMap, DecisionParams, Costs, usize, usize) {
         let params = DecisionParams { replan_frames: 12, ..DecisionParams::default() };
         let costs = path_costs(&params);
         let (here, next) = (cell_of_point(25.5, 51.5).unwrap(), cell_of_point(26.5, 51.5).unwrap());
+        (planning(&half_explored(), 1), params, costs, here, next)
+    }
+
+    #[test]
+    fn a_periodic_replans_costs_are_made_ahead_once_and_only_used_when_they_are_the_ones_asked_for() {
+        let (map, params, costs, here, next) = replanning_map();
         map.costs_from(here, &costs, 100);
         map.prepare(next, 111, &params);
         assert_eq!(map.made_from(), None, "not due before 12 frames");
@@ -351,10 +357,7 @@ mod tests {
 
     #[test]
     fn a_repeated_request_gets_the_costs_given_last_without_a_search() {
-        let map = planning(&half_explored(), 1);
-        let params = DecisionParams { replan_frames: 12, ..DecisionParams::default() };
-        let costs = path_costs(&params);
-        let (here, next) = (cell_of_point(25.5, 51.5).unwrap(), cell_of_point(26.5, 51.5).unwrap());
+        let (map, params, costs, here, next) = replanning_map();
         let first = map.costs_from(here, &costs, 100);
         map.prepare(here, 112, &params);
         assert!(map.searched.borrow().made.is_none(), "nothing made ahead for a request already answered");
@@ -367,11 +370,9 @@ mod tests {
 
     #[test]
     fn the_costs_in_use_are_those_last_asked_for_within_a_replan_period() {
-        let map = planning(&half_explored(), 1);
-        let params = DecisionParams { replan_frames: 12, ..DecisionParams::default() };
-        let costs = path_costs(&params);
+        let (map, params, costs, here, _) = replanning_map();
         assert_eq!(map.costs_in_use(1, &params), None, "nothing asked yet");
-        map.costs_from(cell_of_point(25.5, 51.5).unwrap(), &costs, 100);
+        map.costs_from(here, &costs, 100);
         assert_eq!(map.costs_in_use(112, &params), Some(costs));
         assert_eq!(map.costs_in_use(113, &params), None, "no plan for longer than a replan period");
     }
