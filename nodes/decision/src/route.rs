@@ -98,10 +98,9 @@ struct Searched {
 }
 
 impl Searched {
-    /// Whether the last costs given or those made ahead answer `request`.
-    fn knows(&self, request: &CostsRequest) -> bool {
-        self.last.as_ref().is_some_and(|(answer, _)| answer.request == *request)
-            || self.made.as_ref().is_some_and(|answer| answer.request == *request)
+    /// The last costs given or those made ahead, if they answer `request`.
+    fn answer(&self, request: &CostsRequest) -> Option<&Answer> {
+        self.last.as_ref().map(|(answer, _)| answer).into_iter().chain(&self.made).find(|a| a.request == *request)
     }
 }
 
@@ -127,12 +126,9 @@ impl PlanningMap {
     pub fn costs_from(&self, start: usize, costs: &Costs, frame: u64) -> Arc<CostMap> {
         let request = CostsRequest { start_cell: start, costs: *costs };
         let mut searched = self.searched.borrow_mut();
-        let made = searched.made.take();
-        let mut known = searched.last.as_ref().map(|(answer, _)| answer).into_iter().chain(&made);
-        let costs = match known.find(|answer| answer.request == request) {
-            Some(answer) => Arc::clone(&answer.costs),
-            None => Arc::new(self.grid.costs_from(start, costs)),
-        };
+        let known = searched.answer(&request).map(|answer| Arc::clone(&answer.costs));
+        let costs = known.unwrap_or_else(|| Arc::new(self.grid.costs_from(start, costs)));
+        searched.made = None;
         searched.last = Some((Answer { request, costs: Arc::clone(&costs) }, frame));
         costs
     }
@@ -182,7 +178,7 @@ impl PlanningMap {
     pub(crate) fn make_ahead(&self, start: usize, costs: &Costs) {
         let request = CostsRequest { start_cell: start, costs: *costs };
         let mut searched = self.searched.borrow_mut();
-        if !searched.knows(&request) {
+        if searched.answer(&request).is_none() {
             searched.made = Some(Answer { request, costs: Arc::new(self.grid.costs_from(start, costs)) });
         }
     }
