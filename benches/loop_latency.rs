@@ -4,7 +4,10 @@
 //! reply. A second pass adds a probe that subscribes to `rover/telemetry`, `rover/terrain` and
 //! `rover/drive_cmd` and splits that time into hops (the probe's own delivery delays each stamp
 //! alike). The baseline, in the same run: the Python seed solution
-//! (`tests/python/seed_baseline/drive_baseline.py`) answering the same frames.
+//! (`tests/python/seed_baseline/drive_baseline.py`) answering the same frames. For both, the CPU
+//! time a frame took in each process (the client is this benchmark's own process): with two
+//! telemetries always in flight, the loop's mean latency is about the CPU time of a frame when
+//! the two cores are busy.
 //!
 //! Run inside the loopback-only namespace: `tools/isolated cargo bench --bench loop_latency`.
 
@@ -17,6 +20,7 @@ use std::process::Stdio;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use rover::cpu::{CpuMeter, ms_per_frame};
 use rover::graph::{Graph, GraphConfig};
 use rover_bridge::stats::HOP_NAMES;
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
@@ -190,6 +194,26 @@ fn start_seed_solution(domain: &Domain) -> Option<support::Process> {
     Some(process)
 }
 
+/// The name this benchmark's own process (the Unity-dialect client) goes by.
+const CLIENT: &str = "client";
+
+/// Replays the frames to the server on the domain's port (`unsolicited` replies answering none)
+/// and measures the CPU time a frame took in `processes` and this one: a line to print.
+fn replay_measuring_cpu(
+    runtime: &tokio::runtime::Runtime,
+    domain: &Domain,
+    unsolicited: usize,
+    processes: &[(&str, u32)],
+) -> (Replay, String) {
+    let measured = || processes.iter().copied().chain([(CLIENT, std::process::id())]);
+    let meter = CpuMeter::start(measured());
+    let replay = runtime.block_on(replay(domain.port(), unsolicited));
+    let per_frame = ms_per_frame(&meter.used(measured()), replay.sent.len() as u64);
+    let parts: Vec<String> = per_frame.iter().map(|(name, ms)| format!("{name} {ms:.3}")).collect();
+    let line = format!("  CPU ms a frame: {}; all {:.3}", parts.join(", "), per_frame.values().sum::<f64>());
+    (replay, line)
+}
+
 fn print_row(label: &str, samples: &[Duration]) -> Percentiles {
     let p = percentiles(samples);
     println!("{label:<34} p50 {:>7.3} ms  p99 {:>7.3} ms  ({} frames)", p.p50_ms, p.p99_ms, samples.len());
@@ -207,9 +231,10 @@ fn main() {
     );
 
     let graph = start_graph(&domain, "plain");
-    let plain = runtime.block_on(replay(domain.port(), 0));
+    let (plain, cpu) = replay_measuring_cpu(&runtime, &domain, 0, &graph.processes().collect::<Vec<_>>());
     drop(graph);
     let ours = print_row("rover graph (5 processes)", &plain.latencies());
+    println!("{cpu}");
 
     let probe = Probe::start(&domain);
     let graph = start_graph(&domain, "probed");
@@ -231,9 +256,10 @@ fn main() {
     }
 
     match start_seed_solution(&domain) {
-        Some(_seed) => {
-            let seed = runtime.block_on(replay(domain.port(), 1));
+        Some(seed_process) => {
+            let (seed, cpu) = replay_measuring_cpu(&runtime, &domain, 1, &[("seed solution", seed_process.pid())]);
             let baseline = print_row("Python seed solution", &seed.latencies());
+            println!("{cpu}");
             println!(
                 "ratio rover / seed solution:       p50 {:.2}x  p99 {:.2}x",
                 ours.p50_ms / baseline.p50_ms,

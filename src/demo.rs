@@ -105,7 +105,8 @@ pub async fn run_demo(args: &DemoArgs, runtime: &Runtime, ros_args: &[String]) -
         view.stop().await;
     }
     let outcome = outcome?;
-    let result = RunResult::of(args.seed, samples, &outcome.report, &outcome.progress, started.elapsed().as_secs_f64());
+    let wall_seconds = started.elapsed().as_secs_f64();
+    let result = RunResult::of(args.seed, samples, &outcome.report, &outcome.progress, wall_seconds, &outcome.cpu);
     print!("{}", table(std::slice::from_ref(&result)));
     let path = args.out.join("map.png");
     write_mission_png(&path, &outcome.mission_map, &result)?;

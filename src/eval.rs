@@ -1,9 +1,10 @@
 //! `rover eval`: one full mission per seed, scored against the simulator's true world, as a table
 //! or JSON.
 
+use std::collections::BTreeMap;
 use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use rover_decision::machine::Mode;
@@ -12,6 +13,7 @@ use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 
 use crate::chaos::Chaos;
+use crate::cpu::{CpuMeter, ms_per_frame};
 use crate::graph::{GraphConfig, RemoteNodes, free_port, log_dir};
 use crate::graph_mission::run_graph_mission;
 use crate::mission::{NodeSettings, Progress, Replies, run_in_process};
@@ -115,6 +117,11 @@ pub struct RunResult {
     pub wall_seconds: f64,
     /// Frames per wall-clock second, end to end.
     pub frames_per_second: f64,
+    /// CPU time a frame took, all processes together (user and system), milliseconds.
+    pub cpu_ms_per_frame: f64,
+    /// The same by process: `simulator` (with its Unity client and the evaluator) and each node,
+    /// or `in_process` for a mission in one process.
+    pub cpu_ms_per_frame_by_process: BTreeMap<String, f64>,
     /// The decision's final mode.
     pub final_mode: String,
     /// Distance driven, metres.
@@ -143,8 +150,17 @@ impl RunResult {
             && self.final_mode == Mode::Done.name()
     }
 
-    /// The result of the mission of `seed` in a world with `samples` samples.
-    pub fn of(seed: u64, samples: usize, report: &SimReport, progress: &Progress, wall_seconds: f64) -> Self {
+    /// The result of the mission of `seed` in a world with `samples` samples, whose processes
+    /// used the CPU times `cpu`.
+    pub fn of(
+        seed: u64,
+        samples: usize,
+        report: &SimReport,
+        progress: &Progress,
+        wall_seconds: f64,
+        cpu: &BTreeMap<String, Duration>,
+    ) -> Self {
+        let cpu_ms_per_frame_by_process = ms_per_frame(cpu, report.frames);
         RunResult {
             seed,
             mapped_pct: progress.mapped_pct,
@@ -156,6 +172,8 @@ impl RunResult {
             sim_seconds: report.sim_seconds,
             wall_seconds,
             frames_per_second: report.frames as f64 / wall_seconds.max(1e-9),
+            cpu_ms_per_frame: cpu_ms_per_frame_by_process.values().sum(),
+            cpu_ms_per_frame_by_process,
             final_mode: progress.mode.clone(),
             distance_m: report.distance_m,
             time_by_mode_s: progress.time_by_mode.clone(),
@@ -175,6 +193,9 @@ impl EvalArgs {
     }
 }
 
+/// The name the CPU time of a mission in one process goes by.
+const IN_PROCESS: &str = "in_process";
+
 /// Runs every seed in-process and returns the results; a `shutdown` request (Ctrl-C) ends the run
 /// with an error naming the seed.
 pub fn run_in_process_eval(
@@ -186,11 +207,14 @@ pub fn run_in_process_eval(
     for seed in args.seeds.clone() {
         let world = args.world(seed)?;
         let samples = world.samples.len();
+        let this_process = [(IN_PROCESS, std::process::id())];
+        let cpu_meter = CpuMeter::start(this_process);
         let outcome =
             run_in_process(world, settings, args.max_sim_seconds, 2500, shutdown, |p| print_progress(seed, p))
                 .with_context(|| format!("seed {seed}"))?;
         let report = &outcome.report;
-        let result = RunResult::of(seed, samples, report, &outcome.progress, report.wall_seconds);
+        let cpu = cpu_meter.used(this_process);
+        let result = RunResult::of(seed, samples, report, &outcome.progress, report.wall_seconds, &cpu);
         if let Some(dir) = &args.maps {
             save_picture(dir, &outcome.mission_map, &result)?;
         }
@@ -232,7 +256,7 @@ pub async fn run_graph_eval(args: &EvalArgs, runtime: &Runtime, ros_args: &[Stri
             anyhow::bail!("interrupted during seed {seed}");
         }
         let wall_seconds = started.elapsed().as_secs_f64();
-        let result = RunResult::of(seed, samples, &outcome.report, &outcome.progress, wall_seconds);
+        let result = RunResult::of(seed, samples, &outcome.report, &outcome.progress, wall_seconds, &outcome.cpu);
         if let Some(dir) = &args.maps {
             save_picture(dir, &outcome.mission_map, &result)?;
         }
@@ -260,11 +284,11 @@ fn save_picture(dir: &Path, mission: &MissionMap, result: &RunResult) -> anyhow:
 /// The results as a table.
 pub fn table(results: &[RunResult]) -> String {
     let mut out = String::from(
-        "seed  mapped %  fidelity %  located  collected  home m  sim s   wall s  frames/s  mode         complete\n",
+        "seed  mapped %  fidelity %  located  collected  home m  sim s   wall s  frames/s  CPU ms/frame  mode         complete\n",
     );
     for r in results {
         out += &format!(
-            "{:>4}  {:>8.1}  {:>10.1}  {:>7}  {:>9}  {:>6.1}  {:>6.0}  {:>7.1}  {:>8.0}  {:<12} {}\n",
+            "{:>4}  {:>8.1}  {:>10.1}  {:>7}  {:>9}  {:>6.1}  {:>6.0}  {:>7.1}  {:>8.0}  {:>12.2}  {:<12} {}\n",
             r.seed,
             r.mapped_pct,
             r.fidelity_pct,
@@ -274,14 +298,33 @@ pub fn table(results: &[RunResult]) -> String {
             r.sim_seconds,
             r.wall_seconds,
             r.frames_per_second,
+            r.cpu_ms_per_frame,
             r.final_mode,
             if r.complete() { "yes" } else { "no" }
         );
     }
     let complete = results.iter().filter(|r| r.complete()).count();
-    out += &format!("{complete} of {} complete\n\n", results.len());
+    out += &format!("{complete} of {} complete\n", results.len());
+    out += &cpu_line(results);
+    out += "\n";
     out += &time_table(results);
     out
+}
+
+/// The CPU time a frame took in each process, the mean over the runs it was measured in, as one
+/// line (none for missions in one process).
+fn cpu_line(results: &[RunResult]) -> String {
+    let mut sums: BTreeMap<&str, (f64, usize)> = BTreeMap::new();
+    for (name, ms) in results.iter().flat_map(|r| &r.cpu_ms_per_frame_by_process) {
+        let (sum, runs) = sums.entry(name).or_default();
+        (*sum, *runs) = (*sum + ms, *runs + 1);
+    }
+    if sums.len() < 2 {
+        return String::new();
+    }
+    let parts: Vec<String> =
+        sums.iter().map(|(name, (sum, runs))| format!("{name} {:.2}", sum / *runs as f64)).collect();
+    format!("CPU ms a frame by process (mean of the runs): {}\n", parts.join(", "))
 }
 
 /// The activities of the time table, with their column titles.
@@ -333,6 +376,11 @@ impl RunResult {
             sim_seconds: 725.0,
             wall_seconds: 60.0,
             frames_per_second: 300.0,
+            cpu_ms_per_frame: 3.5,
+            cpu_ms_per_frame_by_process: BTreeMap::from([
+                ("simulator".to_string(), 2.5),
+                ("perception".to_string(), 1.0),
+            ]),
             final_mode: Mode::Done.name().to_string(),
             distance_m: 900.0,
             time_by_mode_s: TimeByMode::default(),
@@ -358,6 +406,35 @@ mod tests {
         assert!(table.lines().next().unwrap().contains("last sample s"), "{table}");
         assert_eq!(row("3").split_whitespace().nth(8), Some("700"), "{table}");
         assert_eq!(row("4").split_whitespace().nth(8), Some("-"), "{table}");
+    }
+
+    #[test]
+    fn the_table_shows_the_cpu_of_a_frame_in_all_and_by_process() {
+        let run = RunResult::example();
+        let other = RunResult {
+            seed: 4,
+            cpu_ms_per_frame: 4.5,
+            cpu_ms_per_frame_by_process: BTreeMap::from([
+                ("simulator".to_string(), 3.5),
+                ("perception".to_string(), 1.0),
+                ("decision".to_string(), 0.5),
+            ]),
+            ..run.clone()
+        };
+        let table = table(&[run.clone(), other]);
+        let header = table.lines().next().unwrap();
+        let row = table.lines().find(|l| l.split_whitespace().next() == Some("4")).unwrap();
+        let column = header.split("  ").filter(|t| !t.is_empty()).position(|t| t.trim() == "CPU ms/frame").unwrap();
+        assert_eq!(row.split_whitespace().nth(column), Some("4.50"), "{table}");
+        assert!(
+            table.contains(
+                "CPU ms a frame by process (mean of the runs): decision 0.50, perception 1.00, simulator 3.00"
+            ),
+            "{table}"
+        );
+        let in_process =
+            RunResult { cpu_ms_per_frame_by_process: BTreeMap::from([(IN_PROCESS.to_string(), 3.0)]), ..run };
+        assert!(!super::table(&[in_process]).contains("by process"), "one process has no split");
     }
 
     #[test]

@@ -286,6 +286,11 @@ impl Graph {
         &self.config
     }
 
+    /// The running nodes' names and process ids.
+    pub fn processes(&self) -> impl Iterator<Item = (&str, u32)> {
+        self.nodes.iter().map(|node| (node.name.as_str(), node.pid()))
+    }
+
     /// The running node called `name`.
     pub fn node_mut(&mut self, name: &str) -> Option<&mut NodeProcess> {
         self.nodes.iter_mut().find(|n| n.name == name)

@@ -3,6 +3,7 @@
 //! scores the published `map` against the simulator's true world. `rover demo` and `rover eval`
 //! run missions this way.
 
+use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -20,6 +21,7 @@ use rover_sim::wire::client::{ClientConfig, run_client};
 use rover_sim::world::World;
 use tokio::sync::Notify;
 
+use crate::cpu::CpuMeter;
 use crate::graph::{Graph, GraphConfig};
 use crate::mission::{Progress, Replies};
 use crate::mission_map::{MissionMap, sample_marks};
@@ -52,6 +54,17 @@ pub struct GraphOutcome {
     pub mission_map: MissionMap,
     /// Nodes that did not exit cleanly at the end.
     pub unclean_nodes: Vec<String>,
+    /// The CPU time each process used during the mission: [`SIMULATOR_PROCESS`] and the nodes.
+    pub cpu: BTreeMap<String, Duration>,
+}
+
+/// The name the CPU time of this process goes by: the simulator, its Unity client and the
+/// evaluator node.
+pub const SIMULATOR_PROCESS: &str = "simulator";
+
+/// The processes of a graph mission: this one and the graph's nodes.
+fn mission_processes(graph: &Graph) -> impl Iterator<Item = (&str, u32)> {
+    std::iter::once((SIMULATOR_PROCESS, std::process::id())).chain(graph.processes())
 }
 
 /// What the evaluator has heard from the graph.
@@ -173,6 +186,7 @@ pub async fn run_graph_mission(
     };
     let mut ticks = tokio::time::interval(PROGRESS_PERIOD);
     let mut supervision = tokio::time::interval(SUPERVISION_PERIOD);
+    let cpu_meter = CpuMeter::start(mission_processes(&graph));
     let mut client = Box::pin(run_client(&mut simulator, &client_config, stop));
     let failure = loop {
         tokio::select! {
@@ -189,6 +203,7 @@ pub async fn run_graph_mission(
         }
     };
     drop(client);
+    let cpu = cpu_meter.used(mission_processes(&graph));
     let unclean_nodes = graph.stop(STOP_TIMEOUT);
     for subscriber in subscribers {
         subscriber.abort();
@@ -202,7 +217,7 @@ pub async fn run_graph_mission(
     evaluator.progress.collected = report.samples_collected;
     evaluator.note_timeline();
     let mission_map = MissionMap { samples: sample_marks(&simulator), ..std::mem::take(&mut evaluator.mission_map) };
-    Ok(GraphOutcome { report, progress: evaluator.snapshot(), mission_map, unclean_nodes })
+    Ok(GraphOutcome { report, progress: evaluator.snapshot(), mission_map, unclean_nodes, cpu })
 }
 
 /// Starts dead nodes again (with respawn); returns why the run cannot go on: a node exited

@@ -3,6 +3,7 @@
 
 pub mod bag;
 pub mod chaos;
+pub mod cpu;
 pub mod dataset;
 pub mod demo;
 pub mod eval;

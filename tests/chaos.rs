@@ -11,7 +11,7 @@ use std::time::Instant;
 use rover::chaos::Chaos;
 use rover::eval::RunResult;
 use rover::graph::GraphConfig;
-use rover::graph_mission::run_graph_mission;
+use rover::graph_mission::{SIMULATOR_PROCESS, run_graph_mission};
 use rover::mission_map::write_mission_png;
 use rover::nodes::Node;
 use rover_msgs::msg::MapStats;
@@ -88,14 +88,19 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
     })
     .await
     .expect("the mission ran");
-    let result =
-        RunResult::of(WORLD_SEED, samples, &outcome.report, &outcome.progress, started.elapsed().as_secs_f64());
+    let wall_seconds = started.elapsed().as_secs_f64();
+    let result = RunResult::of(WORLD_SEED, samples, &outcome.report, &outcome.progress, wall_seconds, &outcome.cpu);
     println!("{}", rover::eval::table(std::slice::from_ref(&result)));
     let picture = log_dir.join("map.png");
     write_mission_png(&picture, &outcome.mission_map, &result).expect("write the mission's picture");
     println!("the mission's picture: {}", picture.display());
     println!("restarts: {restarts:?}");
     let log = |name: &str| std::fs::read_to_string(log_dir.join(format!("{name}.log"))).unwrap_or_default();
+    let measured: Vec<&str> = outcome.cpu.keys().map(String::as_str).collect();
+    let mut expected: Vec<&str> = Node::ALL.iter().map(|node| node.name()).chain([SIMULATOR_PROCESS]).collect();
+    expected.sort_unstable();
+    assert_eq!(measured, expected, "the CPU time of every process, the nodes started again included");
+    assert!(outcome.cpu.values().all(|time| !time.is_zero()), "{:?}", outcome.cpu);
     for (name, count) in &restarts {
         assert_eq!(*count, 1, "node {name} was started again once after its kill: {restarts:?}");
         assert!(log(name).contains("started again"), "the log of {name} goes on after the restart");
