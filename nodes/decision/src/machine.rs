@@ -12,7 +12,7 @@ use crate::explore::{Explorer, ExplorerMemory};
 use crate::grid::Grid;
 use crate::local::FreeSpace;
 use crate::params::DecisionParams;
-use crate::pose::Position;
+use crate::pose::{Position, one_frame_on};
 use crate::route::{PlanStart, PlanningMap, Route};
 use crate::samples::SampleMemory;
 use crate::stuck::{DrivingWatch, ProgressWatch, StuckMarks};
@@ -188,6 +188,9 @@ pub struct Machine {
     stuck_marks: StuckMarks,
     last_drive: Drive,
     frame: u64,
+    /// The frame [`Machine::prepare_next_frame`] last ran after and where the rover was then, to
+    /// guess where it will be on the next.
+    prepared_at: Option<(u64, Position)>,
     tally: SampleTally,
     /// Recalled from an earlier machine: home comes from the mission ([`Machine::resume`]), not
     /// from where the rover happens to stand at this machine's first frame, and until it does
@@ -226,6 +229,7 @@ impl Machine {
             stuck_marks: StuckMarks::default(),
             last_drive: Drive::stop(0.0),
             frame: 0,
+            prepared_at: None,
             tally: SampleTally::default(),
             awaits_home: false,
             walled_in_recoveries: 0,
@@ -383,12 +387,17 @@ impl Machine {
     }
 
     /// Between frames, after the drive command of the last one went out: makes ahead the path
-    /// costs the next frame will likely ask for, the rover at `at`: for a periodic replan
-    /// ([`PlanningMap::prepare`]), or for the first plan on a new map that takes effect then. What
+    /// costs the next frame will likely ask for, the rover now at `at`: for a periodic replan
+    /// ([`PlanningMap::prepare`]), or for the first plan on a new map that takes effect then,
+    /// from the cell the rover will be in if it goes on as it did since the frame before. What
     /// the machine decides does not change, only when the search runs.
     pub fn prepare_next_frame(&mut self, at: &Position) {
         let next_frame = self.frame.saturating_add(1);
-        let Some(start) = cell_of_point(at.x_m, at.y_m) else { return };
+        let (x_m, y_m) = match self.prepared_at.replace((self.frame, *at)) {
+            Some((frame, before)) if frame + 1 == self.frame => one_frame_on(&before, at),
+            _ => (at.x_m, at.y_m),
+        };
+        let Some(start) = cell_of_point(x_m, y_m) else { return };
         match self.arriving_maps.newest_due(next_frame).filter(|map| !is_ignored(map)) {
             Some(map) => self.next_planning = self.planning_ahead(map, start, next_frame),
             None => self.planning.prepare(start, next_frame, &self.params),
@@ -1125,6 +1134,26 @@ mod tests {
         machine.receive_map(next_frame.frame + 1 - ARRIVAL_DELAY_FRAMES, Grid::unknown());
         machine.prepare_next_frame(&next_frame.position);
         assert!(machine.next_planning.is_none(), "nothing made for a map that will be ignored");
+    }
+
+    #[test]
+    fn costs_made_ahead_start_where_the_rover_will_be_if_it_keeps_going() {
+        let (mut machine, _) = started_at_home_in_the_corridor();
+        let before = observation(2, 100.3, 100.5);
+        machine.step(&before);
+        machine.prepare_next_frame(&before.position);
+        let here = observation(3, 100.7, 100.5);
+        machine.receive_map(here.frame + 1 - ARRIVAL_DELAY_FRAMES, corridor());
+        machine.step(&here);
+        machine.prepare_next_frame(&here.position);
+        let one_frame_on = cell_of_point(101.1, 100.5);
+        assert_ne!(one_frame_on, cell_of_point(100.7, 100.5), "the next frame is in the next cell");
+        let next = machine.next_planning.as_ref().expect("made for the map due next");
+        assert_eq!(next.made_from(), one_frame_on);
+        let made = next.made_costs().expect("costs made ahead");
+        machine.step(&observation(here.frame + 1, 101.1, 100.5));
+        let taken = machine.planning.last_costs().expect("planned on the new map");
+        assert!(Arc::ptr_eq(&made, &taken), "the next frame took the costs made ahead");
     }
 
     #[test]
