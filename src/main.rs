@@ -36,7 +36,7 @@ enum Command {
     #[command(after_help = ROS_ARGS_HELP)]
     Demo(rover::demo::DemoArgs),
     /// Run one full mission per seed and print a table of the scores (mapped and fidelity against
-    /// the simulator's true world, samples, distance home, time, frames per second).
+    /// the simulator's true world, samples, distance home, time, frames per second, CPU time a frame).
     #[command(after_help = ROS_ARGS_HELP)]
     Eval(rover::eval::EvalArgs),
     /// Compare the simulated world with a recorded one: render the simulator at every logged pose,
