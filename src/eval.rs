@@ -413,7 +413,7 @@ mod tests {
         let run = RunResult::example();
         let other = RunResult {
             seed: 4,
-            cpu_ms_per_frame: 4.5,
+            cpu_ms_per_frame: 5.0,
             cpu_ms_per_frame_by_process: BTreeMap::from([
                 ("simulator".to_string(), 3.5),
                 ("perception".to_string(), 1.0),
@@ -425,7 +425,7 @@ mod tests {
         let header = table.lines().next().unwrap();
         let row = table.lines().find(|l| l.split_whitespace().next() == Some("4")).unwrap();
         let column = header.split("  ").filter(|t| !t.is_empty()).position(|t| t.trim() == "CPU ms/frame").unwrap();
-        assert_eq!(row.split_whitespace().nth(column), Some("4.50"), "{table}");
+        assert_eq!(row.split_whitespace().nth(column), Some("5.00"), "{table}");
         assert!(
             table.contains(
                 "CPU ms a frame by process (mean of the runs): decision 0.50, perception 1.00, simulator 3.00"
