@@ -87,9 +87,9 @@ fn png_error(error: png::DecodingError) -> ImageError {
 pub fn decode_png(bytes: &[u8]) -> Result<RgbImage, ImageError> {
     let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
     decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
-    let mut reader = decoder.read_info().map_err(|e| png_error(e))?;
+    let mut reader = decoder.read_info().map_err(png_error)?;
     let mut buffer = vec![0; reader.output_buffer_size().unwrap_or_default()];
-    let info = reader.next_frame(&mut buffer).map_err(|e| png_error(e))?;
+    let info = reader.next_frame(&mut buffer).map_err(png_error)?;
     let (width, height) = (info.width as usize, info.height as usize);
     let channels = info.color_type.samples();
     let mut image = RgbImage::new(width, height);
