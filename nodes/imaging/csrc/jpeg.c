@@ -132,21 +132,27 @@ int rover_jpeg_encode(const unsigned char *rgb, int width, int height, int quali
 /* Frees a buffer of rover_jpeg_encode. */
 void rover_jpeg_free(unsigned char *buffer) { free(buffer); }
 
-/* Decompresses the image's rows into `rgb`, 3 bytes a pixel. */
-static void read_rows(j_decompress_ptr info, unsigned char *rgb) {
+/* Decompresses rows first_row..end_row of the image into their places in `rgb`, 3 bytes a pixel:
+ * the rows above are skipped (entropy-decoded only, as libjpeg must), those below not read. */
+static void read_rows(j_decompress_ptr info, unsigned char *rgb, JDIMENSION first_row, JDIMENSION end_row) {
     size_t row_bytes = (size_t)info->output_width * 3;
-    while (info->output_scanline < info->output_height) {
+    if (first_row > 0) {
+        jpeg_skip_scanlines(info, first_row);
+    }
+    while (info->output_scanline < end_row) {
         JSAMPROW row = (JSAMPROW)(rgb + info->output_scanline * row_bytes);
         jpeg_read_scanlines(info, &row, 1);
     }
 }
 
 /* Reads the headers of `jpeg` and puts the image size in *width and *height. With `rgb`, and when
- * that size is rgb_width x rgb_height, also decodes the pixels into `rgb` (rgb_width * rgb_height *
- * 3 bytes) the way libjpeg-turbo's defaults do (accurate integer IDCT, smooth chroma upsampling),
- * as OpenCV and PIL decode; a JPEG of another size is not decoded. */
+ * that size is rgb_width x rgb_height, also decodes rows first_row..end_row of the pixels into their
+ * places in `rgb` (rgb_width * rgb_height * 3 bytes; the other rows are left as they are) the way
+ * libjpeg-turbo's defaults do (accurate integer IDCT, smooth chroma upsampling), as OpenCV and PIL
+ * decode; a JPEG of another size is not decoded. The rows decoded are the same, bit for bit, as in
+ * a decoding of the whole image. */
 int rover_jpeg_decode(const unsigned char *jpeg, unsigned long len, unsigned char *rgb, int rgb_width, int rgb_height,
-                      int *width, int *height, char *message, size_t message_len) {
+                      int first_row, int end_row, int *width, int *height, char *message, size_t message_len) {
     struct jpeg_decompress_struct info;
     struct guard guard;
     info.err = guarded(&guard, message, message_len);
@@ -168,10 +174,17 @@ int rover_jpeg_decode(const unsigned char *jpeg, unsigned long len, unsigned cha
         jpeg_destroy_decompress(&info);
         return ROVER_JPEG_FAILED;
     }
+    if (first_row < 0 || first_row > end_row || end_row > rgb_height) {
+        snprintf(message, message_len, "rows %d..%d are not within the image's %d", first_row, end_row, rgb_height);
+        jpeg_destroy_decompress(&info);
+        return ROVER_JPEG_FAILED;
+    }
     info.out_color_space = JCS_RGB;
     jpeg_start_decompress(&info);
-    read_rows(&info, rgb);
-    jpeg_finish_decompress(&info);
+    read_rows(&info, rgb, (JDIMENSION)first_row, (JDIMENSION)end_row);
+    if (info.output_scanline == info.output_height) {
+        jpeg_finish_decompress(&info);
+    }
     jpeg_destroy_decompress(&info);
     return ROVER_JPEG_OK;
 }

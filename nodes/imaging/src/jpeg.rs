@@ -4,6 +4,7 @@
 //! the Python tools read them.
 
 use std::ffi::{CStr, c_char, c_int, c_ulong};
+use std::ops::Range;
 
 use crate::{ImageError, RgbImage};
 
@@ -40,6 +41,8 @@ unsafe extern "C" {
         rgb: *mut u8,
         rgb_width: c_int,
         rgb_height: c_int,
+        first_row: c_int,
+        end_row: c_int,
         width: *mut c_int,
         height: *mut c_int,
         message: *mut c_char,
@@ -80,22 +83,32 @@ pub fn jpeg_dimensions(jpeg: &[u8]) -> Result<(usize, usize), ImageError> {
     decode(jpeg, None)
 }
 
-/// Reads the headers of `jpeg` and returns the image size; with `rgb`, a buffer for an image of
-/// the given size (width, height), also decodes the pixels into it when the JPEG has that size.
-fn decode(jpeg: &[u8], rgb: Option<(&mut [u8], (usize, usize))>) -> Result<(usize, usize), ImageError> {
-    let (pixels, (rgb_width, rgb_height)) = match rgb {
-        Some((buffer, size)) => {
+/// Where [`decode`] puts pixels: a buffer for a whole image of `size` (width, height), and the
+/// rows of it to decode.
+struct Pixels<'a> {
+    buffer: &'a mut [u8],
+    size: (usize, usize),
+    rows: Range<usize>,
+}
+
+/// Reads the headers of `jpeg` and returns the image size; with `rgb`, also decodes its rows into
+/// it when the JPEG has its size.
+fn decode(jpeg: &[u8], rgb: Option<Pixels>) -> Result<(usize, usize), ImageError> {
+    let (pixels, (rgb_width, rgb_height), rows) = match rgb {
+        Some(Pixels { buffer, size, rows }) => {
             assert_eq!(buffer.len(), size.0 * size.1 * 3, "a buffer for the whole image");
-            (buffer.as_mut_ptr(), size)
+            assert!(rows.start <= rows.end && rows.end <= size.1, "rows {rows:?} of an image {} high", size.1);
+            (buffer.as_mut_ptr(), size, rows)
         }
-        None => (std::ptr::null_mut(), (0, 0)),
+        None => (std::ptr::null_mut(), (0, 0), 0..0),
     };
     let (mut width, mut height) = (0, 0);
     let mut message = [0u8; MESSAGE_BYTES];
     // SAFETY: `jpeg` is valid for its length; `pixels` is null (the header only) or holds
     // `rgb_width * rgb_height * 3` bytes (asserted), which the C side writes only for an image of
-    // that size (callers pass a size the header gave, so the sides fit a C int: libjpeg reads at
-    // most 65,500); the outputs are valid for writes; the message buffer holds `MESSAGE_BYTES`.
+    // that size (callers pass a size the header gave, so the sides and rows fit a C int: libjpeg
+    // reads at most 65,500); the outputs are valid for writes; the message buffer holds
+    // `MESSAGE_BYTES`.
     let status = unsafe {
         rover_jpeg_decode(
             jpeg.as_ptr(),
@@ -103,6 +116,8 @@ fn decode(jpeg: &[u8], rgb: Option<(&mut [u8], (usize, usize))>) -> Result<(usiz
             pixels,
             rgb_width as c_int,
             rgb_height as c_int,
+            rows.start as c_int,
+            rows.end as c_int,
             &mut width,
             &mut height,
             message.as_mut_ptr().cast::<c_char>(),
@@ -135,11 +150,26 @@ pub fn check_jpeg(jpeg: &[u8], width: usize, height: usize) -> Result<(), ImageE
 /// header is checked before the pixel buffer is sized, so a small JPEG that claims a huge image
 /// costs no memory. Corrupt data fails the decoding (libjpeg would decode on past it).
 pub fn decode_jpeg_into(jpeg: &[u8], width: usize, height: usize, out: &mut RgbImage) -> Result<(), ImageError> {
+    decode_jpeg_rows_into(jpeg, width, height, 0..height, out)
+}
+
+/// Decodes rows `rows` of a `width` x `height` JPEG into their places in `out` (reusing its
+/// buffer, sized for the whole image; the other rows keep whatever they held), as RGB: the same
+/// pixels as in a decoding of the whole image, for less work (libjpeg only reads past the rows
+/// above, and stops after the last). Corrupt data in those rows and above fails the decoding.
+/// Panics if `rows` does not lie within `0..height`.
+pub fn decode_jpeg_rows_into(
+    jpeg: &[u8],
+    width: usize,
+    height: usize,
+    rows: Range<usize>,
+    out: &mut RgbImage,
+) -> Result<(), ImageError> {
     check_jpeg(jpeg, width, height)?;
     out.width = width;
     out.height = height;
     out.data.resize(width * height * 3, 0);
-    decode(jpeg, Some((&mut out.data, (width, height))))?;
+    decode(jpeg, Some(Pixels { buffer: &mut out.data, size: (width, height), rows }))?;
     Ok(())
 }
 
@@ -259,6 +289,30 @@ mod tests {
         cut_scan.extend_from_slice(&END_OF_IMAGE);
         let error = decode_jpeg(&cut_scan, 64, 32).unwrap_err();
         assert!(error.to_string().starts_with("cannot decode the JPEG: Corrupt JPEG data"), "{error}");
+    }
+
+    #[test]
+    fn rows_decoded_alone_are_those_of_the_whole_image_and_corrupt_data_above_them_fails() {
+        let mut image = gradient(320, 160);
+        let mut state = 7u32;
+        for byte in &mut image.data {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            *byte = byte.wrapping_add((state >> 27) as u8);
+        }
+        let jpeg = encode_jpeg(&image, UNITY_JPEG_QUALITY).unwrap();
+        let whole = decode_jpeg(&jpeg, 320, 160).unwrap();
+        let row_bytes = 320 * 3;
+        for rows in [0..160, 79..142, 1..2, 15..17, 16..32, 100..160, 159..160, 40..40] {
+            let mut out = RgbImage::default();
+            decode_jpeg_rows_into(&jpeg, 320, 160, rows.clone(), &mut out).unwrap();
+            let bytes = rows.start * row_bytes..rows.end * row_bytes;
+            assert_eq!(out.data[bytes.clone()], whole.data[bytes], "rows {rows:?}");
+        }
+        let mut garbage = jpeg.clone();
+        let len = garbage.len();
+        garbage[len / 4..len - 2].fill(0xFF);
+        let error = decode_jpeg_rows_into(&garbage, 320, 160, 150..160, &mut RgbImage::default()).unwrap_err();
+        assert!(matches!(error, ImageError::Corrupt { .. }), "{error}");
     }
 
     #[test]

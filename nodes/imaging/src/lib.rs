@@ -11,7 +11,8 @@ pub mod shapes;
 pub mod text;
 
 pub use jpeg::{
-    UNITY_JPEG_QUALITY, check_jpeg, decode_jpeg, decode_jpeg_into, encode_jpeg, encode_jpeg_into, jpeg_dimensions,
+    UNITY_JPEG_QUALITY, check_jpeg, decode_jpeg, decode_jpeg_into, decode_jpeg_rows_into, encode_jpeg,
+    encode_jpeg_into, jpeg_dimensions,
 };
 
 /// An 8-bit RGB image, row-major, 3 bytes per pixel.

@@ -24,6 +24,7 @@ pub fn perspective_transform(source: &[[f32; 2]; 4], destination: &[[f32; 2]; 4]
 }
 
 /// Solves `a x = b` by Gaussian elimination with partial pivoting and back substitution.
+#[expect(clippy::needless_range_loop, reason = "OpenCV's elimination, index for index, for the same bits")]
 fn solve_lu<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; N]> {
     let epsilon = f64::EPSILON * 100.0;
     for i in 0..N {

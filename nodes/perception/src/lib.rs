@@ -135,11 +135,12 @@ impl Perception {
     }
 
     /// Decodes a camera JPEG of the calibration's size and classifies it; a JPEG of another size
-    /// is rejected from its header.
+    /// is rejected from its header. Only the rows the warp reads are decoded
+    /// ([`WarpTable::source_rows`]): the same classes as from the whole image, for less work.
     pub fn process_jpeg(&mut self, jpeg: &[u8]) -> Result<&[Class], PerceptionError> {
-        let (width, height) = (self.calibration.width, self.calibration.height);
-        rover_imaging::decode_jpeg_into(jpeg, width, height, &mut self.image)?;
-        self.source.fill(&self.image.data, self.image.width, self.image.height, self.colour_bits.as_ref());
+        let (width, height, rows) = (self.calibration.width, self.calibration.height, &self.table.source_rows);
+        rover_imaging::decode_jpeg_rows_into(jpeg, width, height, rows.clone(), &mut self.image)?;
+        self.source.fill(&self.image.data, (width, height), rows.clone(), self.colour_bits.as_ref());
         self.classify();
         Ok(&self.classes)
     }
@@ -149,7 +150,8 @@ impl Perception {
         if (image.width, image.height) != (self.calibration.width, self.calibration.height) {
             return Err(self.wrong_size(image.width, image.height));
         }
-        self.source.fill(&image.data, image.width, image.height, self.colour_bits.as_ref());
+        let rows = self.table.source_rows.clone();
+        self.source.fill(&image.data, (image.width, image.height), rows, self.colour_bits.as_ref());
         self.classify();
         Ok(&self.classes)
     }
@@ -221,13 +223,38 @@ mod tests {
         image
     }
 
+    /// The recorded camera frames of `../shared/udacity/test_dataset`, in order.
+    fn recorded_frames() -> Vec<std::path::PathBuf> {
+        let dataset = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/udacity/test_dataset/IMG");
+        let mut frames: Vec<_> = std::fs::read_dir(dataset).unwrap().map(|e| e.unwrap().path()).collect();
+        frames.sort();
+        frames
+    }
+
+    #[test]
+    fn a_jpeg_classified_from_the_rows_the_warp_reads_is_classified_as_from_the_whole_image() {
+        let mut perception = Perception::new(Calibration::default(), Thresholds::default()).unwrap();
+        let rows = perception.table().source_rows.clone();
+        assert!(rows.len() < 80, "the warp reads rows {rows:?}, less than half the image");
+        let frames = recorded_frames();
+        assert_eq!(frames.len(), 283);
+        for path in &frames {
+            let jpeg = std::fs::read(path).unwrap();
+            let classes = perception.process_jpeg(&jpeg).unwrap().to_vec();
+            let warped = perception.warped_image();
+            let whole = rover_imaging::decode_jpeg(&jpeg, 320, 160).unwrap();
+            perception.source.fill(&whole.data, (320, 160), 0..160, perception.colour_bits.as_ref());
+            assert_eq!(perception.warped_image(), warped, "{}", path.display());
+            perception.classify();
+            assert_eq!(perception.classes, classes, "{}", path.display());
+        }
+    }
+
     #[test]
     fn classes_from_the_taps_colour_bits_are_the_classes_of_the_interpolated_colours() {
         let thresholds = Thresholds::default();
         let mut perception = Perception::new(Calibration::default(), thresholds).unwrap();
-        let dataset = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/udacity/test_dataset/IMG");
-        let mut frames: Vec<_> = std::fs::read_dir(dataset).unwrap().map(|e| e.unwrap().path()).collect();
-        frames.sort();
+        let frames = recorded_frames();
         for path in frames.iter().step_by(7) {
             let classes = perception.process_jpeg(&std::fs::read(path).unwrap()).unwrap().to_vec();
             assert_eq!(classes, interpolated_classes(&perception, &thresholds), "{}", path.display());

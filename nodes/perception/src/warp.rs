@@ -8,6 +8,8 @@
 //! 1/32 pixel and rounded half to even. Weights are 15-bit products of the 1/32 fractions; the
 //! whole-pixel entry keeps OpenCV's 32767 + 1 split, which is invisible on 8-bit images.
 
+use std::ops::Range;
+
 use crate::classify::ColourBits;
 use crate::homography::{Matrix3, invert};
 
@@ -47,6 +49,8 @@ pub struct WarpTable {
     pub entries: Vec<WarpEntry>,
     /// Pixels per row of the black-bordered source.
     pub stride_px: usize,
+    /// The rows of the image that the entries' taps read (the others never matter).
+    pub source_rows: Range<usize>,
 }
 
 /// The bilinear weights of OpenCV's 32x32 interpolation table for fractions (fx, fy) in 1/32 px.
@@ -76,7 +80,7 @@ impl WarpTable {
         for block_y in (0..height).step_by(BLOCK_ROWS) {
             for block_x in (0..width).step_by(BLOCK_COLUMNS) {
                 let columns = BLOCK_COLUMNS.min(width - block_x);
-                for y in block_y..(block_y + BLOCK_ROWS).min(height) {
+                for (y, row) in rows.iter_mut().enumerate().skip(block_y).take(BLOCK_ROWS) {
                     let (bx, fy) = (block_x as f64, y as f64);
                     let x0 = m[0] * bx + m[1] * fy + m[2];
                     let y0 = m[3] * bx + m[4] * fy + m[5];
@@ -89,7 +93,7 @@ impl WarpTable {
                         let sy_fixed = round_to_int((y0 + m[3] * c) * w);
                         let entry =
                             Self::entry((block_x + column, y), (sx_fixed, sy_fixed), (width, height), stride_px);
-                        rows[y].extend(entry);
+                        row.extend(entry);
                     }
                 }
             }
@@ -98,7 +102,19 @@ impl WarpTable {
             row.sort_by_key(|e| e.x);
             entries.extend(row);
         }
-        Some(WarpTable { width, height, entries, stride_px })
+        let source_rows = Self::rows_read(&entries, stride_px, height);
+        Some(WarpTable { width, height, entries, stride_px, source_rows })
+    }
+
+    /// The image rows that the taps of `entries` read: each reads its top-left tap's row of the
+    /// bordered source and the row below, the bordered rows being the image's one lower.
+    fn rows_read(entries: &[WarpEntry], stride_px: usize, height: usize) -> Range<usize> {
+        let bordered_rows = entries.iter().map(|e| e.tap as usize / stride_px);
+        let (top, bottom) = bordered_rows.fold((usize::MAX, 0), |(top, bottom), row| (top.min(row), bottom.max(row)));
+        if top > bottom {
+            return 0..0;
+        }
+        top.saturating_sub(1)..(bottom + 1).min(height)
     }
 
     fn entry(
@@ -161,20 +177,28 @@ pub struct BorderedImage {
 }
 
 impl BorderedImage {
-    /// Copies the `width` x `height` RGB pixels `rgb` into the bordered buffer, and their colour
-    /// bits into the bits plane when `colour_bits` are given.
-    pub fn fill(&mut self, rgb: &[u8], width: usize, height: usize, colour_bits: Option<&ColourBits>) {
+    /// Copies rows `rows` of the `width` x `height` RGB pixels `rgb` into the bordered buffer
+    /// (the others read black), and their colour bits into the bits plane when `colour_bits` are
+    /// given.
+    pub fn fill(
+        &mut self,
+        rgb: &[u8],
+        (width, height): (usize, usize),
+        rows: Range<usize>,
+        colour_bits: Option<&ColourBits>,
+    ) {
         let stride_px = width + 2;
+        let image_rows = || rgb.chunks_exact(width * 3).take(height).enumerate().skip(rows.start).take(rows.len());
         self.data.clear();
         self.data.resize(stride_px * 3 * (height + 2), 0);
-        for (row, pixels) in rgb.chunks_exact(width * 3).take(height).enumerate() {
+        for (row, pixels) in image_rows() {
             let start = ((row + 1) * stride_px + 1) * 3;
             self.data[start..start + width * 3].copy_from_slice(pixels);
         }
         self.bits.clear();
         if let Some(colour_bits) = colour_bits {
             self.bits.resize(stride_px * (height + 2), colour_bits.of_pixel([0, 0, 0]));
-            for (row, pixels) in rgb.chunks_exact(width * 3).take(height).enumerate() {
+            for (row, pixels) in image_rows() {
                 let start = (row + 1) * stride_px + 1;
                 for (bits, pixel) in self.bits[start..start + width].iter_mut().zip(pixels.chunks_exact(3)) {
                     *bits = colour_bits.of_pixel([pixel[0], pixel[1], pixel[2]]);
@@ -210,9 +234,10 @@ mod tests {
         .unwrap();
         let table = WarpTable::new(&identity, 20, 10).unwrap();
         assert_eq!(table.entries.len(), 200);
+        assert_eq!(table.source_rows, 0..10);
         let rgb: Vec<u8> = (0..600).map(|i| (i * 7 % 256) as u8).collect();
         let mut source = BorderedImage::default();
-        source.fill(&rgb, 20, 10, None);
+        source.fill(&rgb, (20, 10), table.source_rows.clone(), None);
         for entry in &table.entries {
             let at = (entry.y as usize * 20 + entry.x as usize) * 3;
             assert_eq!(table.sample(entry, &source), [rgb[at], rgb[at + 1], rgb[at + 2]]);
