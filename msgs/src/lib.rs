@@ -23,6 +23,7 @@ pub mod validate;
 #[macro_use]
 mod macros;
 mod fixed_array;
+mod int8_bytes;
 
 pub use fixed_array::Covariance;
 
@@ -207,7 +208,9 @@ pub mod nav_msgs {
         map_load_time: crate::builtin_interfaces::Time, resolution: f32, width: u32, height: u32, origin: Pose,
     } }
     ros_message! { /// A 2-D occupancy grid: 0 free, 100 occupied, -1 unknown, row-major from the origin.
-    "nav_msgs" / OccupancyGrid { header: Header, info: MapMetaData, data: Vec<i8> } }
+    "nav_msgs" / OccupancyGrid {
+        header: Header, info: MapMetaData, #[serde(with = "crate::int8_bytes")] data: Vec<i8>,
+    } }
     ros_message! { /// A path for a robot to follow, pose by pose.
     "nav_msgs" / Path { header: Header, poses: Vec<PoseStamped> } }
 }

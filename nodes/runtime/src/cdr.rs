@@ -35,6 +35,7 @@ pub fn decode<M: RosMessage>(bytes: &[u8]) -> anyhow::Result<M> {
 #[cfg(test)]
 mod tests {
     use rover_msgs::msg::Telemetry;
+    use rover_msgs::nav_msgs::OccupancyGrid;
     use rover_msgs::std_msgs::Header;
 
     use super::*;
@@ -45,6 +46,17 @@ mod tests {
         let bytes = encode(&telemetry).unwrap();
         assert_eq!(bytes[..4], [0, 1, 0, 0]);
         assert_eq!(decode::<Telemetry>(&bytes).unwrap(), telemetry);
+    }
+
+    #[test]
+    fn an_occupancy_grids_cells_go_as_a_cdr_int8_sequence_a_length_and_a_byte_each() {
+        let grid = OccupancyGrid { data: vec![-1, 0, 100, 50, -1], ..OccupancyGrid::default() };
+        let bytes = encode(&grid).unwrap();
+        assert_eq!(bytes[bytes.len() - 9..], [5, 0, 0, 0, 0xFF, 0, 100, 50, 0xFF]);
+        assert_eq!(decode::<OccupancyGrid>(&bytes).unwrap(), grid);
+        let mut truncated = bytes.clone();
+        truncated.truncate(bytes.len() - 1);
+        assert!(decode::<OccupancyGrid>(&truncated).is_err(), "a cell short");
     }
 
     #[test]
