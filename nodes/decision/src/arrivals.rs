@@ -44,15 +44,40 @@ impl<T> Delayed<T> {
         self.due_count(frame).checked_sub(1).and_then(|last| self.waiting.get(last)).map(|(_, value)| value)
     }
 
-    /// The newest value due at `frame` (older due ones are dropped: each value is a whole state).
-    pub fn take_due(&mut self, frame: u64) -> Option<T> {
+    /// The newest value due at `frame` and the frame it was made at (older due ones are dropped:
+    /// each value is a whole state).
+    pub fn take_due(&mut self, frame: u64) -> Option<(u64, T)> {
         let due = self.due_count(frame);
-        self.waiting.drain(..due).last().map(|(_, value)| value)
+        self.waiting.drain(..due).last()
     }
 
     /// How many values, from the oldest on, are due at `frame`.
     fn due_count(&self, frame: u64) -> usize {
         self.waiting.iter().take_while(|&&(made_at, _)| due_at(made_at, frame)).count()
+    }
+}
+
+/// When maps come: the mapping node makes one every so many scans, so the frames of the last two
+/// maps taken tell when the next one will take effect.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct MapCadence {
+    last_made_at: Option<u64>,
+    frames_between: Option<u64>,
+}
+
+impl MapCadence {
+    /// Notes that the map made at mission frame `made_at` took effect.
+    pub fn record(&mut self, made_at: u64) {
+        if let Some(last) = self.last_made_at.filter(|&last| last < made_at) {
+            self.frames_between = Some(made_at - last);
+        }
+        self.last_made_at = Some(made_at);
+    }
+
+    /// The frame on which the next map will take effect if it comes as often as the last did.
+    pub fn next_due(&self) -> Option<u64> {
+        let made_at = self.last_made_at?.checked_add(self.frames_between?)?;
+        made_at.checked_add(ARRIVAL_DELAY_FRAMES)
     }
 }
 
@@ -70,9 +95,9 @@ mod tests {
         assert_eq!(maps.newest_due(10 + ARRIVAL_DELAY_FRAMES), Some(&"a"));
         assert_eq!(maps.take_due(10 + ARRIVAL_DELAY_FRAMES - 1), None);
         assert_eq!(maps.newest_due(11 + ARRIVAL_DELAY_FRAMES), Some(&"b"));
-        assert_eq!(maps.take_due(11 + ARRIVAL_DELAY_FRAMES), Some("b"), "a is superseded");
+        assert_eq!(maps.take_due(11 + ARRIVAL_DELAY_FRAMES), Some((11, "b")), "a is superseded");
         assert_eq!(maps.take_due(19 + ARRIVAL_DELAY_FRAMES), None);
-        assert_eq!(maps.take_due(20 + ARRIVAL_DELAY_FRAMES), Some("c"));
+        assert_eq!(maps.take_due(20 + ARRIVAL_DELAY_FRAMES), Some((20, "c")));
         assert_eq!(maps.take_due(u64::MAX), None);
     }
 
@@ -83,13 +108,27 @@ mod tests {
             maps.push(frame, frame);
         }
         assert_eq!(maps.waiting.len(), MAX_WAITING);
-        assert_eq!(maps.take_due(u64::MAX), Some(99));
+        assert_eq!(maps.take_due(u64::MAX), Some((99, 99)));
     }
 
     #[test]
     fn a_value_that_arrives_late_takes_effect_at_the_next_frame() {
         let mut rocks = Delayed::default();
         rocks.push(5, 1);
-        assert_eq!(rocks.take_due(100), Some(1));
+        assert_eq!(rocks.take_due(100), Some((5, 1)));
+    }
+
+    #[test]
+    fn the_next_map_is_expected_as_long_after_the_last_as_that_one_after_the_one_before() {
+        let mut cadence = MapCadence::default();
+        assert_eq!(cadence.next_due(), None, "no map yet");
+        cadence.record(25);
+        assert_eq!(cadence.next_due(), None, "one map: no cadence yet");
+        cadence.record(50);
+        assert_eq!(cadence.next_due(), Some(75 + ARRIVAL_DELAY_FRAMES));
+        cadence.record(80);
+        assert_eq!(cadence.next_due(), Some(110 + ARRIVAL_DELAY_FRAMES));
+        cadence.record(80);
+        assert_eq!(cadence.next_due(), Some(110 + ARRIVAL_DELAY_FRAMES), "the same map again keeps the cadence");
     }
 }

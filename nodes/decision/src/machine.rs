@@ -6,7 +6,7 @@ use rover_msgs::map_grid::{cell_centre_m, cell_of_point};
 use rover_msgs::tally::SampleTally;
 
 use crate::approach::{Aim, Chase};
-use crate::arrivals::Delayed;
+use crate::arrivals::{Delayed, MapCadence};
 use crate::drive::{Drive, STOPPED_MPS, Steering, speed_to_stop_in};
 use crate::explore::{Explorer, ExplorerMemory};
 use crate::grid::Grid;
@@ -176,6 +176,8 @@ pub struct Machine {
     /// Maps and rocks received but not yet due ([`crate::arrivals`]).
     arriving_maps: Delayed<Grid>,
     arriving_rocks: Delayed<Vec<(f64, f64)>>,
+    /// When the maps taken came, to expect the next.
+    map_cadence: MapCadence,
     planning: PlanningMap,
     /// The planning map of the map due on the next frame, made between frames with the path costs
     /// its first plan will likely ask for ([`Machine::prepare_next_frame`]).
@@ -219,6 +221,7 @@ impl Machine {
             received_map: Grid::unknown(),
             arriving_maps: Delayed::default(),
             arriving_rocks: Delayed::default(),
+            map_cadence: MapCadence::default(),
             planning: PlanningMap::new(Grid::unknown(), 0),
             next_planning: None,
             samples: SampleMemory::default(),
@@ -298,6 +301,7 @@ impl Machine {
             Some(made) if made.version() == version && *made.grid() == grid => made,
             _ => PlanningMap::new(grid, version),
         };
+        self.planning.expect_next_map_at(self.map_cadence.next_due());
     }
 
     /// Forgets the cells marked where the rover got stuck; returns whether there were any.
@@ -328,10 +332,11 @@ impl Machine {
 
     /// Puts the maps and rocks due at `frame` into effect.
     fn take_arrivals(&mut self, frame: u64) {
-        if let Some(map) = self.arriving_maps.take_due(frame) {
+        if let Some((made_at, map)) = self.arriving_maps.take_due(frame) {
+            self.map_cadence.record(made_at);
             self.set_map(map);
         }
-        if let Some(rocks) = self.arriving_rocks.take_due(frame) {
+        if let Some((_, rocks)) = self.arriving_rocks.take_due(frame) {
             self.set_rocks(rocks);
         }
     }
@@ -1107,6 +1112,19 @@ mod tests {
         assert_eq!(machine.received_map.counts(), Grid::unknown().counts(), "not yet due");
         machine.step(&observation(5 + ARRIVAL_DELAY_FRAMES, 100.5, 100.5));
         assert_eq!(machine.received_map.counts(), corridor().counts(), "due");
+    }
+
+    #[test]
+    fn after_two_maps_the_planning_map_expects_the_next_as_long_after_the_last() {
+        let mut machine = Machine::new(DecisionParams::default());
+        for made_at in [5, 30] {
+            machine.receive_map(made_at, corridor());
+            machine.step(&observation(made_at + ARRIVAL_DELAY_FRAMES, 100.5, 100.5));
+        }
+        assert_eq!(machine.planning.next_map_frame(), Some(55 + ARRIVAL_DELAY_FRAMES));
+        machine.receive_map(50, corridor());
+        machine.step(&observation(50 + ARRIVAL_DELAY_FRAMES, 100.5, 100.5));
+        assert_eq!(machine.planning.next_map_frame(), Some(70 + ARRIVAL_DELAY_FRAMES), "a map 20 frames on");
     }
 
     /// A machine planning in [`corridor`] at frame 3 that has prepared the next frame, on which

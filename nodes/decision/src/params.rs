@@ -42,6 +42,10 @@ rover_node::node_params! {
         max_lookahead_m: f64 [0.5, 30.0] = 2.5,
         /// Frames between replans.
         replan_frames: i64 [1, 10000] = 12,
+        /// A replan due at most this many frames before the next map is expected (as long after
+        /// the last map as that one after the map before) waits for it, as the new map is planned
+        /// on anyway (0: never waits).
+        replan_waits_for_map_frames: i64 [0, 100] = 3,
         /// A frontier target counts as reached within this distance, metres.
         frontier_reached_m: f64 [0.5, 20.0] = 2.0,
         /// A frontier cell needs this many unexplored cells in its 5x5 neighbourhood.

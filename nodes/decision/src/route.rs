@@ -72,6 +72,8 @@ pub fn staging_cell(
 pub struct PlanningMap {
     grid: Grid,
     version: u64,
+    /// The frame on which the next map is expected to take effect, if known.
+    next_map_frame: Option<u64>,
     searched: RefCell<Searched>,
 }
 
@@ -107,12 +109,28 @@ impl Searched {
 impl PlanningMap {
     /// `grid` as version `version` of the map.
     pub fn new(grid: Grid, version: u64) -> Self {
-        PlanningMap { grid, version, searched: RefCell::default() }
+        PlanningMap { grid, version, next_map_frame: None, searched: RefCell::default() }
     }
 
     /// The map.
     pub fn grid(&self) -> &Grid {
         &self.grid
+    }
+
+    /// Expects the next map to take effect on `frame` (none: not known), for
+    /// [`PlanningMap::replan_frame`].
+    pub fn expect_next_map_at(&mut self, frame: Option<u64>) {
+        self.next_map_frame = frame;
+    }
+
+    /// The frame on which a plan made at `planned_at` is made again for its age alone:
+    /// `replan_frames` after it, or on the next map's frame when that is expected at most
+    /// `replan_waits_for_map_frames` later (the new map is planned on anyway; a replan on this
+    /// one a frame or two before would be used for that long only).
+    fn replan_frame(&self, planned_at: u64, params: &DecisionParams) -> u64 {
+        let due = planned_at.saturating_add(params.replan_frames as u64);
+        let latest = due.saturating_add(params.replan_waits_for_map_frames as u64);
+        self.next_map_frame.filter(|map_frame| (due..=latest).contains(map_frame)).unwrap_or(due)
     }
 
     /// Goes up by one with every new map.
@@ -135,13 +153,13 @@ impl PlanningMap {
 
     /// Makes the path costs that frame `next_frame` will ask for from cell `start` if the last
     /// request (its start aside) is repeated there as a route's or the explorer's periodic replan
-    /// ([`periodic_replan_frame`]) and they are not known yet; nothing on other frames. A guess:
+    /// ([`PlanningMap::replan_frame`]) and they are not known yet; nothing on other frames. A guess:
     /// when the next request differs (the rover crossed into another cell, the map changed), it is
     /// searched as before.
     pub fn prepare(&self, start: usize, next_frame: u64, params: &DecisionParams) {
         let last = self.searched.borrow().last.as_ref().map(|(answer, frame)| (answer.request.costs, *frame));
         if let Some((costs, frame)) = last
-            && next_frame == periodic_replan_frame(frame, params)
+            && next_frame == self.replan_frame(frame, params)
         {
             self.make_ahead(start, &costs);
         }
@@ -152,7 +170,13 @@ impl PlanningMap {
     pub(crate) fn costs_in_use(&self, next_frame: u64, params: &DecisionParams) -> Option<Costs> {
         let searched = self.searched.borrow();
         let (answer, frame) = searched.last.as_ref()?;
-        (next_frame <= periodic_replan_frame(*frame, params)).then_some(answer.request.costs)
+        (next_frame <= self.replan_frame(*frame, params)).then_some(answer.request.costs)
+    }
+
+    /// The frame on which the next map is expected, if known.
+    #[cfg(test)]
+    pub(crate) fn next_map_frame(&self) -> Option<u64> {
+        self.next_map_frame
     }
 
     /// The start cell of the path costs made ahead, if any.
@@ -184,11 +208,6 @@ impl PlanningMap {
     }
 }
 
-/// The frame on which a plan made at frame `planned_at` is made again for its age alone.
-fn periodic_replan_frame(planned_at: u64, params: &DecisionParams) -> u64 {
-    planned_at.saturating_add(params.replan_frames as u64)
-}
-
 /// Where a plan on the map starts this frame.
 #[derive(Debug, Clone, Copy)]
 pub struct PlanStart<'a> {
@@ -204,10 +223,10 @@ pub struct PlanStart<'a> {
 
 impl PlanStart<'_> {
     /// Whether a plan made at `planned` (frame, map version) is due to be made again: never made,
-    /// made on another map, or `replan_frames` old.
+    /// made on another map, or old enough ([`PlanningMap::replan_frame`]).
     pub(crate) fn replan_due(&self, planned: Option<(u64, u64)>) -> bool {
         planned.is_none_or(|(at_frame, version)| {
-            version != self.map.version() || self.frame >= periodic_replan_frame(at_frame, self.params)
+            version != self.map.version() || self.frame >= self.map.replan_frame(at_frame, self.params)
         })
     }
 }
@@ -349,6 +368,28 @@ mod tests {
         map.prepare(here, 136, &params);
         let other = Costs { cross_unknown: false, ..costs };
         assert!(searched_from(&map.costs_from(here, &other, 136), map.grid(), here, &other), "other costs");
+    }
+
+    #[test]
+    fn a_replan_due_just_before_the_next_map_waits_for_it_and_one_due_earlier_does_not() {
+        let (mut map, params, costs, _, next) = replanning_map();
+        let params = DecisionParams { replan_waits_for_map_frames: 3, ..params };
+        let mut route = Route::to((55.5, 52.5)).unwrap();
+        let planned_on = |route: &Route| route.planned.map(|(frame, _)| frame);
+        route.waypoint(&plan_from(&map, &at(25.5, 51.5), 100, &params));
+        map.expect_next_map_at(Some(115));
+        route.waypoint(&plan_from(&map, &at(25.5, 51.5), 112, &params));
+        assert_eq!(planned_on(&route), Some(100), "due at 112, waits for the map of 115");
+        map.prepare(next, 112, &params);
+        assert_eq!(map.made_from(), None, "nothing made ahead for the frame the replan was due");
+        assert_eq!(map.costs_in_use(115, &params), Some(costs), "the costs are in use until the map");
+        map.prepare(next, 115, &params);
+        assert_eq!(map.made_from(), Some(next), "made ahead for the map's frame, in case the map is late");
+        route.waypoint(&plan_from(&map, &at(26.5, 51.5), 115, &params));
+        assert_eq!(planned_on(&route), Some(115), "the map is late: replanned on its frame all the same");
+        map.expect_next_map_at(Some(131));
+        route.waypoint(&plan_from(&map, &at(25.5, 51.5), 127, &params));
+        assert_eq!(planned_on(&route), Some(127), "a map 4 frames after the replan is not waited for");
     }
 
     #[test]
