@@ -296,8 +296,9 @@ impl Resampler<'_> {
     }
 
     /// The level-view index each pixel of `rows` image rows from `first_row` on is taken from.
-    /// Tilted, the exact projection is computed every [`SEGMENT_PX`] pixels of a row and followed
-    /// linearly in between (a rotation of a few degrees bends it by far less than a pixel there).
+    /// Tilted, the exact projection is computed every [`SEGMENT_PX`] pixels of a row, clamped to
+    /// the level view, and followed in between in 16.16 fixed point (a rotation of a few degrees
+    /// bends it by far less than a pixel there).
     fn sources(&self, first_row: usize, rows: usize) -> Vec<u32> {
         const SEGMENT_PX: usize = 16;
         let height = self.level_height;
@@ -310,22 +311,32 @@ impl Resampler<'_> {
         }
         let map = self.rotation.pixel_map();
         let (max_u, max_v) = ((self.level_width - 1) as f32, (height - 1) as f32);
+        let nearest_fixed = |(lu, lv): (f32, f32)| {
+            let fixed = |value: f32, max: f32| ((value + 0.5).clamp(0.0, max) * FIXED_PX) as i32;
+            (fixed(lu, max_u), fixed(lv, max_v))
+        };
         for v in first_row..first_row + rows {
+            let mut from = nearest_fixed(map.level_pixel(0, v));
             for start in (0..self.width).step_by(SEGMENT_PX) {
-                let end = (start + SEGMENT_PX).min(self.width);
-                let (a, b) = (map.level_pixel(start, v), map.level_pixel(end, v));
-                let per_px = ((b.0 - a.0) / (end - start) as f32, (b.1 - a.1) / (end - start) as f32);
-                let mut segment = [0u32; SEGMENT_PX];
-                for (i, source) in segment.iter_mut().enumerate() {
-                    let (lu, lv) = (a.0 + per_px.0 * i as f32 + 0.5, a.1 + per_px.1 * i as f32 + 0.5);
-                    *source = (lu.max(0.0).min(max_u) as i32 * height as i32 + lv.max(0.0).min(max_v) as i32) as u32;
-                }
-                sources.extend_from_slice(&segment[..end - start]);
+                let to = nearest_fixed(map.level_pixel(start + SEGMENT_PX, v));
+                let per_px = ((to.0 - from.0) / SEGMENT_PX as i32, (to.1 - from.1) / SEGMENT_PX as i32);
+                let (mut lu, mut lv) = from;
+                sources.extend((start..(start + SEGMENT_PX).min(self.width)).map(|_| {
+                    let source = (lu >> FIXED_PX_BITS) as u32 * height as u32 + (lv >> FIXED_PX_BITS) as u32;
+                    (lu, lv) = (lu + per_px.0, lv + per_px.1);
+                    source
+                }));
+                from = to;
             }
         }
         sources
     }
 }
+
+/// Fractional bits of the level-view coordinates followed along a segment of an image row...
+const FIXED_PX_BITS: u32 = 16;
+/// ...and one pixel in them.
+const FIXED_PX: f32 = (1 << FIXED_PX_BITS) as f32;
 
 #[cfg(test)]
 mod tests {
