@@ -113,6 +113,17 @@ const EXACT_SUN: usize = 2;
 /// One in the fixed-point values.
 const FIXED_ONE: f32 = 256.0;
 
+/// Which detail textures the pixels of a [`Span`] show.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum SpanTexture {
+    /// The floor's alone.
+    Floor,
+    /// The rock's alone.
+    Rock,
+    /// Both, weighted by the rock weight of each pixel.
+    Blend,
+}
+
 /// The values of the pixels of a span between two [`RayPoint`]s at one row, and their change from
 /// one row to the next.
 #[derive(Debug, Clone, Copy)]
@@ -152,22 +163,55 @@ impl Span {
         self.fixed[FIXED_ROCK].clamp(0, FIXED_ONE as i32)
     }
 
-    /// The colour of the pixel.
-    fn colour(&self, appearance: &Appearance) -> [u8; 3] {
+    /// Which textures the span's pixels show: the rock weight is the same along a span whose ends
+    /// agree, so a span all floor or all rock looks up one texture a pixel.
+    fn texture(&self) -> SpanTexture {
+        match (self.fixed[FIXED_ROCK], self.fixed_step[FIXED_ROCK]) {
+            (0, 0) => SpanTexture::Floor,
+            (256, 0) => SpanTexture::Rock,
+            _ => SpanTexture::Blend,
+        }
+    }
+
+    /// The detail texture of the pixel, when it shows `texture`.
+    fn texel(&self, appearance: &Appearance, texture: SpanTexture) -> u32 {
         let fixed = &self.fixed;
         let floor_texel = || appearance.floor_texel_fixed(fixed[FIXED_FLOOR_U], fixed[FIXED_FLOOR_V]);
         let rock_texel = || appearance.rock_texel_fixed(fixed[FIXED_ROCK_U], fixed[FIXED_ROCK_V]);
-        let texture = match self.rock() {
-            0 => floor_texel(),
-            256 => rock_texel(),
-            rock => {
-                let floor = floor_texel() as i32;
-                (floor + (((rock_texel() as i32 - floor) * rock) >> 8)) as u32
-            }
-        };
+        match texture {
+            SpanTexture::Floor => floor_texel(),
+            SpanTexture::Rock => rock_texel(),
+            SpanTexture::Blend => match self.rock() {
+                0 => floor_texel(),
+                256 => rock_texel(),
+                rock => {
+                    let floor = floor_texel() as i32;
+                    (floor + (((rock_texel() as i32 - floor) * rock) >> 8)) as u32
+                }
+            },
+        }
+    }
+
+    /// The colour of the pixel with the detail texture `texel`.
+    fn colour(&self, texel: u32) -> [u8; 3] {
+        let fixed = &self.fixed;
         let rgb = [fixed[FIXED_RGB], fixed[FIXED_RGB + 1], fixed[FIXED_RGB + 2]];
         let haze = [fixed[FIXED_HAZE], fixed[FIXED_HAZE + 1], fixed[FIXED_HAZE + 2]];
-        shade_fixed(rgb, texture, haze)
+        shade_fixed(rgb, texel, haze)
+    }
+
+    /// Fills `rgb` and `depth`, one pixel a row, with the span's colours showing `texture` (the
+    /// same texture for every call of the pixel loop, so that each kind gets its own loop).
+    #[inline(always)]
+    fn fill(mut self, appearance: &Appearance, texture: SpanTexture, rgb: &mut [[u8; 3]], depth: &mut [f32]) {
+        for (rgb, depth) in rgb.iter_mut().zip(depth) {
+            *rgb = self.colour(self.texel(appearance, texture));
+            *depth = self.exact[EXACT_DEPTH];
+            for (value, step) in self.fixed.iter_mut().zip(self.fixed_step) {
+                *value += step;
+            }
+            self.exact[EXACT_DEPTH] += self.exact_step[EXACT_DEPTH];
+        }
     }
 
     /// What the pixel's ray hit.
@@ -329,13 +373,12 @@ impl Painter<'_, '_> {
         }
         let span = Span::between(last.unwrap_or(point), point, first);
         let pixels = self.index(u, first)..self.index(u, bottom);
-        let mut lanes = span;
         let rgb = &mut self.band.rgb[pixels.clone()];
         let depth = &mut self.band.depth[pixels.clone()];
-        for (rgb, depth) in rgb.iter_mut().zip(depth) {
-            *rgb = lanes.colour(appearance);
-            *depth = lanes.exact[EXACT_DEPTH];
-            lanes.advance();
+        match span.texture() {
+            SpanTexture::Floor => span.fill(appearance, SpanTexture::Floor, rgb, depth),
+            SpanTexture::Rock => span.fill(appearance, SpanTexture::Rock, rgb, depth),
+            SpanTexture::Blend => span.fill(appearance, SpanTexture::Blend, rgb, depth),
         }
         if let Some(hits) = self.band.hits.get_mut(pixels) {
             let mut lanes = span;
