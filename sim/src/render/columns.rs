@@ -71,7 +71,6 @@ pub(super) struct Band<'a> {
 pub(super) struct Painter<'f, 'b> {
     pub(super) frame: &'f Frame<'f>,
     pub(super) band: Band<'b>,
-    pub(super) scratch: Vec<f32>,
 }
 
 /// A point of the terrain along a column's ray, as drawn: its row, the values the pixels between

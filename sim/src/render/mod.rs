@@ -232,7 +232,7 @@ fn draw_level(frame: &Frame, threads: usize, rgb: &mut [[u8; 3]], depth: &mut [f
     }
     let draw = |bands: Vec<Band>| {
         for band in bands {
-            Painter { frame, band, scratch: Vec::new() }.draw();
+            Painter { frame, band }.draw();
         }
     };
     std::thread::scope(|scope| {
@@ -359,8 +359,8 @@ mod tests {
         assert!(r > 200 && g > 190 && b > 180, "bright floor: {:?}", [r, g, b]);
     }
 
-    #[test]
-    fn boulders_drawn_face_by_face_are_where_their_rays_meet_them() {
+    /// An open world with an overhanging boulder and a cluster of pieces ahead of (100, 100).
+    fn world_with_boulders() -> World {
         use crate::boulder::{Boulder, BoulderKind, BoulderSpec, Cap};
         use crate::random::SplitMix64;
         let floor = vec![true; WORLD_SIZE * WORLD_SIZE];
@@ -379,12 +379,16 @@ mod tests {
             start,
             terrain_salt: 0,
         };
-        let world = World::build(plan);
+        World::build(plan)
+    }
+
+    /// Renders `world` from `pose` and casts every pixel's ray at every boulder piece: how many
+    /// pixels show a boulder, and at how many the drawing and the ray disagree about it.
+    fn boulder_pixels_and_disagreements(world: &World, pose: &BodyPose) -> (usize, usize) {
         let options = RenderOptions { record_hits: true, ..RenderOptions::default() };
-        let mut renderer = Renderer::new(&world, CameraModel::rover(), options);
-        let pose = BodyPose { x_m: 100.0, y_m: 100.0, ..Default::default() };
-        renderer.render(&world, &[], &pose, &mut RgbImage::default());
-        let view = LevelView::new(renderer.camera(), renderer.camera().position(&pose), 0.0);
+        let mut renderer = Renderer::new(world, CameraModel::rover(), options);
+        renderer.render(world, &[], pose, &mut RgbImage::default());
+        let view = LevelView::new(renderer.camera(), renderer.camera().position(pose), pose.yaw_deg);
         let faces: Vec<_> = world
             .boulders()
             .iter()
@@ -411,7 +415,35 @@ mod tests {
             };
             disagreements += !agrees as usize;
         }
+        (boulder_pixels, disagreements)
+    }
+
+    #[test]
+    fn boulders_drawn_face_by_face_are_where_their_rays_meet_them() {
+        let world = world_with_boulders();
+        let pose = BodyPose { x_m: 100.0, y_m: 100.0, ..Default::default() };
+        let (boulder_pixels, disagreements) = boulder_pixels_and_disagreements(&world, &pose);
         assert!(boulder_pixels > 2000, "{boulder_pixels} boulder pixels");
+        assert!(
+            disagreements * 100 < boulder_pixels,
+            "{disagreements} of {boulder_pixels} pixels disagree at the outlines"
+        );
+    }
+
+    #[test]
+    fn a_boulder_reaching_behind_the_camera_is_drawn_where_its_rays_meet_it() {
+        let world = world_with_boulders();
+        let pose = BodyPose { x_m: 102.6, y_m: 98.9, yaw_deg: -20.0, ..Default::default() };
+        let camera = CameraModel::rover();
+        let view = LevelView::new(&camera, camera.position(&pose), pose.yaw_deg);
+        let straddles = |piece: &crate::boulder::ConvexPiece| {
+            let depths = piece.vertices.iter().map(|p| view.depth(p));
+            let (nearest, farthest) = depths.fold((f64::MAX, f64::MIN), |(lo, hi), d| (lo.min(d), hi.max(d)));
+            nearest < view::NEAR_M && farthest > 1.0
+        };
+        assert!(world.boulders().iter().flat_map(|b| &b.pieces).any(straddles), "a piece reaches behind the camera");
+        let (boulder_pixels, disagreements) = boulder_pixels_and_disagreements(&world, &pose);
+        assert!(boulder_pixels > 5000, "{boulder_pixels} boulder pixels");
         assert!(
             disagreements * 100 < boulder_pixels,
             "{disagreements} of {boulder_pixels} pixels disagree at the outlines"

@@ -1,7 +1,6 @@
-//! Drawing what stands on the terrain: boulders (convex faceted pieces, cast pixel by pixel inside
-//! their outline) and the rock samples (spheres), each against the depth of what is drawn.
-
-use std::ops::Range;
+//! Drawing what stands on the terrain: boulders (convex faceted pieces, drawn face by face inside
+//! each face's outline, the faces cut at the near plane) and the rock samples (spheres), each
+//! against the depth of what is drawn.
 
 use nalgebra::{Point3, Vector3};
 
@@ -19,25 +18,12 @@ const SAMPLE_RGB: [f32; 3] = [232.0, 195.0, 20.0];
 const MAX_PIECE_DEPTH_M: f64 = 290.0;
 /// Samples are drawn between these depths, metres.
 const SAMPLE_DEPTHS_M: (f64, f64) = (0.15, 40.0);
-/// The twelve edges of a box, as pairs of corner numbers (bit k of a corner number picks the
-/// upper bound of axis k).
-const BOX_EDGES: [(usize, usize); 12] =
-    [(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7), (0, 4), (1, 5), (2, 6), (3, 7)];
-
 /// A boulder piece as the camera of one frame sees it.
-pub(super) enum PieceInView<'a> {
-    /// Wholly ahead of the camera: the faces that face it.
-    Faces {
-        /// The piece.
-        piece: &'a ConvexPiece,
-        /// Its faces that face the camera.
-        faces: Vec<FaceInView>,
-    },
-    /// Reaching behind the near plane: every pixel of its box is cast.
-    Box {
-        /// The piece.
-        piece: &'a ConvexPiece,
-    },
+pub(super) struct PieceInView<'a> {
+    /// The piece.
+    piece: &'a ConvexPiece,
+    /// Its faces that face the camera, as far as they lie beyond the near plane.
+    faces: Vec<FaceInView>,
 }
 
 /// A face of a piece that faces the camera of one frame.
@@ -54,7 +40,8 @@ pub(super) struct FaceInView {
 
 /// The boulder pieces of `world` that can show in `window` of `view`, projected once for every
 /// band of the frame: pieces wholly behind the camera, beside the window or too far off are left
-/// out by their boxes first.
+/// out by their boxes first. A face reaching behind the near plane is cut there, so that what
+/// is drawn of it lies ahead.
 pub(super) fn pieces_in_view<'a>(world: &'a World, view: &LevelView, window: Window) -> Vec<PieceInView<'a>> {
     let mut pieces = Vec::new();
     for piece in world.boulders().iter().flat_map(|b| &b.pieces) {
@@ -70,11 +57,7 @@ pub(super) fn pieces_in_view<'a>(world: &'a World, view: &LevelView, window: Win
                 continue;
             }
         }
-        let projected: Option<Vec<(f64, f64, f64)>> = piece.vertices.iter().map(|v| view.project(v)).collect();
-        let Some(projected) = projected else {
-            pieces.push(PieceInView::Box { piece });
-            continue;
-        };
+        let projected: Vec<Option<(f64, f64, f64)>> = piece.vertices.iter().map(|v| view.project(v)).collect();
         let faces = piece
             .faces
             .iter()
@@ -82,17 +65,55 @@ pub(super) fn pieces_in_view<'a>(world: &'a World, view: &LevelView, window: Win
             .enumerate()
             .filter_map(|(face, (plane, corners))| {
                 let room = plane.offset - plane.normal.dot(&view.camera.coords);
-                (room < 0.0 && corners.len() >= 3).then(|| FaceInView {
-                    face,
-                    outline: corners.iter().map(|&i| (projected[i].0, projected[i].1)).collect(),
-                    room,
-                    nearest: corners.iter().map(|&i| projected[i].2).fold(f64::MAX, f64::min),
-                })
+                if room >= 0.0 {
+                    return None;
+                }
+                let (outline, nearest) = face_outline(piece, corners, &projected, view)?;
+                Some(FaceInView { face, outline, room, nearest })
             })
             .collect();
-        pieces.push(PieceInView::Faces { piece, faces });
+        pieces.push(PieceInView { piece, faces });
     }
     pieces
+}
+
+/// The outline in the level view of the face of `piece` with `corners`, and its nearest forward
+/// depth, given where the piece's vertices project (`None` for those not ahead of the near plane);
+/// `None` if less than a polygon of it lies ahead.
+fn face_outline(
+    piece: &ConvexPiece,
+    corners: &[usize],
+    projected: &[Option<(f64, f64, f64)>],
+    view: &LevelView,
+) -> Option<(Vec<(f64, f64)>, f64)> {
+    let outline_and_nearest = |points: &mut dyn Iterator<Item = (f64, f64, f64)>| {
+        let mut nearest = f64::MAX;
+        let outline: Vec<(f64, f64)> = points.inspect(|p| nearest = nearest.min(p.2)).map(|(u, v, _)| (u, v)).collect();
+        (outline.len() >= 3).then_some((outline, nearest))
+    };
+    if corners.iter().all(|&i| projected[i].is_some()) {
+        return outline_and_nearest(&mut corners.iter().filter_map(|&i| projected[i]));
+    }
+    let ahead = beyond_near_plane(corners.iter().map(|&i| piece.vertices[i]), view);
+    outline_and_nearest(&mut ahead.iter().filter_map(|p| view.project_near(p)))
+}
+
+/// The part of a face polygon (its corners in order) that lies at least [`NEAR_M`] ahead of the
+/// camera of `view`.
+fn beyond_near_plane(corners: impl Iterator<Item = Point3<f64>>, view: &LevelView) -> Vec<Point3<f64>> {
+    let corners: Vec<Point3<f64>> = corners.collect();
+    let mut kept = Vec::with_capacity(corners.len() + 1);
+    for (i, a) in corners.iter().enumerate() {
+        let b = corners[(i + 1) % corners.len()];
+        let (ahead_a, ahead_b) = (view.depth(a) - NEAR_M, view.depth(&b) - NEAR_M);
+        if ahead_a >= 0.0 {
+            kept.push(*a);
+        }
+        if (ahead_a < 0.0) != (ahead_b < 0.0) {
+            kept.push(a + (b - a) * (ahead_a / (ahead_a - ahead_b)));
+        }
+    }
+    kept
 }
 
 /// Corner `k` of a piece's box (bit a of `k` picks the upper bound of axis a).
@@ -104,19 +125,8 @@ fn box_corner(piece: &ConvexPiece, k: usize) -> Point3<f64> {
 impl Painter<'_, '_> {
     /// Draws a boulder piece where it is the nearest surface in the band's columns.
     pub(super) fn draw_piece(&mut self, piece: &PieceInView) {
-        match piece {
-            PieceInView::Faces { piece, faces } => {
-                for face in faces {
-                    self.draw_face(&piece.faces[face.face], face.room, &face.outline, face.nearest);
-                }
-            }
-            PieceInView::Box { piece } => {
-                let view = &self.frame.view;
-                if let Some((columns, rows, nearest)) = self.screen_box(piece) {
-                    let faces = FacesFromCamera::new(piece, &view.camera);
-                    self.cast_piece(piece, &faces, columns.map(|u| (u, rows.clone())), nearest);
-                }
-            }
+        for face in &piece.faces {
+            self.draw_face(&piece.piece.faces[face.face], face.room, &face.outline, face.nearest);
         }
     }
 
@@ -162,78 +172,6 @@ impl Painter<'_, '_> {
         }
     }
 
-    /// Casts the rays of the pixels in `spans` (column, rows) at a piece and draws it where it is
-    /// nearer than what is there; `nearest` is its nearest forward depth.
-    fn cast_piece(
-        &mut self,
-        piece: &ConvexPiece,
-        faces: &FacesFromCamera,
-        spans: impl IntoIterator<Item = (usize, Range<usize>)>,
-        nearest: f64,
-    ) {
-        let (view, appearance) = (&self.frame.view, self.frame.appearance);
-        let mut across = std::mem::take(&mut self.scratch);
-        for (u, rows) in spans {
-            let [dx, dy] = view.column_direction(u);
-            faces.across_column(dx, dy, &mut across);
-            for v in rows {
-                let index = self.index(u, v);
-                if self.depth_at(index) <= nearest as f32 {
-                    continue;
-                }
-                let rise = view.row_rise(v);
-                let Some((t, face)) = faces.entry(&across, rise as f32) else {
-                    continue;
-                };
-                if t >= self.depth_at(index) {
-                    continue;
-                }
-                let t = t as f64;
-                let point = (view.camera + Vector3::new(dx, dy, rise) * t).map(|c| c as f32);
-                let (visible, haze) = fog_weights(t);
-                let normal = &piece.faces[face].normal;
-                let sun = appearance.sunlight(normal);
-                let rgb = scale3(appearance.rock_rgb(sun), visible);
-                let (a, b) = Facing::of_normal(normal).texture_coordinates(point.x, point.y, point.z);
-                let texture = appearance.rock_texel(a, b);
-                let hit = Hit { surface: Surface::Boulder, depth_m: t as f32, height_m: point.z, sun, rock: 1.0 };
-                self.put(index, shade(rgb, texture, haze), hit);
-            }
-        }
-        self.scratch = across;
-    }
-
-    /// The band's pixels a piece can cover (columns, rows) and its nearest forward depth, or `None`
-    /// when it is out of sight: the box around the piece, cut at the near plane, projected.
-    fn screen_box(&self, piece: &ConvexPiece) -> Option<(Range<usize>, Range<usize>, f64)> {
-        let view = &self.frame.view;
-        let corner = |k: usize| box_corner(piece, k);
-        let depth = |p: Point3<f64>| (p.x - view.camera.x) * view.forward[0] + (p.y - view.camera.y) * view.forward[1];
-        let mut points: Vec<Point3<f64>> = (0..8).map(corner).filter(|&c| depth(c) >= NEAR_M).collect();
-        for (a, b) in BOX_EDGES {
-            let (pa, pb) = (corner(a), corner(b));
-            let (da, db) = (depth(pa), depth(pb));
-            if (da < NEAR_M) != (db < NEAR_M) {
-                let f = (NEAR_M - da) / (db - da);
-                points.push(pa + (pb - pa) * f);
-            }
-        }
-        let projected: Vec<(f64, f64, f64)> = points.iter().filter_map(|p| view.project_near(p)).collect();
-        let nearest = projected.iter().map(|p| p.2).fold(f64::MAX, f64::min);
-        if projected.is_empty() || nearest > MAX_PIECE_DEPTH_M {
-            return None;
-        }
-        let (mut lo_u, mut hi_u, mut lo_v, mut hi_v) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-        for &(u, v, _) in &projected {
-            (lo_u, hi_u, lo_v, hi_v) = (lo_u.min(u), hi_u.max(u), lo_v.min(v), hi_v.max(v));
-        }
-        let (columns, Window { v0, v1, .. }) = (&self.band.columns, self.frame.window);
-        let clamp_u = |p: f64| p.clamp(columns.start as f64, columns.end as f64) as usize;
-        let clamp_v = |p: f64| p.clamp(v0 as f64, v1 as f64) as usize;
-        let (u_range, v_range) = (clamp_u(lo_u)..clamp_u(hi_u + 1.0), clamp_v(lo_v)..clamp_v(hi_v + 1.0));
-        (!u_range.is_empty() && !v_range.is_empty()).then_some((u_range, v_range, nearest))
-    }
-
     /// Draws a sample: a sphere of `radius` around `centre`, where it is the nearest surface.
     pub(super) fn draw_sample(&mut self, centre: &Point3<f64>, radius: f64) {
         let view = &self.frame.view;
@@ -277,13 +215,16 @@ impl Painter<'_, '_> {
     }
 }
 
-/// A piece's faces as seen from the camera of one frame, for casting many rays at it.
+/// A piece's faces as seen from the camera of one frame, for casting rays at it one by one: how
+/// the tests check what is drawn face by face.
+#[cfg(test)]
 pub(super) struct FacesFromCamera {
     normals: Vec<Vector3<f32>>,
     /// How far the camera is inside each face's half-space (negative outside), metres.
     rooms: Vec<f32>,
 }
 
+#[cfg(test)]
 impl FacesFromCamera {
     pub(super) fn new(piece: &ConvexPiece, camera: &Point3<f64>) -> Self {
         let room = |f: &HalfSpace| (f.offset - f.normal.dot(&camera.coords)) as f32;

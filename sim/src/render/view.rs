@@ -85,6 +85,11 @@ impl LevelView {
         }
     }
 
+    /// Forward depth of the world point `p`, metres (negative behind the camera).
+    pub(super) fn depth(&self, p: &Point3<f64>) -> f64 {
+        (p.x - self.camera.x) * self.forward[0] + (p.y - self.camera.y) * self.forward[1]
+    }
+
     /// Level pixel (column, row) and forward depth of the world point `p`, if it is ahead.
     pub(super) fn project(&self, p: &Point3<f64>) -> Option<(f64, f64, f64)> {
         self.project_near(p).filter(|&(_, _, depth)| depth > NEAR_M)
@@ -92,9 +97,8 @@ impl LevelView {
 
     /// The same for points on the near plane too.
     pub(super) fn project_near(&self, p: &Point3<f64>) -> Option<(f64, f64, f64)> {
-        let (rx, ry) = (p.x - self.camera.x, p.y - self.camera.y);
-        let depth = rx * self.forward[0] + ry * self.forward[1];
-        let lateral = rx * self.right[0] + ry * self.right[1];
+        let depth = self.depth(p);
+        let lateral = (p.x - self.camera.x) * self.right[0] + (p.y - self.camera.y) * self.right[1];
         (depth >= NEAR_M * 0.999).then(|| (self.cx + self.focal * lateral / depth, self.row(depth, p.z), depth))
     }
 }
