@@ -18,6 +18,7 @@ const SAMPLE_RGB: [f32; 3] = [232.0, 195.0, 20.0];
 const MAX_PIECE_DEPTH_M: f64 = 290.0;
 /// Samples are drawn between these depths, metres.
 const SAMPLE_DEPTHS_M: (f64, f64) = (0.15, 40.0);
+
 /// A boulder piece as the camera of one frame sees it.
 pub(super) struct PieceInView<'a> {
     /// The piece.
