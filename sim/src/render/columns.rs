@@ -206,10 +206,7 @@ impl Span {
         for (rgb, depth) in rgb.iter_mut().zip(depth) {
             *rgb = self.colour(self.texel(appearance, texture));
             *depth = self.exact[EXACT_DEPTH];
-            for (value, step) in self.fixed.iter_mut().zip(self.fixed_step) {
-                *value += step;
-            }
-            self.exact[EXACT_DEPTH] += self.exact_step[EXACT_DEPTH];
+            self.advance_colour();
         }
     }
 
@@ -225,13 +222,19 @@ impl Span {
         }
     }
 
-    /// Moves on to the next row.
-    fn advance(&mut self) {
+    /// Moves the lanes a pixel's colour and depth need on to the next row.
+    fn advance_colour(&mut self) {
         for (value, step) in self.fixed.iter_mut().zip(self.fixed_step) {
             *value += step;
         }
-        for (value, step) in self.exact.iter_mut().zip(self.exact_step) {
-            *value += step;
+        self.exact[EXACT_DEPTH] += self.exact_step[EXACT_DEPTH];
+    }
+
+    /// Moves every lane on to the next row.
+    fn advance(&mut self) {
+        self.advance_colour();
+        for lane in [EXACT_HEIGHT, EXACT_SUN] {
+            self.exact[lane] += self.exact_step[lane];
         }
     }
 }
