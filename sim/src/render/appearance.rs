@@ -2,6 +2,7 @@
 //! the detail textures, and the colours of the floor and the fog by depth.
 
 use nalgebra::Vector3;
+use wide::i32x4;
 
 use super::truncated_index;
 use crate::distance::distance_to;
@@ -334,13 +335,14 @@ pub(super) fn shade(rgb: [f32; 3], factor: u32, offset: [f32; 3]) -> [u8; 3] {
     [channel(0), channel(1), channel(2)]
 }
 
-/// The same in fixed point: `rgb` and `offset` in 1/256, the factor with [`FIXED_BITS`].
+/// The same in fixed point: `rgb` and `offset` in 1/256 in the first three lanes, the factor with
+/// [`FIXED_BITS`].
 #[inline]
-pub(super) fn shade_fixed(rgb: [i32; 3], factor: u32, offset: [i32; 3]) -> [u8; 3] {
-    let channel = |k: usize| {
-        (((rgb[k].max(0) as u32 * factor) >> (8 + FIXED_BITS)) + (offset[k].max(0) as u32 >> 8)).min(255) as u8
-    };
-    [channel(0), channel(1), channel(2)]
+pub(super) fn shade_fixed(rgb: i32x4, factor: u32, offset: i32x4) -> [u8; 3] {
+    let scaled: i32x4 = (rgb.max(i32x4::ZERO) * i32x4::splat(factor as i32)) >> (8 + FIXED_BITS);
+    let haze: i32x4 = offset.max(i32x4::ZERO) >> 8_u32;
+    let [r, g, b, _] = (scaled + haze).min(i32x4::splat(255)).to_array();
+    [r as u8, g as u8, b as u8]
 }
 
 pub(super) fn to_rgb8(rgb: [f32; 3]) -> [u8; 3] {

@@ -6,6 +6,7 @@
 use std::ops::Range;
 
 use nalgebra::Point3;
+use wide::{f32x4, i32x4};
 
 use super::appearance::{Appearance, Facing, NodeShade, fog_weights, lerp3, scale3, shade, shade_fixed, to_rgb8};
 use super::objects::PieceInView;
@@ -25,23 +26,31 @@ const GRID_RGB: [f32; 3] = [38.0, 36.0, 34.0];
 /// Half width of a grid line, metres.
 const GRID_HALF_WIDTH_M: f64 = 0.012;
 
-/// What every floor pixel of one level row shares: its forward depth, its colour before texture
-/// (fog included), how much of a surface shows through the fog, and the fog's own colour.
+/// What every pixel of one level row shares: the sky's colour and, below the horizon, what every
+/// floor pixel shares: its forward depth, its colour before texture (fog included), how much of a
+/// surface shows through the fog, and the fog's own colour.
 #[derive(Debug, Clone, Copy, Default)]
-pub(super) struct FloorRow {
+pub(super) struct LevelRow {
+    sky: [u8; 3],
     depth: f64,
     rgb: [f32; 3],
     visible: f32,
     haze: [f32; 3],
 }
 
-/// The floor rows of a frame seen from `view`, one per level row (unused above the horizon).
-pub(super) fn floor_rows(view: &LevelView, appearance: &Appearance, rows: &mut [FloorRow]) {
-    for (v, row) in rows.iter_mut().enumerate().filter(|(v, _)| *v as f64 > view.cy) {
-        let depth = view.focal * view.camera.z.max(1e-3) / (v as f64 - view.cy);
-        let (visible, haze) = fog_weights(depth);
-        let rgb = scale3(appearance.floor_rgb(depth), visible);
-        *row = FloorRow { depth, rgb, visible, haze };
+/// The rows of a frame seen from `view`, one per level row (the floor's values only below the
+/// horizon).
+pub(super) fn level_rows(view: &LevelView, appearance: &Appearance, rows: &mut [LevelRow]) {
+    let look = &appearance.look;
+    for (v, row) in rows.iter_mut().enumerate() {
+        let sky = to_rgb8(lerp3(look.sky_top_rgb, look.sky_horizon_rgb, (v as f64 / view.cy).min(1.0) as f32));
+        *row = LevelRow { sky, ..LevelRow::default() };
+        if v as f64 > view.cy {
+            let depth = view.focal * view.camera.z.max(1e-3) / (v as f64 - view.cy);
+            let (visible, haze) = fog_weights(depth);
+            let rgb = scale3(appearance.floor_rgb(depth), visible);
+            *row = LevelRow { sky, depth, rgb, visible, haze };
+        }
     }
 }
 
@@ -53,7 +62,7 @@ pub(super) struct Frame<'a> {
     pub(super) view: LevelView,
     pub(super) window: Window,
     pub(super) appearance: &'a Appearance,
-    pub(super) floor_rows: &'a [FloorRow],
+    pub(super) rows: &'a [LevelRow],
     pub(super) options: RenderOptions,
     pub(super) level_height: usize,
 }
@@ -74,12 +83,12 @@ pub(super) struct Painter<'f, 'b> {
 }
 
 /// A point of the terrain along a column's ray, as drawn: its row, the values the pixels between
-/// two points interpolate in fixed point (see the `FIXED_` indices, 1/256 units), and those they
-/// interpolate exactly (see the `EXACT_` indices).
+/// two points interpolate in fixed point, and those they interpolate exactly (see the `EXACT_`
+/// indices).
 #[derive(Debug, Clone, Copy)]
 struct RayPoint {
     row: f64,
-    fixed: [i32; FIXED_LANES],
+    fixed: FixedLanes,
     exact: [f32; EXACT_LANES],
 }
 
@@ -93,17 +102,47 @@ struct Marched {
     point: Option<RayPoint>,
 }
 
-/// Fixed-point values of a [`RayPoint`], in 1/256: the floor's and the rock's texture
-/// coordinates (in texels), the rock weight, the colour (fog included, before texture) and the
-/// fog's colour.
-const FIXED_LANES: usize = 11;
-const FIXED_FLOOR_U: usize = 0;
-const FIXED_FLOOR_V: usize = 1;
-const FIXED_ROCK_U: usize = 2;
-const FIXED_ROCK_V: usize = 3;
-const FIXED_ROCK: usize = 4;
-const FIXED_RGB: usize = 5;
-const FIXED_HAZE: usize = 8;
+/// The values of a [`RayPoint`] the pixels between two points interpolate in fixed point (1/256
+/// units), four to a vector so that a row's step is three vector additions: the texel
+/// coordinates of the floor's and the rock's textures (floor u, v, rock u, v); the colour before
+/// texture, fog included, with the rock weight in the fourth lane; the fog's colour (its fourth
+/// lane unused).
+#[derive(Debug, Clone, Copy, Default)]
+struct FixedLanes {
+    texture: i32x4,
+    colour: i32x4,
+    haze: i32x4,
+}
+
+/// The lane of [`FixedLanes::colour`] that holds the rock weight.
+const ROCK_LANE: usize = 3;
+
+impl FixedLanes {
+    /// `f` applied to the matching vectors of `self` and `other`.
+    fn zip(self, other: FixedLanes, f: impl Fn(i32x4, i32x4) -> i32x4) -> FixedLanes {
+        FixedLanes {
+            texture: f(self.texture, other.texture),
+            colour: f(self.colour, other.colour),
+            haze: f(self.haze, other.haze),
+        }
+    }
+
+    /// `f` applied to each vector.
+    fn map(self, f: impl Fn(i32x4) -> i32x4) -> FixedLanes {
+        FixedLanes { texture: f(self.texture), colour: f(self.colour), haze: f(self.haze) }
+    }
+
+    /// The rock weight, unclamped.
+    fn rock(&self) -> i32 {
+        self.colour.as_array()[ROCK_LANE]
+    }
+}
+
+/// Four values in units (texels, colour levels, weights) in fixed point, truncated.
+fn fixed_lanes(values: [f32; 4]) -> i32x4 {
+    (f32x4::new(values) * f32x4::splat(FIXED_ONE)).fast_trunc_int()
+}
+
 /// Exact values of a [`RayPoint`]: forward depth, height and sunlight.
 const EXACT_LANES: usize = 3;
 const EXACT_DEPTH: usize = 0;
@@ -127,8 +166,8 @@ enum SpanTexture {
 /// one row to the next.
 #[derive(Debug, Clone, Copy)]
 struct Span {
-    fixed: [i32; FIXED_LANES],
-    fixed_step: [i32; FIXED_LANES],
+    fixed: FixedLanes,
+    fixed_step: FixedLanes,
     exact: [f32; EXACT_LANES],
     exact_step: [f32; EXACT_LANES],
 }
@@ -141,31 +180,36 @@ impl Span {
     /// both).
     fn between(from: &RayPoint, point: &RayPoint, first: usize) -> Self {
         let rows = from.row - point.row;
-        let (start, per_row) = if rows >= 1.0 { ((from.row - first as f64) / rows, -1.0 / rows) } else { (1.0, 0.0) };
-        let (mut fixed, mut fixed_step) = (point.fixed, [0i32; FIXED_LANES]);
-        if per_row != 0.0 {
-            let delta: [f64; FIXED_LANES] = std::array::from_fn(|k| (point.fixed[k] - from.fixed[k]) as f64);
-            fixed = std::array::from_fn(|k| from.fixed[k] + (delta[k] * start) as i32);
-            fixed_step = delta.map(|d| (d * per_row) as i32);
+        if rows < 1.0 {
+            let (fixed_step, exact_step) = (FixedLanes::default(), [0.0; EXACT_LANES]);
+            return Span { fixed: point.fixed, fixed_step, exact: point.exact, exact_step };
         }
+        let (start, per_row) = ((from.row - first as f64) / rows, -1.0 / rows);
+        let delta = point.fixed.zip(from.fixed, |to, from| to - from);
+        let part = |of: f64| delta.map(|d| (d.round_float() * f32x4::splat(of as f32)).fast_trunc_int());
         let (mut exact, mut exact_step) = (from.exact, [0f32; EXACT_LANES]);
         for k in 0..EXACT_LANES {
             let delta = point.exact[k] - from.exact[k];
             exact[k] += delta * start as f32;
             exact_step[k] = delta * per_row as f32;
         }
-        Span { fixed, fixed_step, exact, exact_step }
+        Span {
+            fixed: from.fixed.zip(part(start), |from, part| from + part),
+            fixed_step: part(per_row),
+            exact,
+            exact_step,
+        }
     }
 
     /// The weight of the rock's colour, 0..=256.
     fn rock(&self) -> i32 {
-        self.fixed[FIXED_ROCK].clamp(0, FIXED_ONE as i32)
+        self.fixed.rock().clamp(0, FIXED_ONE as i32)
     }
 
     /// Which textures the span's pixels show: the rock weight is the same along a span whose ends
     /// agree, so a span all floor or all rock looks up one texture a pixel.
     fn texture(&self) -> SpanTexture {
-        match (self.fixed[FIXED_ROCK], self.fixed_step[FIXED_ROCK]) {
+        match (self.fixed.rock(), self.fixed_step.rock()) {
             (0, 0) => SpanTexture::Floor,
             (256, 0) => SpanTexture::Rock,
             _ => SpanTexture::Blend,
@@ -174,9 +218,9 @@ impl Span {
 
     /// The detail texture of the pixel, when it shows `texture`.
     fn texel(&self, appearance: &Appearance, texture: SpanTexture) -> u32 {
-        let fixed = &self.fixed;
-        let floor_texel = || appearance.floor_texel_fixed(fixed[FIXED_FLOOR_U], fixed[FIXED_FLOOR_V]);
-        let rock_texel = || appearance.rock_texel_fixed(fixed[FIXED_ROCK_U], fixed[FIXED_ROCK_V]);
+        let [floor_u, floor_v, rock_u, rock_v] = self.fixed.texture.to_array();
+        let floor_texel = || appearance.floor_texel_fixed(floor_u, floor_v);
+        let rock_texel = || appearance.rock_texel_fixed(rock_u, rock_v);
         match texture {
             SpanTexture::Floor => floor_texel(),
             SpanTexture::Rock => rock_texel(),
@@ -193,10 +237,7 @@ impl Span {
 
     /// The colour of the pixel with the detail texture `texel`.
     fn colour(&self, texel: u32) -> [u8; 3] {
-        let fixed = &self.fixed;
-        let rgb = [fixed[FIXED_RGB], fixed[FIXED_RGB + 1], fixed[FIXED_RGB + 2]];
-        let haze = [fixed[FIXED_HAZE], fixed[FIXED_HAZE + 1], fixed[FIXED_HAZE + 2]];
-        shade_fixed(rgb, texel, haze)
+        shade_fixed(self.fixed.colour, texel, self.fixed.haze)
     }
 
     /// Fills `rgb` and `depth`, one pixel a row, with the span's colours showing `texture` (the
@@ -224,9 +265,7 @@ impl Span {
 
     /// Moves the lanes a pixel's colour and depth need on to the next row.
     fn advance_colour(&mut self) {
-        for (value, step) in self.fixed.iter_mut().zip(self.fixed_step) {
-            *value += step;
-        }
+        self.fixed = self.fixed.zip(self.fixed_step, |value, step| value + step);
         self.exact[EXACT_DEPTH] += self.exact_step[EXACT_DEPTH];
     }
 
@@ -331,13 +370,16 @@ impl Painter<'_, '_> {
         self.fill_sky(u, top, bottom);
     }
 
+    /// Fills rows `top..bottom` of level column `u` with the sky.
     fn fill_sky(&mut self, u: usize, top: usize, bottom: usize) {
-        let look = self.frame.appearance.look;
-        let cy = self.frame.view.cy as f32;
-        for v in top..bottom {
-            let t = (v as f32 / cy).min(1.0);
-            let index = self.index(u, v);
-            self.put(index, to_rgb8(lerp3(look.sky_top_rgb, look.sky_horizon_rgb, t)), Hit::SKY);
+        let pixels = self.index(u, top)..self.index(u, bottom);
+        let rows = &self.frame.rows[top..bottom];
+        for (rgb, row) in self.band.rgb[pixels.clone()].iter_mut().zip(rows) {
+            *rgb = row.sky;
+        }
+        self.band.depth[pixels.clone()].fill(f32::INFINITY);
+        if let Some(hits) = self.band.hits.get_mut(pixels) {
+            hits.fill(Hit::SKY);
         }
     }
 
@@ -356,12 +398,12 @@ impl Painter<'_, '_> {
         let (floor_u, floor_v) = appearance.floor_texture_coordinates(x as f32, y as f32);
         let (a, b) = shade.facing.texture_coordinates(x as f32, y as f32, z as f32);
         let (rock_u, rock_v) = appearance.rock_texture_coordinates(a, b);
-        let values = [floor_u, floor_v, rock_u, rock_v, shade.rock, rgb[0], rgb[1], rgb[2], haze[0], haze[1], haze[2]];
-        RayPoint {
-            row: view.row(depth, z),
-            fixed: values.map(|value| (value * FIXED_ONE) as i32),
-            exact: [depth as f32, z as f32, shade.sun],
-        }
+        let fixed = FixedLanes {
+            texture: fixed_lanes([floor_u, floor_v, rock_u, rock_v]),
+            colour: fixed_lanes([rgb[0], rgb[1], rgb[2], shade.rock]),
+            haze: fixed_lanes([haze[0], haze[1], haze[2], 0.0]),
+        };
+        RayPoint { row: view.row(depth, z), fixed, exact: [depth as f32, z as f32, shade.sun] }
     }
 
     /// Fills the rows from `point` down to `bottom` with the terrain between `last` and `point`;
@@ -399,7 +441,7 @@ impl Painter<'_, '_> {
         let first = truncated_index(view.row(t_out, 0.0).max(0.0)).saturating_add(1);
         let sun = appearance.look.sun.z as f32;
         for v in first..bottom {
-            let FloorRow { depth, rgb, visible, haze } = self.frame.floor_rows[v];
+            let LevelRow { depth, rgb, visible, haze, .. } = self.frame.rows[v];
             let (x, y) = (view.camera.x + depth * dir[0], view.camera.y + depth * dir[1]);
             let (mut pixel, rock) = if plain {
                 (shade(rgb, appearance.floor_factor(x, y), haze), 0.0)

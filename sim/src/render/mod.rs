@@ -15,7 +15,7 @@ mod view;
 use rover_imaging::RgbImage;
 
 use self::appearance::Appearance;
-use self::columns::{Band, FloorRow, Frame, Painter, floor_rows};
+use self::columns::{Band, Frame, LevelRow, Painter, level_rows};
 use self::view::{LevelView, MARGIN_PX, Rotation, Window};
 use crate::camera::{BodyPose, CameraModel};
 use crate::random::mix64;
@@ -78,7 +78,7 @@ pub struct Renderer {
     camera: CameraModel,
     options: RenderOptions,
     appearance: Appearance,
-    floor_rows: Vec<FloorRow>,
+    rows: Vec<LevelRow>,
     threads: usize,
     level_width: usize,
     level_height: usize,
@@ -104,7 +104,7 @@ impl Renderer {
             camera,
             options,
             appearance: Appearance::new(world),
-            floor_rows: vec![FloorRow::default(); level_height],
+            rows: vec![LevelRow::default(); level_height],
             threads,
             level_width,
             level_height,
@@ -148,7 +148,7 @@ impl Renderer {
     fn draw(&mut self, world: &World, samples: &[Sample], pose: &BodyPose, rotation: &Rotation) {
         let view = LevelView::new(&self.camera, self.camera.position(pose), pose.yaw_deg);
         let window = Window::needed(rotation, &self.camera, (self.level_width, self.level_height));
-        floor_rows(&view, &self.appearance, &mut self.floor_rows);
+        level_rows(&view, &self.appearance, &mut self.rows);
         let frame = Frame {
             world,
             samples,
@@ -156,7 +156,7 @@ impl Renderer {
             view,
             window,
             appearance: &self.appearance,
-            floor_rows: &self.floor_rows,
+            rows: &self.rows,
             options: self.options,
             level_height: self.level_height,
         };
