@@ -6,7 +6,7 @@ use nalgebra::{Point3, Vector3};
 
 use super::appearance::{Facing, fog_weights, scale3, shade, to_rgb8};
 use super::columns::Painter;
-use super::view::{LevelView, NEAR_M, Window};
+use super::view::{LevelView, NEAR_M, Window, whole_pixels};
 use super::{Hit, Surface};
 use crate::boulder::{ConvexPiece, HalfSpace};
 use crate::random::hash2;
@@ -136,18 +136,15 @@ impl Painter<'_, '_> {
     fn draw_face(&mut self, face: &HalfSpace, room: f64, outline: &[(f64, f64)], nearest: f64) {
         let (view, appearance) = (&self.frame.view, self.frame.appearance);
         let Window { v0, v1, .. } = self.frame.window;
-        let (band_start, band_end) = (self.band.columns.start as f64, self.band.columns.end as f64);
         let (lo_u, hi_u) = outline.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| (lo.min(p.0), hi.max(p.0)));
-        let columns =
-            (lo_u.ceil().max(band_start) as usize)..((hi_u.floor() + 1.0).clamp(band_start, band_end) as usize);
+        let columns = whole_pixels(lo_u, hi_u, self.band.columns.clone());
         let normal = face.normal;
         let sun = appearance.sunlight(&normal);
         let lit_rgb = appearance.rock_rgb(sun);
         let facing = Facing::of_normal(&normal);
         for u in columns {
             let Some((top, bottom)) = column_span(outline, u as f64) else { continue };
-            let rows =
-                (top.ceil().max(v0 as f64) as usize)..((bottom.floor() + 1.0).clamp(v0 as f64, v1 as f64) as usize);
+            let rows = whole_pixels(top, bottom, v0..v1);
             let [dx, dy] = view.column_direction(u);
             let across = normal.x * dx + normal.y * dy;
             for v in rows {

@@ -1,6 +1,8 @@
 //! The geometry of a frame: the level camera, the part of its view a frame needs, and the rotation
 //! by the body's pitch and roll that turns the level view into the camera image.
 
+use std::ops::Range;
+
 use nalgebra::{Point3, Vector3};
 
 use super::truncated_index;
@@ -177,6 +179,13 @@ impl PixelMap {
         let scale = self.focal / ray.x;
         (self.centre.0 - ray.y * scale, self.centre.1 - ray.z * scale)
     }
+}
+
+/// The whole pixels from `first` to `last` (fractional pixel coordinates, both included), within
+/// `limits`.
+pub(super) fn whole_pixels(first: f64, last: f64, limits: Range<usize>) -> Range<usize> {
+    let end = if last < 0.0 { 0 } else { truncated_index(last).saturating_add(1) };
+    ceil_row(first).max(limits.start)..end.clamp(limits.start, limits.end)
 }
 
 /// The first whole row at or below `row` (rows above the image give 0).
