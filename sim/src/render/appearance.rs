@@ -335,13 +335,12 @@ pub(super) fn shade(rgb: [f32; 3], factor: u32, offset: [f32; 3]) -> [u8; 3] {
     [channel(0), channel(1), channel(2)]
 }
 
-/// The same in fixed point: `rgb` and `offset` in 1/256 in the first three lanes, the factor with
-/// [`FIXED_BITS`].
+/// The same in fixed point: `rgb` and `offset` in 1/256 in the first three lanes, none negative,
+/// the factor with [`FIXED_BITS`].
 #[inline]
 pub(super) fn shade_fixed(rgb: i32x4, factor: u32, offset: i32x4) -> [u8; 3] {
-    let scaled: i32x4 = (rgb.max(i32x4::ZERO) * i32x4::splat(factor as i32)) >> (8 + FIXED_BITS);
-    let haze: i32x4 = offset.max(i32x4::ZERO) >> 8_u32;
-    let [r, g, b, _] = (scaled + haze).min(i32x4::splat(255)).to_array();
+    let scaled: i32x4 = (rgb * i32x4::splat(factor as i32)) >> (8 + FIXED_BITS);
+    let [r, g, b, _] = (scaled + (offset >> 8_u32)).min(i32x4::splat(255)).to_array();
     [r as u8, g as u8, b as u8]
 }
 
