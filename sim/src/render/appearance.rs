@@ -2,7 +2,8 @@
 //! the detail textures, and the colours of the floor and the fog by depth.
 
 use nalgebra::Vector3;
-use wide::i32x4;
+use wide::bytemuck::cast;
+use wide::{f32x4, i16x8, i32x4, i32x8, u8x16};
 
 use super::truncated_index;
 use crate::distance::distance_to;
@@ -327,12 +328,12 @@ fn to_fixed(factor: f64) -> u16 {
     (factor * (1 << FIXED_BITS) as f64).round().clamp(0.0, u16::MAX as f64) as u16
 }
 
-/// `rgb` times a fixed-point factor, plus `offset`, saturated to a pixel.
+/// `rgb` times a fixed-point factor, plus `offset`, rounded and saturated to a pixel.
 #[inline]
 pub(super) fn shade(rgb: [f32; 3], factor: u32, offset: [f32; 3]) -> [u8; 3] {
     let f = factor as f32 * (1.0 / (1 << FIXED_BITS) as f32);
-    let channel = |k: usize| (rgb[k] * f + offset[k] + 0.5) as u8;
-    [channel(0), channel(1), channel(2)]
+    let lanes = |c: [f32; 3]| f32x4::new([c[0], c[1], c[2], 0.0]);
+    saturated_pixel((lanes(rgb) * f32x4::splat(f) + lanes(offset) + f32x4::splat(0.5)).fast_trunc_int())
 }
 
 /// The same in fixed point: `rgb` and `offset` in 1/256 in the first three lanes, none negative,
@@ -340,8 +341,15 @@ pub(super) fn shade(rgb: [f32; 3], factor: u32, offset: [f32; 3]) -> [u8; 3] {
 #[inline]
 pub(super) fn shade_fixed(rgb: i32x4, factor: u32, offset: i32x4) -> [u8; 3] {
     let scaled: i32x4 = (rgb * i32x4::splat(factor as i32)) >> (8 + FIXED_BITS);
-    let [r, g, b, _] = (scaled + (offset >> 8_u32)).min(i32x4::splat(255)).to_array();
-    [r as u8, g as u8, b as u8]
+    saturated_pixel(scaled + (offset >> 8_u32))
+}
+
+/// The first three lanes as a pixel, each saturated to 0..=255 by the processor's packs.
+#[inline]
+fn saturated_pixel(lanes: i32x4) -> [u8; 3] {
+    let wide: i32x8 = cast([lanes, i32x4::ZERO]);
+    let [r, g, b, ..] = u8x16::narrow_i16x8(i16x8::from_i32x8_saturate(wide), i16x8::ZERO).to_array();
+    [r, g, b]
 }
 
 pub(super) fn to_rgb8(rgb: [f32; 3]) -> [u8; 3] {
