@@ -347,8 +347,8 @@ pub(super) fn shade_fixed(rgb: i32x4, factor: u32, offset: i32x4) -> [u8; 3] {
 /// The first three lanes as a pixel, each saturated to 0..=255 by the processor's packs.
 #[inline]
 fn saturated_pixel(lanes: i32x4) -> [u8; 3] {
-    let wide: i32x8 = cast([lanes, i32x4::ZERO]);
-    let [r, g, b, ..] = u8x16::narrow_i16x8(i16x8::from_i32x8_saturate(wide), i16x8::ZERO).to_array();
+    let padded: i32x8 = cast([lanes, i32x4::ZERO]);
+    let [r, g, b, ..] = u8x16::narrow_i16x8(i16x8::from_i32x8_saturate(padded), i16x8::ZERO).to_array();
     [r, g, b]
 }
 
@@ -429,4 +429,31 @@ pub(super) fn lerp3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
 
 pub(super) fn scale3(rgb: [f32; 3], factor: f32) -> [f32; 3] {
     [rgb[0] * factor, rgb[1] * factor, rgb[2] * factor]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pixel_saturates_each_channel_as_a_float_to_byte_conversion_does() {
+        for value in [-70_000, -1, 0, 1, 128, 254, 255, 256, 40_000, 70_000] {
+            let [r, g, b] = saturated_pixel(i32x4::new([value, value / 2, -value, 9]));
+            assert_eq!([r, g, b], [value, value / 2, -value].map(|v| v as f32 as u8), "{value}");
+        }
+    }
+
+    #[test]
+    fn float_and_fixed_point_shading_agree_within_a_level() {
+        let (rgb, haze) = ([180.5, 97.25, 300.0], [12.75, 0.0, 3.5]);
+        let fixed = |c: [f32; 3]| i32x4::new([c[0], c[1], c[2], 0.0].map(|v| (v * 256.0) as i32));
+        for factor in [0, 100, 256, 300, 511] {
+            let float = shade(rgb, factor, haze);
+            let exact = shade_fixed(fixed(rgb), factor, fixed(haze));
+            for (f, x) in float.iter().zip(exact) {
+                assert!(f.abs_diff(x) <= 1, "factor {factor}: {float:?} against {exact:?}");
+            }
+        }
+        assert_eq!(shade(rgb, 300, haze)[2], 255, "a channel above 255 saturates");
+    }
 }

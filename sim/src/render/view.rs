@@ -196,3 +196,19 @@ pub(super) fn ceil_row(row: f64) -> usize {
     let whole = truncated_index(row);
     if (whole as f64) < row { whole + 1 } else { whole }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn whole_pixels_are_those_between_two_fractional_coordinates_within_the_limits() {
+        assert_eq!(whole_pixels(2.5, 7.0, 0..100), 3..8);
+        assert_eq!(whole_pixels(3.0, 6.9, 0..100), 3..7);
+        assert_eq!(whole_pixels(-4.2, 2.1, 1..100), 1..3);
+        assert_eq!(whole_pixels(95.5, 130.0, 0..100), 96..100);
+        assert!(whole_pixels(-9.0, -3.5, 0..100).is_empty());
+        assert!(whole_pixels(4.2, 4.8, 0..100).is_empty());
+        assert!(whole_pixels(120.0, 140.0, 0..100).is_empty());
+    }
+}
