@@ -1,6 +1,8 @@
 //! How the world looks, baked once per world: the terrain's shading and colours node by node,
 //! the detail textures, and the colours of the floor and the fog by depth.
 
+use std::ops::{Add, Mul, Sub};
+
 use nalgebra::Vector3;
 use wide::bytemuck::cast;
 use wide::{f32x4, i16x8, i32x4, i32x8, u8x16};
@@ -91,21 +93,21 @@ impl PackedShade {
         PackedShade([byte(shade.rock, 255.0), byte(shade.floor, FLOOR_PACKING), byte(shade.sun, 255.0), facing])
     }
 
-    fn unpack(self) -> NodeShade {
-        let [rock, floor, sun, facing] = self.0;
-        let facing = [Facing::Up, Facing::AlongX, Facing::AlongY][facing as usize % 3];
-        NodeShade { rock: rock as f32 / 255.0, floor: floor as f32 / FLOOR_PACKING, sun: sun as f32 / 255.0, facing }
+    /// Rock, floor, sun and facing as floats, in their packed units.
+    fn lanes(self) -> f32x4 {
+        f32x4::new(self.0.map(f32::from))
+    }
+
+    /// The shade whose rock, floor and sun are the first three of `lanes` in the packed units,
+    /// facing as this one.
+    fn with_lanes(self, lanes: f32x4) -> NodeShade {
+        let [rock, floor, sun, _] = (lanes / f32x4::new([255.0, FLOOR_PACKING, 255.0, 1.0])).to_array();
+        let facing = [Facing::Up, Facing::AlongX, Facing::AlongY][self.0[3] as usize % 3];
+        NodeShade { rock, floor, sun, facing }
     }
 
     fn rock(self) -> f32 {
         self.0[0] as f32 / 255.0
-    }
-}
-
-impl NodeShade {
-    /// This shade's facing with rock, floor and sun given in their packed units.
-    fn with_bytes(self, rock: f32, floor: f32, sun: f32) -> NodeShade {
-        NodeShade { rock: rock / 255.0, floor: floor / FLOOR_PACKING, sun: sun / 255.0, ..self }
     }
 }
 
@@ -172,9 +174,8 @@ impl Appearance {
     /// nearest node's).
     pub(super) fn shade_at(&self, x: f64, y: f64) -> NodeShade {
         let (corners, [fx, fy]) = self.corners_around(x, y);
-        let blend = |k: usize| bilinear(corners.map(|p| p.0[k] as f32), fx, fy);
         let nearest = corners[(fx >= 0.5) as usize + 2 * (fy >= 0.5) as usize];
-        PackedShade([0, 0, 0, nearest.0[3]]).unpack().with_bytes(blend(0), blend(1), blend(2))
+        nearest.with_lanes(bilinear(corners.map(PackedShade::lanes), fx, fy))
     }
 
     /// The four nodes around (x, y) (lower-left, lower-right, upper-left, upper-right) and where
@@ -274,8 +275,11 @@ impl Appearance {
 }
 
 /// The value at fractions (fx, fy) between four corner values (lower-left, lower-right,
-/// upper-left, upper-right).
-fn bilinear([a, b, c, d]: [f32; 4], fx: f32, fy: f32) -> f32 {
+/// upper-left, upper-right): numbers, or vectors of them lane by lane.
+fn bilinear<T>([a, b, c, d]: [T; 4], fx: f32, fy: f32) -> T
+where
+    T: Copy + Add<Output = T> + Sub<Output = T> + Mul<f32, Output = T>,
+{
     let top = a + (b - a) * fx;
     top + (c + (d - c) * fx - top) * fy
 }
