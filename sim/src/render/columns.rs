@@ -44,13 +44,14 @@ pub(super) fn level_rows(view: &LevelView, appearance: &Appearance, rows: &mut [
     let look = &appearance.look;
     for (v, row) in rows.iter_mut().enumerate() {
         let sky = to_rgb8(lerp3(look.sky_top_rgb, look.sky_horizon_rgb, (v as f64 / view.cy).min(1.0) as f32));
-        *row = LevelRow { sky, ..LevelRow::default() };
-        if v as f64 > view.cy {
+        *row = if v as f64 > view.cy {
             let depth = view.focal * view.camera.z.max(1e-3) / (v as f64 - view.cy);
             let (visible, haze) = fog_weights(depth);
             let rgb = scale3(appearance.floor_rgb(depth), visible);
-            *row = LevelRow { sky, depth, rgb, visible, haze };
-        }
+            LevelRow { sky, depth, rgb, visible, haze }
+        } else {
+            LevelRow { sky, ..LevelRow::default() }
+        };
     }
 }
 
