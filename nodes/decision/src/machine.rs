@@ -501,10 +501,10 @@ impl Machine {
             >= self.params.frames(self.params.stall_s)
     }
 
-    /// Makes the cell ahead of the stuck rover an obstacle for planning for a while, so that the
+    /// Makes a cell at the stuck rover's front an obstacle for planning for a while, so that the
     /// next plan leads around what the map did not show.
     fn mark_stuck_cell(&mut self, obs: &Observation) {
-        if let Some(cell) = self.stuck_marks.note_stuck(&obs.position, obs.frame, &self.params) {
+        if let Some(cell) = self.stuck_marks.note_stuck(&obs.position, obs.frame, self.planning.grid(), &self.params) {
             tracing::debug!(cell = ?cell_centre_m(cell), "stuck: the cell ahead is an obstacle for a while");
             self.apply_stuck_marks();
         }
@@ -517,6 +517,14 @@ impl Machine {
             _ => {}
         }
         let turn_left = obs.free.most_open() >= 0.0;
+        tracing::debug!(
+            at = ?(obs.position.x_m, obs.position.y_m),
+            yaw_deg = obs.position.yaw_rad.to_degrees(),
+            pitch_deg = obs.pitch_rad.to_degrees(),
+            roll_deg = obs.roll_rad.to_degrees(),
+            turn_left,
+            "recovering"
+        );
         let then_home = matches!(self.state, State::ReturnHome(_));
         self.enter(State::Recover { since_frame: obs.frame, turn_left, then_home }, reason);
     }
@@ -757,17 +765,24 @@ impl Machine {
             return self.approach(obs, chase);
         }
         let mut route = route.or_else(|| Route::to(home));
-        let waypoint = route
-            .as_mut()
-            .and_then(|r| {
-                r.waypoint(&PlanStart { map: &self.planning, at: &obs.position, frame: obs.frame, params: &p })
-            })
-            .unwrap_or(home);
+        let mut waypoint = self.waypoint_on(route.as_mut(), obs);
+        if waypoint.is_none() && self.forget_stuck_marks() {
+            tracing::info!("home unreachable: the cells where the rover got stuck are free again");
+            waypoint = self.waypoint_on(route.as_mut(), obs);
+        }
+        let waypoint = waypoint.unwrap_or(home);
         let bearing = obs.position.bearing_to(waypoint);
         let cruise = p.max_speed_mps.min(distance_m.max(p.approach_speed_mps));
         let drive = self.steering.around_obstacles(bearing, cruise, obs.speed_mps, &obs.free, &p);
         self.state = State::ReturnHome(route);
         drive
+    }
+
+    /// The point of `route` to steer toward from the rover's position on the planning map; none
+    /// without a route or when its goal cannot be reached.
+    fn waypoint_on(&self, route: Option<&mut Route>, obs: &Observation) -> Option<(f64, f64)> {
+        let start = PlanStart { map: &self.planning, at: &obs.position, frame: obs.frame, params: &self.params };
+        route?.waypoint(&start)
     }
 }
 
@@ -1102,6 +1117,27 @@ mod tests {
         machine.frame += 1;
         machine.set_map(corridor());
         assert_eq!(machine.planning.grid().cell(ahead), Cell::Free, "until the mark expires");
+    }
+
+    #[test]
+    fn a_way_home_that_the_stuck_marks_cut_off_is_planned_again_without_them() {
+        let params = DecisionParams::default();
+        let mut machine = machine_on(corridor());
+        machine.step(&observation(1, 100.5, 100.5));
+        for y in 98..103 {
+            let facing_the_corridor_wall = Position { x_m: 119.5, y_m: y as f64 + 0.5, yaw_rad: 0.0 };
+            machine.stuck_marks.note_stuck(&facing_the_corridor_wall, 2, machine.planning.grid(), &params);
+            machine.apply_stuck_marks();
+        }
+        let across = cell_of_point(120.5, 100.5).unwrap();
+        assert_eq!(machine.planning.grid().cell(across), Cell::Blocked, "the marks close the corridor");
+        machine.enter(State::ReturnHome(None), "test");
+        let mut beyond_the_marks = observation(3, 125.5, 100.5);
+        beyond_the_marks.position.yaw_rad = std::f64::consts::PI;
+        let drive = machine.step(&beyond_the_marks);
+        assert_eq!(machine.planning.grid().cell(across), Cell::Free, "the marks are forgotten");
+        assert!(!machine.path().is_empty(), "a route home along the corridor");
+        assert!(drive.throttle > 0.0 && drive.steering_deg.abs() < 1.0, "straight home: {drive:?}");
     }
 
     #[test]

@@ -4,15 +4,20 @@
 
 use rover_msgs::map_grid::cell_of_point;
 
-use crate::grid::Grid;
+use crate::grid::{Cell, Grid};
 use crate::params::DecisionParams;
 use crate::pose::Position;
 
 /// The cell ahead of a spot where the rover got stuck is an obstacle for planning for this long,
 /// seconds.
 pub(crate) const STUCK_MARK_S: f64 = 120.0;
-/// The marked cell is the one this far ahead of the rover's position: its front, metres.
+/// The marked cell is one this far ahead of the rover's position: its front, metres.
 const STUCK_MARK_AHEAD_M: f64 = 0.9;
+/// Where along the rover's front a mark goes, metres to the left of its heading: straight ahead
+/// first; when the rover gets stuck again where that cell is blocked already, the next of these
+/// that is not (a mark on a blocked cell would change no plan, and the next one would lead the
+/// rover into the same spot again).
+const STUCK_MARK_LATERAL_M: [f64; 5] = [0.0, 1.0, -1.0, 2.0, -2.0];
 
 /// Watches the rover's progress: how long it has stayed within some distance of one spot.
 #[derive(Debug, Clone, Copy, Default)]
@@ -86,11 +91,19 @@ pub struct StuckMarks {
 }
 
 impl StuckMarks {
-    /// Notes that the rover `at` got stuck at `frame`: the cell ahead of it is marked until
-    /// [`STUCK_MARK_S`] later, and returned (none off the map).
-    pub fn note_stuck(&mut self, at: &Position, frame: u64, params: &DecisionParams) -> Option<usize> {
-        let ahead = at.point_at(0.0, STUCK_MARK_AHEAD_M);
-        let cell = cell_of_point(ahead.0, ahead.1)?;
+    /// Notes that the rover `at` got stuck at `frame`: the first cell along its front
+    /// ([`STUCK_MARK_LATERAL_M`]) that `planning` (the map planned on, these marks included) does
+    /// not block is marked until [`STUCK_MARK_S`] later, and returned (none when all are blocked
+    /// or off the map).
+    pub fn note_stuck(&mut self, at: &Position, frame: u64, planning: &Grid, params: &DecisionParams) -> Option<usize> {
+        let cell = STUCK_MARK_LATERAL_M
+            .iter()
+            .filter_map(|&lateral_m| {
+                let bearing_rad = lateral_m.atan2(STUCK_MARK_AHEAD_M);
+                let ahead = at.point_at(bearing_rad, STUCK_MARK_AHEAD_M.hypot(lateral_m));
+                cell_of_point(ahead.0, ahead.1)
+            })
+            .find(|&cell| planning.cell(cell) != Cell::Blocked)?;
         self.marks.push((cell, frame + params.frames(STUCK_MARK_S)));
         Some(cell)
     }
@@ -122,8 +135,9 @@ impl StuckMarks {
 
 #[cfg(test)]
 mod tests {
+    use rover_msgs::map_grid::cell_centre_m;
+
     use super::*;
-    use crate::grid::Cell;
     use crate::test_maps::{at, half_explored};
 
     #[test]
@@ -151,9 +165,9 @@ mod tests {
     fn getting_stuck_marks_the_cell_ahead_until_the_mark_expires() {
         let params = DecisionParams::default();
         let mut marks = StuckMarks::default();
-        let cell = marks.note_stuck(&at(30.5, 51.5), 10, &params).expect("on the map");
-        assert_eq!(cell, cell_of_point(31.4, 51.5).unwrap(), "the cell ahead");
         let map = half_explored();
+        let cell = marks.note_stuck(&at(30.5, 51.5), 10, &map, &params).expect("on the map");
+        assert_eq!(cell, cell_of_point(31.4, 51.5).unwrap(), "the cell ahead");
         assert_eq!((map.cell(cell), marks.applied_to(&map).cell(cell)), (Cell::Free, Cell::Blocked));
         let until = 10 + params.frames(STUCK_MARK_S);
         assert_eq!(marks.applied_at(&map, until - 1).cell(cell), Cell::Blocked, "still marked then");
@@ -163,6 +177,25 @@ mod tests {
         marks.expire(until);
         assert_eq!(marks.applied_to(&map).cell(cell), Cell::Free, "expired");
         assert!(!marks.forget(), "nothing left to forget");
-        assert_eq!(marks.note_stuck(&at(-5.0, 51.5), 20, &params), None, "off the map");
+        assert_eq!(marks.note_stuck(&at(-5.0, 51.5), 20, &map, &params), None, "off the map");
+    }
+
+    #[test]
+    fn getting_stuck_again_where_the_cell_ahead_is_blocked_marks_the_front_beside_it() {
+        let params = DecisionParams::default();
+        let mut marks = StuckMarks::default();
+        let rover = at(30.5, 51.5);
+        let mut cells = Vec::new();
+        let mut planning = half_explored();
+        while let Some(cell) = marks.note_stuck(&rover, 10, &planning, &params) {
+            cells.push(cell_centre_m(cell));
+            planning = marks.applied_to(&half_explored());
+        }
+        assert_eq!(
+            cells,
+            [(31.5, 51.5), (31.5, 52.5), (31.5, 50.5), (31.5, 53.5)],
+            "ahead, then left and right of it, one cell each time the rover gets stuck there, up to the \
+             corridor's walls"
+        );
     }
 }
