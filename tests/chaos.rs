@@ -1,8 +1,8 @@
 //! Chaos test: one full mission, graph in separate processes, in which each of the five nodes in
 //! turn is SIGKILLed at a random moment and started again by the graph's respawn. The mission
-//! completes; home and the collected count never change across a restart; the mapped share never
-//! drops by more than a point. The kill moments come from `CHAOS_SEED` (printed; default: the
-//! clock), so a failing run can be repeated.
+//! completes; home and the collected count never change across a restart; after a kill the mapped
+//! share drops by at most a point more than it does anywhere else in the mission. The kill moments
+//! come from `CHAOS_SEED` (printed; default: the clock), so a failing run can be repeated.
 
 mod support;
 
@@ -27,7 +27,10 @@ const FIRST_SLOT_S: f64 = 20.0;
 /// end at 320 s, before the mission on world 0 can end (404-489 s measured in the graph; with
 /// slots of 90 s the last kill could come after a quick mission had ended).
 const SLOT_S: f64 = 60.0;
-/// How far the mapped share may drop after a kill, below its value at the kill, percentage points.
+/// How far the mapped share may drop after a kill, below its value at the kill, percentage points,
+/// beyond the largest drop of the same mission away from the kills (new views can turn mapped
+/// floor into obstacle for a while: 1.2 points within 30 s after a kill of the decision node,
+/// which holds no map, was seen).
 const MAPPED_DROP_LIMIT_PCT: f64 = 1.0;
 /// The drop is watched for this long after each kill, simulated seconds.
 const AFTER_KILL_S: f64 = 30.0;
@@ -112,6 +115,9 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
     assert!(log("decision").contains("recalled the exploration from"), "the new decision node read its snapshot");
     let home = check_map_stats(&map_stats.all()).unwrap_or_else(|problem| panic!("{problem}"));
     println!("home ({:.2}, {:.2}) throughout", home.0, home.1);
+    let kill_times: Vec<f64> = chaos.kills().iter().map(|kill| kill.at_sim_s).collect();
+    let usual_drop = largest_drop_away_from(&mapped_pct, &kill_times);
+    println!("away from the kills the mapped share dropped at most {usual_drop:.2} points within {AFTER_KILL_S} s");
     for kill in chaos.kills() {
         let drop = mapped_drop_after(&mapped_pct, kill.at_sim_s);
         println!(
@@ -119,7 +125,10 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
             kill.node.name(),
             kill.at_sim_s
         );
-        assert!(drop <= MAPPED_DROP_LIMIT_PCT, "the mapped share dropped {drop:.2} points after {kill:?}");
+        assert!(
+            drop <= usual_drop + MAPPED_DROP_LIMIT_PCT,
+            "the mapped share dropped {drop:.2} points after {kill:?}, {usual_drop:.2} at most elsewhere"
+        );
     }
     let timeline = &result.timeline;
     assert_eq!(timeline.collected_at_s.len(), result.collected, "a time for each collection: {timeline:?}");
@@ -142,6 +151,13 @@ fn mapped_drop_after(samples: &[(f64, f64)], kill_s: f64) -> f64 {
         .map(|s| s.1)
         .fold(f64::INFINITY, f64::min);
     (at_kill - lowest_after).max(0.0)
+}
+
+/// The largest [`mapped_drop_after`] from a sample's moment that is not within [`AFTER_KILL_S`]
+/// of a kill in `kills_s`: how far the mapped share falls in the mission of its own accord.
+fn largest_drop_away_from(samples: &[(f64, f64)], kills_s: &[f64]) -> f64 {
+    let near_a_kill = |t: f64| kills_s.iter().any(|kill_s| (t - kill_s).abs() <= AFTER_KILL_S);
+    samples.iter().filter(|(t, _)| !near_a_kill(*t)).map(|(t, _)| mapped_drop_after(samples, *t)).fold(0.0, f64::max)
 }
 
 /// The decision log's lines about mode changes and resumption, for a failure message.
