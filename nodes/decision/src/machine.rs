@@ -505,7 +505,7 @@ impl Machine {
     /// next plan leads around what the map did not show.
     fn mark_stuck_cell(&mut self, obs: &Observation) {
         if let Some(cell) = self.stuck_marks.note_stuck(&obs.position, obs.frame, self.planning.grid(), &self.params) {
-            tracing::debug!(cell = ?cell_centre_m(cell), "stuck: the cell ahead is an obstacle for a while");
+            tracing::debug!(cell = ?cell_centre_m(cell), "stuck: a cell at the front is an obstacle for a while");
             self.apply_stuck_marks();
         }
     }

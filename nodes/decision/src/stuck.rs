@@ -1,5 +1,5 @@
-//! Getting stuck: watches of the rover's progress, and the cells ahead of spots where it got
-//! stuck, which planning takes as obstacles for a while (the map says free what the rover cannot
+//! Getting stuck: watches of the rover's progress, and the cells at the rover's front where it
+//! got stuck, which planning takes as obstacles for a while (the map says free what the rover cannot
 //! drive through).
 
 use rover_msgs::map_grid::cell_of_point;
@@ -8,8 +8,8 @@ use crate::grid::{Cell, Grid};
 use crate::params::DecisionParams;
 use crate::pose::Position;
 
-/// The cell ahead of a spot where the rover got stuck is an obstacle for planning for this long,
-/// seconds.
+/// A cell marked at the rover's front where it got stuck is an obstacle for planning for this
+/// long, seconds.
 pub(crate) const STUCK_MARK_S: f64 = 120.0;
 /// The marked cell is one this far ahead of the rover's position: its front, metres.
 const STUCK_MARK_AHEAD_M: f64 = 0.9;
