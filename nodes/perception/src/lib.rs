@@ -173,8 +173,7 @@ impl Perception {
         let entries = self.classes.iter_mut().zip(&table.entries);
         if self.colour_bits.is_some() {
             for (class, entry) in entries {
-                let (all, any) = table.tap_bits(entry, source);
-                *class = ColourBits::class_of_taps(all, any, entry.in_view).unwrap_or_else(|| interpolated(entry));
+                *class = table.decided_class(entry, source).unwrap_or_else(|| interpolated(entry));
             }
         } else {
             for (class, entry) in entries {

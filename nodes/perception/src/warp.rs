@@ -10,7 +10,7 @@
 
 use std::ops::Range;
 
-use crate::classify::ColourBits;
+use crate::classify::{Class, ColourBits};
 use crate::homography::{Matrix3, invert};
 
 /// Sub-pixel resolution of the source coordinates (OpenCV's INTER_BITS).
@@ -157,29 +157,42 @@ impl WarpTable {
         [channel(0), channel(1), channel(2)]
     }
 
-    /// The colour bits of the four taps of `entry` (see [`ColourBits`]): those all of them have,
-    /// and those any of them has.
+    /// The class of `entry` where the colour bits of its four taps decide it (see
+    /// [`BorderedImage::fill`]), else `None`.
     #[inline]
-    pub fn tap_bits(&self, entry: &WarpEntry, source: &BorderedImage) -> (u8, u8) {
-        let at = entry.tap as usize;
-        let (top, bottom) = (&source.bits[at..at + 2], &source.bits[at + self.stride_px..at + self.stride_px + 2]);
-        (top[0] & top[1] & bottom[0] & bottom[1], top[0] | top[1] | bottom[0] | bottom[1])
+    pub fn decided_class(&self, entry: &WarpEntry, source: &BorderedImage) -> Option<Class> {
+        match source.decided[entry.tap as usize] {
+            UNDECIDED => None,
+            OBSTACLE if !entry.in_view => Some(Class::Unknown),
+            OBSTACLE => Some(Class::Obstacle),
+            NAVIGABLE => Some(Class::Navigable),
+            _ => Some(Class::Rock),
+        }
     }
 }
 
+/// A plane value of [`BorderedImage`]'s decided classes: the taps do not decide the class.
+const UNDECIDED: u8 = u8::MAX;
+const OBSTACLE: u8 = Class::Obstacle as u8;
+const NAVIGABLE: u8 = Class::Navigable as u8;
+
 /// An RGB image inside a one-pixel black border: the taps of OpenCV's constant border that fall
-/// outside the image read black, without any test in the loop. With [`ColourBits`], each pixel's
-/// colour bits too, in a plane of the same layout.
+/// outside the image read black, without any test in the loop. With [`ColourBits`], also the
+/// class that each block of two by two pixels decides for a warped pixel in view whose top-left
+/// tap it starts at, in a plane of the same layout.
 #[derive(Debug, Clone, Default)]
 pub struct BorderedImage {
     data: Vec<u8>,
     bits: Vec<u8>,
+    decided: Vec<u8>,
 }
 
 impl BorderedImage {
     /// Copies rows `rows` of the `width` x `height` RGB pixels `rgb` into the bordered buffer
-    /// (the others read black), and their colour bits into the bits plane when `colour_bits` are
-    /// given.
+    /// (the others read black); when `colour_bits` are given, also the classes that their blocks
+    /// of two by two pixels decide ([`ColourBits::class_of_taps`]) for the blocks whose top-left
+    /// pixel lies in the bordered rows `rows.start..=rows.end`, which hold every top-left tap of
+    /// a table whose [`WarpTable::source_rows`] are `rows`.
     pub fn fill(
         &mut self,
         rgb: &[u8],
@@ -196,6 +209,7 @@ impl BorderedImage {
             self.data[start..start + width * 3].copy_from_slice(pixels);
         }
         self.bits.clear();
+        self.decided.clear();
         if let Some(colour_bits) = colour_bits {
             self.bits.resize(stride_px * (height + 2), colour_bits.of_pixel([0, 0, 0]));
             for (row, pixels) in image_rows() {
@@ -204,6 +218,21 @@ impl BorderedImage {
                     *bits = colour_bits.of_pixel([pixel[0], pixel[1], pixel[2]]);
                 }
             }
+            self.decide_blocks(stride_px, rows.start..(rows.end + 1).min(height + 1));
+        }
+    }
+
+    /// The decided class of every block of two by two pixels whose top-left pixel lies in the
+    /// bordered rows `rows` (but for the last column, where no tap starts), from the bits all four
+    /// pixels have and those any of them has.
+    fn decide_blocks(&mut self, stride_px: usize, rows: Range<usize>) {
+        self.decided.resize(self.bits.len(), UNDECIDED);
+        let (start, end) = (rows.start * stride_px, rows.end * stride_px);
+        let (top, bottom) = (&self.bits[start..end], &self.bits[start + stride_px..end + stride_px]);
+        let blocks = top.windows(2).zip(bottom.windows(2));
+        for (decided, (top, bottom)) in self.decided[start..end].iter_mut().zip(blocks) {
+            let (all, any) = (top[0] & top[1] & bottom[0] & bottom[1], top[0] | top[1] | bottom[0] | bottom[1]);
+            *decided = ColourBits::class_of_taps(all, any, true).map_or(UNDECIDED, |class| class as u8);
         }
     }
 }
