@@ -124,7 +124,7 @@ impl Probe {
         spawn_subscriber(subscription, tracing::Span::none(), move |m| sink.note(m.frame));
         let sink = terrain.clone();
         let subscription = node.subscription(&topics::TERRAIN).expect("subscribe");
-        spawn_subscriber(subscription, tracing::Span::none(), move |m| sink.note(m.frame));
+        spawn_subscriber(subscription, tracing::Span::none(), move |m| sink.note(m.telemetry.frame));
         let sink = drive.clone();
         let subscription = node.subscription(&topics::DRIVE_CMD).expect("subscribe");
         spawn_subscriber(subscription, tracing::Span::none(), move |m| sink.note(m.frame));

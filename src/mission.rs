@@ -172,7 +172,6 @@ pub fn run_in_process(
         let classes = perception.process_jpeg(&telemetry.image_jpeg)?;
         let scan = geometry.terrain_scan(classes, &message, Header::default());
         mapping.add_scan(&scan);
-        mapping.on_telemetry(&message);
         if mapping.publication_due() {
             mapping.mark_published();
             located.update(&mapping.map().rock_cells());
@@ -181,7 +180,7 @@ pub fn run_in_process(
             machine.receive_rocks(frame, mapping.rocks());
             mapped_pct = mapping.map().scores(&truth).mapped_pct;
         }
-        let observation = rover_decision::observation(&message, &scan, &mut rays);
+        let observation = rover_decision::observation(&scan, &mut rays);
         let drive = machine.step(&observation);
         // As the decision node does after publishing; here nothing runs beside it, but the missions
         // that check decisions to the metre go through the plans it makes ahead.

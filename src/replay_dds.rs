@@ -58,7 +58,7 @@ pub async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> any
         let answered = tokio::time::timeout(SCAN_TIMEOUT, async {
             loop {
                 tokio::select! {
-                    Some(scan) = scans.next() => if scan.frame == number { return true },
+                    Some(scan) = scans.next() => if scan.telemetry.frame == number { return true },
                     Some(s) = stats.next() => latest = Some(s),
                     else => return false,
                 }

@@ -153,14 +153,19 @@ async fn bad_frames_are_logged_counted_and_skipped() {
     tester.send(1003, 1003, good.clone(), f64::NAN);
     tester.send(1004, 1004, good.clone(), 99.7);
     assert!(
-        eventually(Duration::from_secs(10), || tester.scans.all().iter().any(|s| s.frame == 1004)),
+        eventually(Duration::from_secs(10), || tester.scans.all().iter().any(|s| s.telemetry.frame == 1004)),
         "a good frame after the bad ones is processed"
     );
-    assert!(!tester.scans.all().iter().any(|s| (1001..=1003).contains(&s.frame)), "bad frames produce no scan");
-    let scan = tester.scans.all().into_iter().find(|s| s.frame == 1004).unwrap();
-    tester.scans_out.publish(TerrainScan { frame: 1000, ..scan.clone() }).unwrap();
-    tester.scans_out.publish(TerrainScan { frame: 1005, x_m: f64::NAN, ..scan.clone() }).unwrap();
-    tester.scans_out.publish(TerrainScan { frame: 1006, rows: 3, cells: vec![1; 5], ..scan }).unwrap();
+    assert!(
+        !tester.scans.all().iter().any(|s| (1001..=1003).contains(&s.telemetry.frame)),
+        "bad frames produce no scan"
+    );
+    let scan = tester.scans.all().into_iter().find(|s| s.telemetry.frame == 1004).unwrap();
+    let with_telemetry = |frame, x_m| Telemetry { frame, x_m, ..scan.telemetry.clone() };
+    tester.scans_out.publish(TerrainScan { telemetry: with_telemetry(1000, 99.7), ..scan.clone() }).unwrap();
+    tester.scans_out.publish(TerrainScan { telemetry: with_telemetry(1005, f64::NAN), ..scan.clone() }).unwrap();
+    let malformed = TerrainScan { telemetry: with_telemetry(1006, 99.7), rows: 3, cells: vec![1; 5], ..scan.clone() };
+    tester.scans_out.publish(malformed).unwrap();
     tokio::time::sleep(Duration::from_millis(500)).await;
     perception.interrupt(STOP_TIMEOUT);
     mapping.interrupt(STOP_TIMEOUT);
@@ -181,9 +186,9 @@ async fn bad_frames_are_logged_counted_and_skipped() {
         &mapping_log,
         &[
             "frame 1000 arrived after frame 1004",
-            "rejected a rover/terrain message: field `x_m` = NaN",
+            "rejected a rover/terrain message: field `telemetry.x_m` = NaN",
             "rejected a rover/terrain message: field `cells` = 5 values (expected rows x cols = 960)",
-            "rejected 1 out_of_order, 1 rover/telemetry, 2 rover/terrain",
+            "rejected 1 out_of_order, 2 rover/terrain",
         ],
     );
 }
@@ -207,7 +212,14 @@ async fn a_mapping_node_asked_to_stop_first_maps_the_scans_already_sent_to_it() 
     // counts as the first match).
     tokio::time::sleep(Duration::from_millis(500)).await;
     for frame in 1..=SCANS_BEFORE_STOP {
-        tester.scans_out.publish(TerrainScan { header: stamp(frame as i32), frame, ..scan.clone() }).unwrap();
+        tester
+            .scans_out
+            .publish(TerrainScan {
+                header: stamp(frame as i32),
+                telemetry: Telemetry { frame, ..scan.telemetry.clone() },
+                ..scan.clone()
+            })
+            .unwrap();
     }
     mapping.interrupt(STOP_TIMEOUT);
     let log = mapping.log_text();

@@ -60,32 +60,27 @@ fn frame_and_pose() -> impl Strategy<Value = (u64, (f64, f64), (f32, f32, f32))>
     (frame(), (hostile_f64(), hostile_f64()), (hostile_f32(), hostile_f32(), hostile_f32()))
 }
 
-/// `$message { .. }` with the frame number and pose of `$pose` (see [`frame_and_pose`]) and the
-/// defaults for the fields not given.
-macro_rules! with_frame_and_pose {
-    ($pose:expr, $message:ident { $($field:ident $(: $value:expr)?),* $(,)? }) => {{
-        let (frame, (x_m, y_m), (yaw_rad, pitch_rad, roll_rad)) = $pose;
-        $message { frame, x_m, y_m, yaw_rad, pitch_rad, roll_rad, $($field $(: $value)?,)* ..$message::default() }
-    }};
-}
-
 /// Any `rover_msgs/Telemetry`.
 pub fn telemetry() -> impl Strategy<Value = Telemetry> {
     let drive = (hostile_f32(), hostile_f32(), hostile_f32(), hostile_f32());
     let flags = (any::<bool>(), any::<bool>(), any::<u8>());
-    (frame_and_pose(), drive, flags).prop_map(|(pose, drive, flags)| {
-        with_frame_and_pose!(
-            pose,
-            Telemetry {
-                speed_mps: drive.0,
-                throttle: drive.1,
-                brake: drive.2,
-                steering_angle_deg: drive.3,
-                near_sample: flags.0,
-                picking_up: flags.1,
-                samples_remaining: flags.2,
-            }
-        )
+    (frame_and_pose(), drive, flags).prop_map(|((frame, (x_m, y_m), (yaw_rad, pitch_rad, roll_rad)), drive, flags)| {
+        Telemetry {
+            frame,
+            x_m,
+            y_m,
+            yaw_rad,
+            pitch_rad,
+            roll_rad,
+            speed_mps: drive.0,
+            throttle: drive.1,
+            brake: drive.2,
+            steering_angle_deg: drive.3,
+            near_sample: flags.0,
+            picking_up: flags.1,
+            samples_remaining: flags.2,
+            ..Telemetry::default()
+        }
     })
 }
 
@@ -94,25 +89,24 @@ pub fn terrain_scan() -> impl Strategy<Value = TerrainScan> {
     let grid = (cell_size(), hostile_f32(), hostile_f32(), grid_side(), grid_side());
     let classes = (proptest::collection::vec(prop_oneof![8 => 0..=3u8, 1 => any::<u8>()], 0..64), any::<bool>());
     let sightings = (any::<u32>(), hostile_f32(), hostile_f32(), any::<bool>(), hostile_f32(), hostile_f32());
-    (frame_and_pose(), grid, classes, sightings).prop_map(|(pose, grid, (pattern, consistent), seen)| {
+    (telemetry(), grid, classes, sightings).prop_map(|(telemetry, grid, (pattern, consistent), seen)| {
         let (resolution_m, origin_x_m, origin_y_m, rows, cols) = grid;
-        with_frame_and_pose!(
-            pose,
-            TerrainScan {
-                resolution_m,
-                origin_x_m,
-                origin_y_m,
-                rows,
-                cols,
-                cells: cells(pattern, u64::from(rows) * u64::from(cols), consistent),
-                navigable_count: seen.0,
-                navigable_bearing_rad: seen.1,
-                navigable_distance_m: seen.2,
-                rock_seen: seen.3,
-                rock_bearing_rad: seen.4,
-                rock_distance_m: seen.5,
-            }
-        )
+        TerrainScan {
+            telemetry,
+            resolution_m,
+            origin_x_m,
+            origin_y_m,
+            rows,
+            cols,
+            cells: cells(pattern, u64::from(rows) * u64::from(cols), consistent),
+            navigable_count: seen.0,
+            navigable_bearing_rad: seen.1,
+            navigable_distance_m: seen.2,
+            rock_seen: seen.3,
+            rock_bearing_rad: seen.4,
+            rock_distance_m: seen.5,
+            ..TerrainScan::default()
+        }
     })
 }
 

@@ -165,7 +165,7 @@ impl Validate for Telemetry {
 
 impl Validate for TerrainScan {
     fn validate(&self) -> Result<(), InvalidField> {
-        frame_and_pose(self.frame, (self.x_m, self.y_m), [self.yaw_rad, self.pitch_rad, self.roll_rad])?;
+        self.telemetry.validate().map_err(|e| InvalidField { field: format!("telemetry.{}", e.field), ..e })?;
         finite_fields!(self: navigable_bearing_rad, navigable_distance_m, rock_bearing_rad, rock_distance_m)?;
         cell_size_m("resolution_m", self.resolution_m)?;
         position_m("origin_x_m", self.origin_x_m)?;
@@ -254,8 +254,8 @@ mod tests {
     #[test]
     fn a_scan_with_a_non_finite_pose_or_summary_is_named() {
         assert_eq!(
-            message_of(TerrainScan { x_m: f64::NAN, ..scan() }),
-            "field `x_m` = NaN (expected a number in [-10000, 10000])"
+            message_of(TerrainScan { telemetry: Telemetry { x_m: f64::NAN, ..Telemetry::default() }, ..scan() }),
+            "field `telemetry.x_m` = NaN (expected a number in [-10000, 10000])"
         );
         assert_eq!(
             message_of(TerrainScan { rock_distance_m: f32::NEG_INFINITY, ..scan() }),

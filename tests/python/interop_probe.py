@@ -76,9 +76,9 @@ TOPICS = [
     GraphTopic("camera/camera_info", CameraInfo, publisher="bridge"),
     GraphTopic("odom", Odometry, publisher="bridge"),
     GraphTopic("/tf", TFMessage, publisher="bridge"),
-    GraphTopic("rover/telemetry", Telemetry, publisher="bridge", subscriber="decision"),
+    GraphTopic("rover/telemetry", Telemetry, publisher="bridge", subscriber="pickup"),
     GraphTopic("sim/sample_truth", PoseArray, publisher="bridge", latched=True),
-    GraphTopic("rover/terrain", TerrainScan, publisher="perception", subscriber="mapping"),
+    GraphTopic("rover/terrain", TerrainScan, publisher="perception", subscriber="decision"),
     GraphTopic("rover/vision", Image, publisher="perception", subscriber="bridge"),
     GraphTopic("map", OccupancyGrid, publisher="mapping", subscriber="decision", latched=True),
     GraphTopic("map/image", Image, publisher="mapping", subscriber="bridge"),
@@ -290,7 +290,7 @@ class Probe:
             problems.append(f"{len(msg.cells)} cells for {msg.rows}x{msg.cols}")
         elif max(msg.cells) > TerrainScan.ROCK:
             problems.append(f"cell class {max(msg.cells)}")
-        if not (finite(msg.x_m, msg.y_m, msg.yaw_rad, msg.resolution_m) and msg.resolution_m > 0):
+        if not (finite(msg.telemetry.x_m, msg.telemetry.y_m, msg.telemetry.yaw_rad, msg.resolution_m) and msg.resolution_m > 0):
             problems.append("non-finite pose or resolution")
         if msg.navigable_count and not finite(msg.navigable_bearing_rad, msg.navigable_distance_m):
             problems.append("non-finite navigable summary")

@@ -21,16 +21,17 @@ pub mod stuck;
 mod test_maps;
 pub mod tour;
 
-use rover_msgs::msg::{Telemetry, TerrainScan};
+use rover_msgs::msg::TerrainScan;
 use rover_node::{Rejections, topics};
 
 use crate::local::FreeSpaceRays;
 use crate::machine::{Observation, Sighting};
 use crate::pose::Position;
 
-/// The observation of one frame: the telemetry and the terrain scan of its camera image, both of
-/// which must have passed their checks (see [`checked_observation`]).
-pub fn observation(telemetry: &Telemetry, scan: &TerrainScan, rays: &mut FreeSpaceRays) -> Observation {
+/// The observation of one frame: the terrain scan of its camera image and the telemetry the scan
+/// carries, which must have passed their checks (see [`checked_observation`]).
+pub fn observation(scan: &TerrainScan, rays: &mut FreeSpaceRays) -> Observation {
+    let telemetry = &scan.telemetry;
     Observation {
         frame: telemetry.frame,
         position: Position { x_m: telemetry.x_m, y_m: telemetry.y_m, yaw_rad: telemetry.yaw_rad as f64 },
@@ -47,17 +48,15 @@ pub fn observation(telemetry: &Telemetry, scan: &TerrainScan, rays: &mut FreeSpa
     }
 }
 
-/// The observation of one frame received from DDS, if the telemetry and the scan pass their
-/// checks; one that does not is counted and logged in `rejections` (a scan with a zero cell size
-/// would otherwise lay its free-space rays forever).
+/// The observation of one frame received from DDS, if the scan and the telemetry it carries pass
+/// their checks; one that does not is counted and logged in `rejections` (a scan with a zero cell
+/// size would otherwise lay its free-space rays forever).
 pub fn checked_observation(
-    telemetry: &Telemetry,
     scan: &TerrainScan,
     rays: &mut FreeSpaceRays,
     rejections: &mut Rejections,
 ) -> Option<Observation> {
-    let valid = rejections.accept(topics::TELEMETRY.name, telemetry) && rejections.accept(topics::TERRAIN.name, scan);
-    valid.then(|| observation(telemetry, scan, rays))
+    rejections.accept(topics::TERRAIN.name, scan).then(|| observation(scan, rays))
 }
 
 #[cfg(test)]
@@ -87,7 +86,7 @@ mod tests {
         std::thread::spawn(move || {
             let mut rejections = Rejections::default();
             let mut rays = FreeSpaceRays::for_decision(0.6);
-            let observed = checked_observation(&Telemetry::default(), &scan, &mut rays, &mut rejections);
+            let observed = checked_observation(&scan, &mut rays, &mut rejections);
             let _ = sender.send((observed, rejections));
         });
         receiver.recv_timeout(Duration::from_secs(1)).ok()

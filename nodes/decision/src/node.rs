@@ -1,5 +1,5 @@
-//! The decision node (`rover decision`): telemetry, terrain scans, the map and the located rocks in;
-//! one drive command per frame and the state machine's mode out.
+//! The decision node (`rover decision`): terrain scans (each with its frame's telemetry), the map
+//! and the located rocks in; one drive command per frame and the state machine's mode out.
 
 use std::collections::VecDeque;
 
@@ -12,7 +12,6 @@ use rover_msgs::map_grid::{SIDE_CELLS, cell_centre_m};
 use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, Telemetry, TerrainScan};
 use rover_msgs::nav_msgs::{OccupancyGrid, Path};
 use rover_msgs::std_msgs::Header;
-use rover_node::pairing::Pairer;
 use rover_node::snapshot::SnapshotFile;
 use rover_node::{Publisher, Rejections, Runtime, topics};
 use tracing::Instrument as _;
@@ -25,17 +24,14 @@ use crate::machine::{Machine, Memory, Observation};
 use crate::params::DecisionParams;
 use crate::snapshot::{self, Snapshot};
 
-/// How many unmatched telemetry messages or scans are kept while waiting for a partner.
-const PAIRING_BACKLOG: usize = 16;
 /// The mode is published at least every this many frames, even when it does not change.
 const STATUS_EVERY_FRAMES: u64 = 25;
-/// How many telemetry messages are remembered by stamp, to date the maps and rocks that come in.
+/// How many scans' frames are remembered by stamp, to date the maps and rocks that come in.
 const STAMPS_KEPT: usize = 64;
 
-/// The bridge's frame numbers of the last telemetry messages, by stamp. The mapping node stamps a
-/// map with its last scan, whose stamp is its telemetry's, so that the machine can put the map
-/// into effect at a fixed frame after it ([`crate::arrivals`]). Noted on arrival: a map may come
-/// in before its frame is decided (the mapping node and this one get the scan at the same time).
+/// The bridge's frame numbers of the last scans, by stamp. The mapping node stamps a map with its
+/// last scan, so that the machine can put the map into effect at a fixed frame after it
+/// ([`crate::arrivals`]).
 #[derive(Default)]
 struct FrameStamps {
     recent: VecDeque<(Time, u64)>,
@@ -73,8 +69,9 @@ struct Decision {
 impl Decision {
     /// Decides the frame's drive command and publishes it, then prepares the next frame's plan
     /// while the simulator and the other nodes work on that frame.
-    fn decide(&mut self, telemetry: &Telemetry, scan: &TerrainScan) {
-        let observation = checked_observation(telemetry, scan, &mut self.rays, &mut self.rejections);
+    fn decide(&mut self, scan: &TerrainScan) {
+        let telemetry = &scan.telemetry;
+        let observation = checked_observation(scan, &mut self.rays, &mut self.rejections);
         let position = observation.as_ref().map(|o| o.position);
         let drive = match observation {
             Some(observation) => {
@@ -233,44 +230,36 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         frames: 0,
         rejections: Rejections::default(),
     };
-    let mut telemetry = std::pin::pin!(node.messages(&topics::TELEMETRY)?);
     let mut scans = std::pin::pin!(node.messages(&topics::TERRAIN)?);
     let mut maps = std::pin::pin!(node.messages(&topics::MAP)?);
     let mut rocks = std::pin::pin!(node.messages(&topics::ROCKS)?);
     let mut stats = std::pin::pin!(node.messages(&topics::MAP_STATS)?);
-    let mut pairs: Pairer<u64, Telemetry, TerrainScan> = Pairer::new(PAIRING_BACKLOG);
     let mut snapshot_file = SnapshotFile::new(&decision.machine.params().state_dir, snapshot::FILE_NAME);
     decision.recall(&snapshot_file);
     let mut changes = params.watch();
     let shutdown = runtime.shutdown();
     async {
         loop {
-            let pair = tokio::select! {
+            tokio::select! {
                 () = shutdown.wait() => break,
-                Some(t) = telemetry.next() => {
-                    decision.stamps.note(&t.header.stamp, t.frame);
-                    pairs.push_first(t.frame, t)
+                Some(scan) = scans.next() => {
+                    decision.stamps.note(&scan.header.stamp, scan.telemetry.frame);
+                    decision.decide(&scan);
+                    decision.save_if_due(&mut snapshot_file);
                 }
-                Some(scan) = scans.next() => pairs.push_second(scan.frame, scan),
-                Some(map) = maps.next() => { decision.set_map(&map); None }
-                Some(located) = rocks.next() => { decision.set_rocks(&located); None }
-                Some(s) = stats.next() => { decision.resume_from(&s); None }
+                Some(map) = maps.next() => decision.set_map(&map),
+                Some(located) = rocks.next() => decision.set_rocks(&located),
+                Some(s) = stats.next() => decision.resume_from(&s),
                 Ok(()) = changes.changed() => {
                     let updated = changes.borrow_and_update().clone();
                     decision.machine.set_params(updated);
-                    None
                 }
-            };
-            if let Some((telemetry, scan)) = pair {
-                decision.decide(&telemetry, &scan);
-                decision.save_if_due(&mut snapshot_file);
             }
         }
         decision.save(&mut snapshot_file);
         tracing::info!(
-            "decision: {} frames decided, {} unpaired, rejected {}, final mode {}",
+            "decision: {} frames decided, rejected {}, final mode {}",
             decision.frames,
-            pairs.dropped(),
             decision.rejections,
             decision.machine.status().mode.name()
         );

@@ -1,6 +1,6 @@
 //! What the mapping node does with each message, as a plain type that the node and the in-process
-//! mission both run: scans ordered by stamp then frame, home taken from the first telemetry, the
-//! samples picked up counted and their rocks forgotten, the statistics of `rover/map_stats`, and
+//! mission both run: scans ordered by stamp then frame, home taken from the telemetry of the first
+//! scan, the samples picked up counted from the scans' telemetry and their rocks forgotten, the statistics of `rover/map_stats`, and
 //! the memory a snapshot keeps.
 
 use rover_msgs::geometry_msgs::PoseArray;
@@ -34,9 +34,8 @@ pub struct MappingCore {
     tally: SampleTally,
     home: Option<Home>,
     last_scan: Option<ScanOrder>,
-    /// Rocks picked up, to forget before the first scan taken after the pickup's telemetry
-    /// (telemetry and scans come on two topics, in either order): the pickup's place in time and
-    /// the rover's pose (x, y, yaw).
+    /// Rocks picked up, to forget before the scan after the one whose telemetry shows the pickup:
+    /// the pickup's place in time and the rover's pose (x, y, yaw).
     picked: Vec<(ScanOrder, [f64; 3])>,
     rejections: Rejections,
     frames_mapped: u64,
@@ -65,21 +64,26 @@ impl MappingCore {
         }
     }
 
-    /// Maps one terrain scan, unless it fails its checks or comes before the last scan taken.
+    /// Maps one terrain scan and follows the telemetry it carries, unless it fails its checks or
+    /// comes before the last scan taken.
     pub fn add_scan(&mut self, scan: &TerrainScan) {
         self.unpublished_scans += 1;
-        self.last_scan_frame = scan.frame;
-        if self.rejections.accept(topics::TERRAIN.name, scan) && self.in_order(scan) {
-            self.forget_rocks_picked_before(order_of(&scan.header, scan.frame));
+        self.last_scan_frame = scan.telemetry.frame;
+        if !self.rejections.accept(topics::TERRAIN.name, scan) {
+            return;
+        }
+        let order = order_of(&scan.header, scan.telemetry.frame);
+        if self.in_order(order) {
+            self.forget_rocks_picked_before(order);
             self.map_scan(scan);
+            self.follow_telemetry(&scan.telemetry, order);
         }
     }
 
-    /// Whether `scan` comes after the last scan taken (by stamp, then frame); it becomes the last.
-    fn in_order(&mut self, scan: &TerrainScan) -> bool {
-        let order = order_of(&scan.header, scan.frame);
+    /// Whether a scan at `order` comes after the last scan taken; it becomes the last.
+    fn in_order(&mut self, order: ScanOrder) -> bool {
         if let Some(last) = self.last_scan.filter(|&last| order <= last) {
-            let problem = format_args!("skipped a terrain scan: frame {} arrived after frame {}", scan.frame, last.2);
+            let problem = format_args!("skipped a terrain scan: frame {} arrived after frame {}", order.2, last.2);
             self.rejections.reject("out_of_order", &problem);
             return false;
         }
@@ -99,25 +103,17 @@ impl MappingCore {
         }
     }
 
-    /// Follows one telemetry frame: the first one is home; a drop of `samples_remaining` is a
-    /// sample picked up, whose rock evidence in front of the arm is forgotten.
-    pub fn on_telemetry(&mut self, telemetry: &Telemetry) {
-        if !self.rejections.accept(topics::TELEMETRY.name, telemetry) {
-            return;
-        }
+    /// Follows the telemetry of the scan at `order`: the first is home; a drop of
+    /// `samples_remaining` is a sample picked up, whose rock evidence in front of the arm is
+    /// forgotten before the next scan is mapped.
+    fn follow_telemetry(&mut self, telemetry: &Telemetry, order: ScanOrder) {
         self.home.get_or_insert(Home { frame: telemetry.frame, x_m: telemetry.x_m, y_m: telemetry.y_m });
         if self.tally.update(telemetry.samples_remaining) > 0 {
-            let pose = [telemetry.x_m, telemetry.y_m, telemetry.yaw_rad as f64];
-            self.picked.push((order_of(&telemetry.header, telemetry.frame), pose));
-            if let Some(last) = self.last_scan {
-                self.forget_rocks_picked_before(last);
-            }
+            self.picked.push((order, [telemetry.x_m, telemetry.y_m, telemetry.yaw_rad as f64]));
         }
     }
 
-    /// Forgets the rocks picked up before `order` (a scan's): a pickup lands between the same two
-    /// scans whichever of its telemetry and the scan of its frame came first (unless its
-    /// telemetry comes after a later scan, when it lands at once).
+    /// Forgets the rocks picked up before `order` (a scan's).
     fn forget_rocks_picked_before(&mut self, order: ScanOrder) {
         let map = &mut self.map;
         self.picked.retain(|&(picked_at, [x_m, y_m, yaw_rad])| {
@@ -252,15 +248,13 @@ mod tests {
 
     use super::*;
 
-    /// A scan of frame `frame` stamped `sec`, taken at (x, y) facing +x, that sees rock on a 2 m
-    /// square from 0.5 m ahead of the rover.
-    fn rock_scan(frame: u64, sec: i32, (x_m, y_m): (f64, f64)) -> TerrainScan {
+    /// A scan of frame `frame` stamped `sec`, taken at (x, y) facing +x with 6 samples on the
+    /// ground, that sees rock on a 2 m square from 0.5 m ahead of the rover.
+    fn rock_scan(frame: u64, sec: i32, position: (f64, f64)) -> TerrainScan {
         let (rows, cols) = (4, 4);
         TerrainScan {
             header: Header { stamp: Time { sec, nanosec: 0 }, frame_id: String::new() },
-            frame,
-            x_m,
-            y_m,
+            telemetry: telemetry(frame, position, 6),
             resolution_m: 0.5,
             origin_x_m: 0.5,
             origin_y_m: -1.0,
@@ -321,12 +315,17 @@ mod tests {
         assert_eq!(renumbered, [6 * every, 7 * every], "frames go on where a count of scans would drift");
     }
 
+    /// `scan` with `samples_remaining` samples on the ground.
+    fn with_samples(scan: TerrainScan, samples_remaining: u8) -> TerrainScan {
+        TerrainScan { telemetry: Telemetry { samples_remaining, ..scan.telemetry }, ..scan }
+    }
+
     #[test]
-    fn home_is_the_first_telemetry() {
+    fn home_is_where_the_first_scan_was_taken() {
         let mut mapping = core();
-        assert_eq!(mapping.stats(Header::default()).home_frame, 0, "no home before any telemetry");
-        mapping.on_telemetry(&telemetry(3, (99.0, 85.0), 6));
-        mapping.on_telemetry(&telemetry(4, (120.0, 90.0), 6));
+        assert_eq!(mapping.stats(Header::default()).home_frame, 0, "no home before any scan");
+        mapping.add_scan(&rock_scan(3, 3, (99.0, 85.0)));
+        mapping.add_scan(&rock_scan(4, 4, (120.0, 90.0)));
         assert_eq!(mapping.home(), Some(Home { frame: 3, x_m: 99.0, y_m: 85.0 }));
         let stats = mapping.stats(Header::default());
         assert_eq!((stats.home_frame, stats.home_x_m, stats.home_y_m), (3, 99.0, 85.0));
@@ -339,11 +338,11 @@ mod tests {
         for (frame, position) in [(1, picked), (2, picked), (3, other), (4, other)] {
             mapping.add_scan(&rock_scan(frame, frame as i32, position));
         }
-        assert_eq!(mapping.rocks().len(), 2);
-        mapping.on_telemetry(&telemetry(5, picked, 6));
         assert_eq!((mapping.samples_collected(), mapping.rocks().len()), (0, 2), "the first frame sets the count");
-        mapping.on_telemetry(&telemetry(6, picked, 5));
+        mapping.add_scan(&with_samples(rock_scan(5, 5, picked), 5));
         assert_eq!(mapping.samples_collected(), 1);
+        assert_eq!(mapping.rocks().len(), 2, "not forgotten before the next scan");
+        mapping.add_scan(&with_samples(rock_scan(6, 6, other), 5));
         let rocks = mapping.rocks();
         assert_eq!(rocks.len(), 1, "{rocks:?}");
         assert!((rocks[0].0 - other.0).hypot(rocks[0].1 - other.1) < 3.0, "the other rock stays: {rocks:?}");
@@ -351,48 +350,16 @@ mod tests {
     }
 
     #[test]
-    fn a_pickup_lands_between_the_same_scans_whichever_of_its_telemetry_and_scan_comes_first() {
-        let (picked, other) = ((100.0, 100.0), (150.0, 150.0));
-        let stamped = |frame: u64, samples| Telemetry {
-            header: Header { stamp: Time { sec: frame as i32, nanosec: 0 }, frame_id: String::new() },
-            ..telemetry(frame, picked, samples)
-        };
-        let map_after = |telemetry_first: bool| {
-            let mut mapping = core();
-            mapping.on_telemetry(&stamped(1, 6));
-            for frame in 1..=3 {
-                mapping.add_scan(&rock_scan(frame, frame as i32, picked));
-            }
-            let pickup_scan = rock_scan(4, 4, picked);
-            if telemetry_first {
-                mapping.on_telemetry(&stamped(4, 5));
-                mapping.add_scan(&pickup_scan);
-            } else {
-                mapping.add_scan(&pickup_scan);
-                mapping.on_telemetry(&stamped(4, 5));
-            }
-            assert_eq!(mapping.rocks().len(), 1, "not forgotten before the next scan");
-            mapping.add_scan(&rock_scan(5, 5, other));
-            (mapping.map().occupancy(), mapping.rocks())
-        };
-        let (telemetry_first, scan_first) = (map_after(true), map_after(false));
-        assert_eq!(telemetry_first, scan_first);
-        assert!(telemetry_first.1.iter().all(|rock| rock.0 > 140.0), "only the other rock: {:?}", telemetry_first.1);
-    }
-
-    #[test]
     fn a_restored_memory_carries_the_map_home_and_count_on() {
         let mut mapping = core();
-        mapping.on_telemetry(&telemetry(1, (100.0, 100.0), 6));
         mapping.add_scan(&rock_scan(1, 1, (100.0, 100.0)));
-        mapping.add_scan(&rock_scan(2, 2, (140.0, 100.0)));
-        mapping.on_telemetry(&telemetry(2, (140.0, 100.0), 5));
+        mapping.add_scan(&with_samples(rock_scan(2, 2, (140.0, 100.0)), 5));
         let mut restarted = core();
         restarted.restore(mapping.memory());
         assert_eq!(restarted.memory(), mapping.memory());
         assert_eq!(restarted.home(), Some(Home { frame: 1, x_m: 100.0, y_m: 100.0 }));
         assert_eq!(restarted.map().occupancy(), mapping.map().occupancy());
-        restarted.on_telemetry(&telemetry(3, (140.0, 100.0), 4));
+        restarted.add_scan(&with_samples(rock_scan(3, 3, (140.0, 100.0)), 4));
         assert_eq!(restarted.samples_collected(), 2, "a pickup since the snapshot still counts");
     }
 }

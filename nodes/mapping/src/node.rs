@@ -167,7 +167,6 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         started: Instant::now(),
     };
     let mut scans = std::pin::pin!(node.messages(&topics::TERRAIN)?);
-    let mut telemetry = std::pin::pin!(node.messages(&topics::TELEMETRY)?);
     let mut truth = std::pin::pin!(node.messages(&topics::SAMPLE_TRUTH)?);
     let mut changes = params.watch();
     let shutdown = runtime.shutdown();
@@ -185,7 +184,6 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
                     snapshots.write_if_due(&mapping, Duration::from_secs_f64(mapping.params().snapshot_every_ms / 1000.0));
                 }
             }
-            Some(t) = telemetry.next() => mapping.on_telemetry(&t),
             Some(samples) = truth.next() => mapping.set_samples_truth(&samples),
             () = tokio::time::sleep_until(flush_at.into()), if mapping.has_unpublished_scans() => outputs.publish(&mut mapping, node.header(frame_ids::MAP)),
             Ok(()) = changes.changed() => mapping.set_params(changes.borrow_and_update().clone()),
@@ -199,7 +197,6 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
                 mapping.add_scan(&scan);
                 quiet_until = Instant::now() + DRAIN_QUIET;
             }
-            Some(t) = telemetry.next() => mapping.on_telemetry(&t),
             () = tokio::time::sleep_until(quiet_until.min(stopped_at + DRAIN_LIMIT).into()) => break,
         }
     }

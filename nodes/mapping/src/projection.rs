@@ -22,12 +22,13 @@ pub struct Pose {
 impl Pose {
     /// The pose a `rover_msgs/TerrainScan` was taken at.
     pub fn of_scan(scan: &rover_msgs::msg::TerrainScan) -> Self {
+        let telemetry = &scan.telemetry;
         Pose {
-            x_m: scan.x_m,
-            y_m: scan.y_m,
-            yaw_rad: scan.yaw_rad as f64,
-            pitch_rad: scan.pitch_rad as f64,
-            roll_rad: scan.roll_rad as f64,
+            x_m: telemetry.x_m,
+            y_m: telemetry.y_m,
+            yaw_rad: telemetry.yaw_rad as f64,
+            pitch_rad: telemetry.pitch_rad as f64,
+            roll_rad: telemetry.roll_rad as f64,
         }
     }
 }

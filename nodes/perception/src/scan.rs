@@ -92,7 +92,7 @@ impl ScanGeometry {
         summary
     }
 
-    /// The `rover_msgs/TerrainScan` of a frame's classes, taken at the pose of `telemetry`.
+    /// The `rover_msgs/TerrainScan` of a frame's classes, carrying the frame's `telemetry`.
     pub fn terrain_scan(&self, classes: &[Class], telemetry: &Telemetry, header: Header) -> TerrainScan {
         let summary = self.summarize(classes);
         let mut cells = Vec::new();
@@ -100,12 +100,7 @@ impl ScanGeometry {
         let (rock_bearing_rad, rock_distance_m) = summary.rock.unwrap_or((0.0, 0.0));
         TerrainScan {
             header: Header { frame_id: frame_ids::BASE_LINK.to_string(), ..header },
-            frame: telemetry.frame,
-            x_m: telemetry.x_m,
-            y_m: telemetry.y_m,
-            yaw_rad: telemetry.yaw_rad,
-            pitch_rad: telemetry.pitch_rad,
-            roll_rad: telemetry.roll_rad,
+            telemetry: telemetry.clone(),
             resolution_m: self.resolution_m as f32,
             origin_x_m: self.origin_x_m as f32,
             origin_y_m: self.origin_y_m as f32,
