@@ -170,13 +170,12 @@ impl Perception {
     fn classify(&mut self) {
         let (table, source) = (&self.table, &self.source);
         let interpolated = |entry: &WarpEntry| self.thresholds.classify(table.sample(entry, source), entry.in_view);
-        let entries = self.classes.iter_mut().zip(&table.entries);
         if self.colour_bits.is_some() {
-            for (class, entry) in entries {
-                *class = table.decided_class(entry, source).unwrap_or_else(|| interpolated(entry));
+            for ((class, &tap), entry) in self.classes.iter_mut().zip(&table.taps).zip(&table.entries) {
+                *class = source.decided_class(tap).unwrap_or_else(|| interpolated(entry));
             }
         } else {
-            for (class, entry) in entries {
+            for (class, entry) in self.classes.iter_mut().zip(&table.entries) {
                 *class = interpolated(entry);
             }
         }

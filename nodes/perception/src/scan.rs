@@ -10,6 +10,9 @@ use crate::Calibration;
 use crate::classify::Class;
 use crate::warp::WarpTable;
 
+/// [`ScanGeometry::cell_of_entry`] of an entry beyond the range limit.
+pub const OUT_OF_RANGE: u32 = u32::MAX;
+
 /// Where the table entries fall in the rover-frame grid.
 #[derive(Debug, Clone)]
 pub struct ScanGeometry {
@@ -23,8 +26,8 @@ pub struct ScanGeometry {
     pub origin_x_m: f64,
     /// y of the grid's right edge, metres (left positive).
     pub origin_y_m: f64,
-    /// Grid cell of each table entry, or `None` beyond the range limit.
-    pub cell_of_entry: Vec<Option<u32>>,
+    /// Grid cell of each table entry, or [`OUT_OF_RANGE`] beyond the range limit.
+    pub cell_of_entry: Vec<u32>,
     /// Bearing (radians, positive left) and distance (metres) of each table entry from the rover.
     pub polar_of_entry: Vec<(f32, f32)>,
 }
@@ -42,7 +45,7 @@ impl ScanGeometry {
             let (x, y) = calibration.rover_position(entry.x as f64, entry.y as f64);
             polar_of_entry.push((y.atan2(x) as f32, x.hypot(y) as f32));
             let (row, col) = (h - 1 - entry.y as usize, w - 1 - entry.x as usize);
-            cell_of_entry.push((row < rows).then_some((row * w + col) as u32));
+            cell_of_entry.push(if row < rows { (row * w + col) as u32 } else { OUT_OF_RANGE });
         }
         ScanGeometry {
             rows,
@@ -59,9 +62,9 @@ impl ScanGeometry {
     pub fn fill(&self, classes: &[Class], cells: &mut Vec<u8>) {
         cells.clear();
         cells.resize(self.rows * self.cols, Class::Unknown as u8);
-        for (class, cell) in classes.iter().zip(&self.cell_of_entry) {
-            if let Some(cell) = cell {
-                cells[*cell as usize] = *class as u8;
+        for (&class, &cell) in classes.iter().zip(&self.cell_of_entry) {
+            if cell != OUT_OF_RANGE {
+                cells[cell as usize] = class as u8;
             }
         }
     }
@@ -162,7 +165,7 @@ mod tests {
         assert!((geometry.origin_x_m - (0.3279 - 0.05)).abs() < 1e-9, "{}", geometry.origin_x_m);
         let last_row_x = geometry.origin_x_m + (geometry.rows as f64 - 0.5) * geometry.resolution_m;
         assert!(last_row_x <= 8.0 + 1e-9 && last_row_x > 7.85, "{last_row_x}");
-        let in_range = geometry.cell_of_entry.iter().filter(|c| c.is_some()).count();
+        let in_range = geometry.cell_of_entry.iter().filter(|&&c| c != OUT_OF_RANGE).count();
         assert!(in_range > 5000 && in_range < perception.table().entries.len(), "{in_range}");
     }
 

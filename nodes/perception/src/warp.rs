@@ -51,6 +51,34 @@ pub struct WarpTable {
     pub stride_px: usize,
     /// The rows of the image that the entries' taps read (the others never matter).
     pub source_rows: Range<usize>,
+    /// The top-left tap of each entry, with its in-view flag: all that classifying an entry from
+    /// colour bits reads, four bytes an entry where [`WarpEntry`] takes twenty.
+    pub taps: Vec<Tap>,
+}
+
+/// A warped pixel's top-left tap among the pixels of the bordered source and whether it is in
+/// view, in one `u32` (the flag in the top bit).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tap(u32);
+
+impl Tap {
+    const IN_VIEW: u32 = 1 << 31;
+
+    fn of(entry: &WarpEntry) -> Self {
+        Tap(entry.tap | if entry.in_view { Self::IN_VIEW } else { 0 })
+    }
+
+    /// Index of the top-left tap in the bordered source.
+    #[inline]
+    pub fn index(self) -> usize {
+        (self.0 & !Self::IN_VIEW) as usize
+    }
+
+    /// The warped pixel is inside the camera's field of view.
+    #[inline]
+    pub fn in_view(self) -> bool {
+        self.0 & Self::IN_VIEW != 0
+    }
 }
 
 /// The bilinear weights of OpenCV's 32x32 interpolation table for fractions (fx, fy) in 1/32 px.
@@ -103,7 +131,11 @@ impl WarpTable {
             entries.extend(row);
         }
         let source_rows = Self::rows_read(&entries, stride_px, height);
-        Some(WarpTable { width, height, entries, stride_px, source_rows })
+        if entries.iter().any(|e| e.tap >= Tap::IN_VIEW) {
+            return None;
+        }
+        let taps = entries.iter().map(Tap::of).collect();
+        Some(WarpTable { width, height, entries, stride_px, source_rows, taps })
     }
 
     /// The image rows that the taps of `entries` read: each reads its top-left tap's row of the
@@ -156,19 +188,6 @@ impl WarpTable {
         };
         [channel(0), channel(1), channel(2)]
     }
-
-    /// The class of `entry` where the colour bits of its four taps decide it (see
-    /// [`BorderedImage::fill`]), else `None`.
-    #[inline]
-    pub fn decided_class(&self, entry: &WarpEntry, source: &BorderedImage) -> Option<Class> {
-        match source.decided[entry.tap as usize] {
-            UNDECIDED => None,
-            OBSTACLE if !entry.in_view => Some(Class::Unknown),
-            OBSTACLE => Some(Class::Obstacle),
-            NAVIGABLE => Some(Class::Navigable),
-            _ => Some(Class::Rock),
-        }
-    }
 }
 
 /// A plane value of [`BorderedImage`]'s decided classes: the taps do not decide the class.
@@ -179,12 +198,17 @@ const NAVIGABLE: u8 = Class::Navigable as u8;
 /// An RGB image inside a one-pixel black border: the taps of OpenCV's constant border that fall
 /// outside the image read black, without any test in the loop. With [`ColourBits`], also the
 /// class that each block of two by two pixels decides for a warped pixel in view whose top-left
-/// tap it starts at, in a plane of the same layout.
+/// tap it starts at, in a plane of the same layout. The buffers are kept from one frame to the
+/// next: only the rows filled change.
 #[derive(Debug, Clone, Default)]
 pub struct BorderedImage {
     data: Vec<u8>,
     bits: Vec<u8>,
     decided: Vec<u8>,
+    /// Width, height and the colour bits of black of the buffers' layout.
+    layout: Option<(usize, usize, Option<u8>)>,
+    /// The image rows that the last fill copied.
+    filled: Range<usize>,
 }
 
 impl BorderedImage {
@@ -192,7 +216,8 @@ impl BorderedImage {
     /// (the others read black); when `colour_bits` are given, also the classes that their blocks
     /// of two by two pixels decide ([`ColourBits::class_of_taps`]) for the blocks whose top-left
     /// pixel lies in the bordered rows `rows.start..=rows.end`, which hold every top-left tap of
-    /// a table whose [`WarpTable::source_rows`] are `rows`.
+    /// a table whose [`WarpTable::source_rows`] are `rows` (the other blocks' classes are left
+    /// as they were).
     pub fn fill(
         &mut self,
         rgb: &[u8],
@@ -201,17 +226,23 @@ impl BorderedImage {
         colour_bits: Option<&ColourBits>,
     ) {
         let stride_px = width + 2;
+        let black_bits = colour_bits.map(|bits| bits.of_pixel([0, 0, 0]));
+        self.lay_out((width, height, black_bits));
+        let rows = rows.start.min(height)..rows.end.min(height);
+        for row in self.filled.clone().filter(|row| !rows.contains(row)) {
+            let start = (row + 1) * stride_px + 1;
+            self.data[start * 3..(start + width) * 3].fill(0);
+            if let Some(black) = black_bits {
+                self.bits[start..start + width].fill(black);
+            }
+        }
+        self.filled = rows.clone();
         let image_rows = || rgb.chunks_exact(width * 3).take(height).enumerate().skip(rows.start).take(rows.len());
-        self.data.clear();
-        self.data.resize(stride_px * 3 * (height + 2), 0);
         for (row, pixels) in image_rows() {
             let start = ((row + 1) * stride_px + 1) * 3;
             self.data[start..start + width * 3].copy_from_slice(pixels);
         }
-        self.bits.clear();
-        self.decided.clear();
         if let Some(colour_bits) = colour_bits {
-            self.bits.resize(stride_px * (height + 2), colour_bits.of_pixel([0, 0, 0]));
             for (row, pixels) in image_rows() {
                 let start = (row + 1) * stride_px + 1;
                 for (bits, pixel) in self.bits[start..start + width].iter_mut().zip(pixels.chunks_exact(3)) {
@@ -222,11 +253,37 @@ impl BorderedImage {
         }
     }
 
+    /// Black buffers for `layout` (width, height, colour bits of black) unless they have it.
+    fn lay_out(&mut self, layout: (usize, usize, Option<u8>)) {
+        if self.layout == Some(layout) {
+            return;
+        }
+        let (width, height, black_bits) = layout;
+        let pixels = (width + 2) * (height + 2);
+        self.data = vec![0; pixels * 3];
+        self.bits = black_bits.map_or_else(Vec::new, |black| vec![black; pixels]);
+        self.decided = vec![UNDECIDED; self.bits.len()];
+        self.filled = 0..0;
+        self.layout = Some(layout);
+    }
+
+    /// The class of the warped pixel whose top-left tap is `tap` where the colour bits of its
+    /// four taps decide it (see [`BorderedImage::fill`]), else `None`.
+    #[inline]
+    pub fn decided_class(&self, tap: Tap) -> Option<Class> {
+        match self.decided[tap.index()] {
+            UNDECIDED => None,
+            OBSTACLE if !tap.in_view() => Some(Class::Unknown),
+            OBSTACLE => Some(Class::Obstacle),
+            NAVIGABLE => Some(Class::Navigable),
+            _ => Some(Class::Rock),
+        }
+    }
+
     /// The decided class of every block of two by two pixels whose top-left pixel lies in the
     /// bordered rows `rows` (but for the last column, where no tap starts), from the bits all four
     /// pixels have and those any of them has.
     fn decide_blocks(&mut self, stride_px: usize, rows: Range<usize>) {
-        self.decided.resize(self.bits.len(), UNDECIDED);
         let (start, end) = (rows.start * stride_px, rows.end * stride_px);
         let (top, bottom) = (&self.bits[start..end], &self.bits[start + stride_px..end + stride_px]);
         let blocks = top.windows(2).zip(bottom.windows(2));
@@ -240,6 +297,7 @@ impl BorderedImage {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::classify::Thresholds;
     use crate::homography::perspective_transform;
 
     #[test]
@@ -250,6 +308,32 @@ mod tests {
         for fx in 0..32 {
             for fy in 0..32 {
                 assert_eq!(weights(fx, fy).iter().sum::<i32>(), 32768);
+            }
+        }
+    }
+
+    /// The table of the identity warp of 20 x 10 images.
+    fn identity_table() -> WarpTable {
+        let corners = [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]];
+        WarpTable::new(&perspective_transform(&corners, &corners).unwrap(), 20, 10).unwrap()
+    }
+
+    #[test]
+    fn rows_filled_before_but_not_now_read_black_again_and_blocks_over_both_are_undecided() {
+        let table = identity_table();
+        let bits = ColourBits::of(&Thresholds::default()).unwrap();
+        let white = vec![255u8; 20 * 10 * 3];
+        let mut source = BorderedImage::default();
+        source.fill(&white, (20, 10), 0..10, Some(&bits));
+        source.fill(&white, (20, 10), 4..7, Some(&bits));
+        for (entry, &tap) in table.entries.iter().zip(&table.taps) {
+            let white_row = (4..7).contains(&(entry.y as usize));
+            assert_eq!(table.sample(entry, &source), if white_row { [255; 3] } else { [0; 3] }, "{entry:?}");
+            let decided = source.decided_class(tap);
+            match entry.y {
+                4 | 5 if entry.x < 19 => assert_eq!(decided, Some(Class::Navigable), "{entry:?}"),
+                3..=6 => assert_eq!(decided, None, "{entry:?}: white and black taps"),
+                _ => {}
             }
         }
     }
