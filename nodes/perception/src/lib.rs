@@ -249,6 +249,29 @@ mod tests {
     }
 
     #[test]
+    fn the_navigable_means_of_partial_sums_are_those_of_one_running_sum() {
+        let calibration = Calibration::default();
+        let mut perception = Perception::new(calibration, Thresholds::default()).unwrap();
+        let geometry = scan::ScanGeometry::new(&calibration, perception.table(), 8.0);
+        for path in recorded_frames().iter().step_by(7) {
+            let classes = perception.process_jpeg(&std::fs::read(path).unwrap()).unwrap();
+            let summary = geometry.summarize(classes);
+            let navigable: Vec<(f32, f32)> = classes
+                .iter()
+                .zip(&geometry.polar_of_entry)
+                .filter(|&(&class, _)| class == Class::Navigable)
+                .map(|(_, &polar)| polar)
+                .collect();
+            let mean = |part: fn(&(f32, f32)) -> f32| {
+                (navigable.iter().fold(0.0f64, |sum, polar| sum + part(polar) as f64) / navigable.len() as f64) as f32
+            };
+            assert_eq!(summary.navigable_count as usize, navigable.len());
+            let means = (summary.navigable_bearing_rad, summary.navigable_distance_m);
+            assert_eq!(means, (mean(|polar| polar.0), mean(|polar| polar.1)), "{}", path.display());
+        }
+    }
+
+    #[test]
     fn classes_from_the_taps_colour_bits_are_the_classes_of_the_interpolated_colours() {
         let thresholds = Thresholds::default();
         let mut perception = Perception::new(Calibration::default(), thresholds).unwrap();

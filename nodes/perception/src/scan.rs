@@ -10,6 +10,11 @@ use crate::Calibration;
 use crate::classify::Class;
 use crate::warp::WarpTable;
 
+/// Partial sums of [`ScanGeometry::summarize`], one for the entries of each place modulo this
+/// many, so that an addition need not wait for the one before: the same means to `f32` precision
+/// (the `f64` sums differ at most in their last bits).
+const PARTIAL_SUMS: usize = 4;
+
 /// [`ScanGeometry::cell_of_entry`] of an entry beyond the range limit.
 pub const OUT_OF_RANGE: u32 = u32::MAX;
 
@@ -74,20 +79,30 @@ impl ScanGeometry {
     /// it stands up from the ground and projects beyond).
     pub fn summarize(&self, classes: &[Class]) -> ScanSummary {
         let mut summary = ScanSummary::default();
-        let (mut bearing_sum, mut distance_sum) = (0.0f64, 0.0f64);
-        for (class, &(bearing, distance)) in classes.iter().zip(&self.polar_of_entry) {
-            match class {
-                Class::Navigable => {
-                    summary.navigable_count += 1;
-                    bearing_sum += bearing as f64;
-                    distance_sum += distance as f64;
-                }
-                Class::Rock if summary.rock.is_none_or(|(_, nearest)| distance < nearest) => {
-                    summary.rock = Some((bearing, distance));
-                }
-                _ => {}
+        let mut sums = [[0.0f64; 2]; PARTIAL_SUMS];
+        let mut add = |sum: &mut [f64; 2], class: Class, (bearing, distance): (f32, f32)| match class {
+            Class::Navigable => {
+                summary.navigable_count += 1;
+                sum[0] += bearing as f64;
+                sum[1] += distance as f64;
+            }
+            Class::Rock if summary.rock.is_none_or(|(_, nearest)| distance < nearest) => {
+                summary.rock = Some((bearing, distance));
+            }
+            _ => {}
+        };
+        let (classes, polar) = (classes.chunks_exact(PARTIAL_SUMS), self.polar_of_entry.chunks_exact(PARTIAL_SUMS));
+        let rest = classes.remainder().iter().zip(polar.remainder());
+        for (classes, polar) in classes.zip(polar) {
+            for ((sum, &class), &polar) in sums.iter_mut().zip(classes).zip(polar) {
+                add(sum, class, polar);
             }
         }
+        for (&class, &polar) in rest {
+            add(&mut sums[0], class, polar);
+        }
+        let [bearing_sum, distance_sum] =
+            sums.iter().fold([0.0; 2], |total, sum| [total[0] + sum[0], total[1] + sum[1]]);
         if summary.navigable_count > 0 {
             summary.navigable_bearing_rad = (bearing_sum / summary.navigable_count as f64) as f32;
             summary.navigable_distance_m = (distance_sum / summary.navigable_count as f64) as f32;
