@@ -55,7 +55,7 @@ fn frame() -> impl Strategy<Value = u64> {
     prop_oneof![4 => 0..100_000u64, 1 => any::<u64>()]
 }
 
-/// Frame, position (x, y) and angles (yaw, pitch, roll), as telemetry and scans carry them.
+/// Frame, position (x, y) and angles (yaw, pitch, roll), as telemetry carries them.
 fn frame_and_pose() -> impl Strategy<Value = (u64, (f64, f64), (f32, f32, f32))> {
     (frame(), (hostile_f64(), hostile_f64()), (hostile_f32(), hostile_f32(), hostile_f32()))
 }
@@ -84,15 +84,18 @@ pub fn telemetry() -> impl Strategy<Value = Telemetry> {
     })
 }
 
-/// Any `rover_msgs/TerrainScan`; class codes are mostly valid (0 to 3) and sometimes not.
+/// Any `rover_msgs/TerrainScan`; class codes are mostly valid (0 to 3) and sometimes not. Its
+/// telemetry has any frame and pose, and the other fields at their defaults (what mapping and
+/// decision read of it is the pose; [`telemetry`] covers the rest).
 pub fn terrain_scan() -> impl Strategy<Value = TerrainScan> {
     let grid = (cell_size(), hostile_f32(), hostile_f32(), grid_side(), grid_side());
     let classes = (proptest::collection::vec(prop_oneof![8 => 0..=3u8, 1 => any::<u8>()], 0..64), any::<bool>());
     let sightings = (any::<u32>(), hostile_f32(), hostile_f32(), any::<bool>(), hostile_f32(), hostile_f32());
-    (telemetry(), grid, classes, sightings).prop_map(|(telemetry, grid, (pattern, consistent), seen)| {
+    (frame_and_pose(), grid, classes, sightings).prop_map(|(pose, grid, (pattern, consistent), seen)| {
         let (resolution_m, origin_x_m, origin_y_m, rows, cols) = grid;
+        let (frame, (x_m, y_m), (yaw_rad, pitch_rad, roll_rad)) = pose;
         TerrainScan {
-            telemetry,
+            telemetry: Telemetry { frame, x_m, y_m, yaw_rad, pitch_rad, roll_rad, ..Telemetry::default() },
             resolution_m,
             origin_x_m,
             origin_y_m,

@@ -135,8 +135,7 @@ fn vector(field: &str, vector: &Vector3) -> Result<(), InvalidField> {
     Ok(())
 }
 
-/// The frame number and pose that telemetry and terrain scans share: a frame number, a position
-/// and finite angles.
+/// The frame number and pose of telemetry: a frame number, a position and finite angles.
 fn frame_and_pose(frame_number: u64, (x_m, y_m): (f64, f64), [yaw, pitch, roll]: [f32; 3]) -> Result<(), InvalidField> {
     frame(frame_number)?;
     position_m("x_m", x_m)?;

@@ -9,8 +9,8 @@ use std::collections::VecDeque;
 /// its way, well before `f + 3` (each frame is a full lock-step round trip).
 pub const ARRIVAL_DELAY_FRAMES: u64 = 3;
 /// At most this many values wait; beyond, the oldest is dropped. While frames are decided one or
-/// two wait; more pile up only while none is (telemetry cut off but scans still mapped), and then
-/// the newest are the ones that matter.
+/// two wait; more pile up only while none is but maps still come (scans that this node rejects
+/// and the mapping node maps), and then the newest are the ones that matter.
 const MAX_WAITING: usize = 8;
 
 /// Values waiting for their frame, oldest first.

@@ -1,7 +1,7 @@
 //! What the mapping node does with each message, as a plain type that the node and the in-process
 //! mission both run: scans ordered by stamp then frame, home taken from the telemetry of the first
-//! scan, the samples picked up counted from the scans' telemetry and their rocks forgotten, the statistics of `rover/map_stats`, and
-//! the memory a snapshot keeps.
+//! scan, the samples picked up counted from the scans' telemetry and their rocks forgotten, the
+//! statistics of `rover/map_stats`, and the memory a snapshot keeps.
 
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{MapStats, Telemetry, TerrainScan};

@@ -124,11 +124,11 @@ impl ColourBits {
         self.by_channel[0][rgb[0] as usize] | self.by_channel[1][rgb[1] as usize] | self.by_channel[2][rgb[2] as usize]
     }
 
-    /// The class of a warped pixel whose taps all have the bits `all` and together the bits `any`,
-    /// when these decide it: a rule holds if all its tests pass on every tap, fails if one test
-    /// fails on every tap, and is open otherwise.
+    /// The class of a warped pixel in view whose taps all have the bits `all` and together the
+    /// bits `any`, when these decide it: a rule holds if all its tests pass on every tap, fails if
+    /// one test fails on every tap, and is open otherwise.
     #[inline]
-    pub fn class_of_taps(all: u8, any: u8, in_view: bool) -> Option<Class> {
+    pub fn class_of_taps(all: u8, any: u8) -> Option<Class> {
         let holds = |rule: u8| {
             if all & rule == rule {
                 Some(true)
@@ -142,10 +142,8 @@ impl ColourBits {
             Class::Rock
         } else if holds(NAVIGABLE_BITS)? {
             Class::Navigable
-        } else if in_view {
-            Class::Obstacle
         } else {
-            Class::Unknown
+            Class::Obstacle
         })
     }
 }
@@ -201,11 +199,8 @@ mod tests {
             .flat_map(|(r, g)| near_limits.map(|b| [r, g, b]))
             .chain(every.flat_map(|b| near_limits.into_iter().flat_map(move |r| near_limits.map(|g| [r, g, b]))));
         for rgb in colours {
-            for in_view in [false, true] {
-                let pixel = bits.of_pixel(rgb);
-                let class = ColourBits::class_of_taps(pixel, pixel, in_view);
-                assert_eq!(class, Some(thresholds.classify(rgb, in_view)), "{rgb:?}");
-            }
+            let pixel = bits.of_pixel(rgb);
+            assert_eq!(ColourBits::class_of_taps(pixel, pixel), Some(thresholds.classify(rgb, true)), "{rgb:?}");
         }
         let hsv = Thresholds { rock: RockRule::Hsv { lower: [0, 0, 0], upper: [40, 255, 255] }, ..thresholds };
         assert_eq!(ColourBits::of(&hsv), None);

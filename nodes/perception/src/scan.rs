@@ -11,8 +11,9 @@ use crate::classify::Class;
 use crate::warp::WarpTable;
 
 /// Partial sums of [`ScanGeometry::summarize`], one for the entries of each place modulo this
-/// many, so that an addition need not wait for the one before: the same means to `f32` precision
-/// (the `f64` sums differ at most in their last bits).
+/// many, so that an addition need not wait for the one before. The `f64` sums may differ from one
+/// running sum in their last bits, which the `f32` means almost never show (they did not on any
+/// recorded frame the tests check).
 const PARTIAL_SUMS: usize = 4;
 
 /// [`ScanGeometry::cell_of_entry`] of an entry beyond the range limit.

@@ -99,8 +99,14 @@ fn round_to_int(value: f64) -> i32 {
 }
 
 impl WarpTable {
-    /// Builds the table of the warp by `matrix` (source to warped) for `width` x `height` images.
+    /// Builds the table of the warp by `matrix` (source to warped) for `width` x `height` images;
+    /// `None` if the matrix cannot be inverted or the images are too large for the table's
+    /// 16-bit columns and rows and 31-bit tap indices.
     pub fn new(matrix: &Matrix3, width: usize, height: usize) -> Option<Self> {
+        let too_large = width.max(height) > u16::MAX as usize || (width + 2) * (height + 2) > Tap::IN_VIEW as usize;
+        if too_large {
+            return None;
+        }
         let m = invert(matrix)?;
         let stride_px = width + 2;
         let mut entries = Vec::new();
@@ -131,9 +137,6 @@ impl WarpTable {
             entries.extend(row);
         }
         let source_rows = Self::rows_read(&entries, stride_px, height);
-        if entries.iter().any(|e| e.tap >= Tap::IN_VIEW) {
-            return None;
-        }
         let taps = entries.iter().map(Tap::of).collect();
         Some(WarpTable { width, height, entries, stride_px, source_rows, taps })
     }
@@ -194,6 +197,7 @@ impl WarpTable {
 const UNDECIDED: u8 = u8::MAX;
 const OBSTACLE: u8 = Class::Obstacle as u8;
 const NAVIGABLE: u8 = Class::Navigable as u8;
+const ROCK: u8 = Class::Rock as u8;
 
 /// An RGB image inside a one-pixel black border: the taps of OpenCV's constant border that fall
 /// outside the image read black, without any test in the loop. With [`ColourBits`], also the
@@ -213,11 +217,12 @@ pub struct BorderedImage {
 
 impl BorderedImage {
     /// Copies rows `rows` of the `width` x `height` RGB pixels `rgb` into the bordered buffer
-    /// (the others read black); when `colour_bits` are given, also the classes that their blocks
-    /// of two by two pixels decide ([`ColourBits::class_of_taps`]) for the blocks whose top-left
-    /// pixel lies in the bordered rows `rows.start..=rows.end`, which hold every top-left tap of
-    /// a table whose [`WarpTable::source_rows`] are `rows` (the other blocks' classes are left
-    /// as they were).
+    /// (the others, and those `rgb` is too short for, read black); when `colour_bits` are given,
+    /// also the classes that their blocks of two by two pixels decide
+    /// ([`ColourBits::class_of_taps`]) for the blocks whose top-left pixel lies in the bordered
+    /// rows `rows.start..=rows.end`, which hold every top-left tap of a table whose
+    /// [`WarpTable::source_rows`] are `rows` (the other blocks are undecided, or keep their class
+    /// when neither of their rows changed).
     pub fn fill(
         &mut self,
         rgb: &[u8],
@@ -228,14 +233,10 @@ impl BorderedImage {
         let stride_px = width + 2;
         let black_bits = colour_bits.map(|bits| bits.of_pixel([0, 0, 0]));
         self.lay_out((width, height, black_bits));
-        let rows = rows.start.min(height)..rows.end.min(height);
-        for row in self.filled.clone().filter(|row| !rows.contains(row)) {
-            let start = (row + 1) * stride_px + 1;
-            self.data[start * 3..(start + width) * 3].fill(0);
-            if let Some(black) = black_bits {
-                self.bits[start..start + width].fill(black);
-            }
-        }
+        let rows_given = rgb.len() / (width * 3).max(1);
+        let end = rows.end.min(height).min(rows_given);
+        let rows = rows.start.min(end)..end;
+        self.blacken_rows_not_in(&rows, stride_px, width, black_bits);
         self.filled = rows.clone();
         let image_rows = || rgb.chunks_exact(width * 3).take(height).enumerate().skip(rows.start).take(rows.len());
         for (row, pixels) in image_rows() {
@@ -250,6 +251,19 @@ impl BorderedImage {
                 }
             }
             self.decide_blocks(stride_px, rows.start..(rows.end + 1).min(height + 1));
+        }
+    }
+
+    /// Makes the rows of the last fill that are not in `rows` black again, and the blocks over
+    /// them undecided.
+    fn blacken_rows_not_in(&mut self, rows: &Range<usize>, stride_px: usize, width: usize, black_bits: Option<u8>) {
+        for row in self.filled.clone().filter(|row| !rows.contains(row)) {
+            let start = (row + 1) * stride_px + 1;
+            self.data[start * 3..(start + width) * 3].fill(0);
+            if let Some(black) = black_bits {
+                self.bits[start..start + width].fill(black);
+                self.decided[start - 1 - stride_px..start - 1 + stride_px].fill(UNDECIDED);
+            }
         }
     }
 
@@ -276,20 +290,22 @@ impl BorderedImage {
             OBSTACLE if !tap.in_view() => Some(Class::Unknown),
             OBSTACLE => Some(Class::Obstacle),
             NAVIGABLE => Some(Class::Navigable),
-            _ => Some(Class::Rock),
+            ROCK => Some(Class::Rock),
+            _ => None,
         }
     }
 
     /// The decided class of every block of two by two pixels whose top-left pixel lies in the
-    /// bordered rows `rows` (but for the last column, where no tap starts), from the bits all four
-    /// pixels have and those any of them has.
+    /// bordered rows `rows`, from the bits all four pixels have and those any of them has (but for
+    /// the range's last pixel; a block at the end of another row takes the next row's first pixel
+    /// for its right ones, harmless as no tap starts in the last column).
     fn decide_blocks(&mut self, stride_px: usize, rows: Range<usize>) {
         let (start, end) = (rows.start * stride_px, rows.end * stride_px);
         let (top, bottom) = (&self.bits[start..end], &self.bits[start + stride_px..end + stride_px]);
         let blocks = top.windows(2).zip(bottom.windows(2));
         for (decided, (top, bottom)) in self.decided[start..end].iter_mut().zip(blocks) {
             let (all, any) = (top[0] & top[1] & bottom[0] & bottom[1], top[0] | top[1] | bottom[0] | bottom[1]);
-            *decided = ColourBits::class_of_taps(all, any, true).map_or(UNDECIDED, |class| class as u8);
+            *decided = ColourBits::class_of_taps(all, any).map_or(UNDECIDED, |class| class as u8);
         }
     }
 }
@@ -332,9 +348,13 @@ mod tests {
             let decided = source.decided_class(tap);
             match entry.y {
                 4 | 5 if entry.x < 19 => assert_eq!(decided, Some(Class::Navigable), "{entry:?}"),
-                3..=6 => assert_eq!(decided, None, "{entry:?}: white and black taps"),
-                _ => {}
+                _ => assert_eq!(decided, None, "{entry:?}: white and black taps, or rows no longer filled"),
             }
+        }
+        source.fill(&white[..20 * 5 * 3], (20, 10), 0..10, Some(&bits));
+        for entry in &table.entries {
+            let expected = if entry.y < 5 { [255; 3] } else { [0; 3] };
+            assert_eq!(table.sample(entry, &source), expected, "{entry:?}: the rows of a short image read black");
         }
     }
 
