@@ -55,32 +55,34 @@ fn frame() -> impl Strategy<Value = u64> {
     prop_oneof![4 => 0..100_000u64, 1 => any::<u64>()]
 }
 
-/// Frame, position (x, y) and angles (yaw, pitch, roll), as telemetry carries them.
-fn frame_and_pose() -> impl Strategy<Value = (u64, (f64, f64), (f32, f32, f32))> {
-    (frame(), (hostile_f64(), hostile_f64()), (hostile_f32(), hostile_f32(), hostile_f32()))
+/// A `rover_msgs/Telemetry` with any frame, position (x, y) and angles (yaw, pitch, roll), and
+/// the other fields at their defaults.
+fn posed_telemetry() -> impl Strategy<Value = Telemetry> {
+    let pose = (frame(), (hostile_f64(), hostile_f64()), (hostile_f32(), hostile_f32(), hostile_f32()));
+    pose.prop_map(|(frame, (x_m, y_m), (yaw_rad, pitch_rad, roll_rad))| Telemetry {
+        frame,
+        x_m,
+        y_m,
+        yaw_rad,
+        pitch_rad,
+        roll_rad,
+        ..Telemetry::default()
+    })
 }
 
 /// Any `rover_msgs/Telemetry`.
 pub fn telemetry() -> impl Strategy<Value = Telemetry> {
     let drive = (hostile_f32(), hostile_f32(), hostile_f32(), hostile_f32());
     let flags = (any::<bool>(), any::<bool>(), any::<u8>());
-    (frame_and_pose(), drive, flags).prop_map(|((frame, (x_m, y_m), (yaw_rad, pitch_rad, roll_rad)), drive, flags)| {
-        Telemetry {
-            frame,
-            x_m,
-            y_m,
-            yaw_rad,
-            pitch_rad,
-            roll_rad,
-            speed_mps: drive.0,
-            throttle: drive.1,
-            brake: drive.2,
-            steering_angle_deg: drive.3,
-            near_sample: flags.0,
-            picking_up: flags.1,
-            samples_remaining: flags.2,
-            ..Telemetry::default()
-        }
+    (posed_telemetry(), drive, flags).prop_map(|(posed, drive, flags)| Telemetry {
+        speed_mps: drive.0,
+        throttle: drive.1,
+        brake: drive.2,
+        steering_angle_deg: drive.3,
+        near_sample: flags.0,
+        picking_up: flags.1,
+        samples_remaining: flags.2,
+        ..posed
     })
 }
 
@@ -91,11 +93,10 @@ pub fn terrain_scan() -> impl Strategy<Value = TerrainScan> {
     let grid = (cell_size(), hostile_f32(), hostile_f32(), grid_side(), grid_side());
     let classes = (proptest::collection::vec(prop_oneof![8 => 0..=3u8, 1 => any::<u8>()], 0..64), any::<bool>());
     let sightings = (any::<u32>(), hostile_f32(), hostile_f32(), any::<bool>(), hostile_f32(), hostile_f32());
-    (frame_and_pose(), grid, classes, sightings).prop_map(|(pose, grid, (pattern, consistent), seen)| {
+    (posed_telemetry(), grid, classes, sightings).prop_map(|(telemetry, grid, (pattern, consistent), seen)| {
         let (resolution_m, origin_x_m, origin_y_m, rows, cols) = grid;
-        let (frame, (x_m, y_m), (yaw_rad, pitch_rad, roll_rad)) = pose;
         TerrainScan {
-            telemetry: Telemetry { frame, x_m, y_m, yaw_rad, pitch_rad, roll_rad, ..Telemetry::default() },
+            telemetry,
             resolution_m,
             origin_x_m,
             origin_y_m,

@@ -238,7 +238,7 @@ impl BorderedImage {
         let rows = rows.start.min(end)..end;
         self.blacken_rows_not_in(&rows, stride_px, width, black_bits);
         self.filled = rows.clone();
-        let image_rows = || rgb.chunks_exact(width * 3).take(height).enumerate().skip(rows.start).take(rows.len());
+        let image_rows = || rgb.chunks_exact(width * 3).enumerate().skip(rows.start).take(rows.len());
         for (row, pixels) in image_rows() {
             let start = ((row + 1) * stride_px + 1) * 3;
             self.data[start..start + width * 3].copy_from_slice(pixels);
