@@ -266,3 +266,22 @@ fn the_ros2_command_line_shows_the_rover_interfaces() {
         );
     }
 }
+
+/// The graph reads the loop's per-frame topics best effort, so a publisher with ROS's sensor-data
+/// profile (best effort, which a reliable reader refuses) reaches them: `ros2 topic pub
+/// --qos-profile sensor_data` on `rover/telemetry` gets the echo node's answer on `rover/drive_cmd`.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_sensor_data_publisher_reaches_the_loops_readers() {
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
+    let _echo = start_process(&support::echo_node(), &[], &domain, "ros2-cli-echo");
+    let runtime = support::test_runtime(&domain);
+    let (mut node, _) = runtime.node::<support::NoParams>("sensor_data_observer").expect("the observer node");
+    let replies = support::Latest::subscribe(&mut node, &rover_node::topics::DRIVE_CMD);
+    let telemetry = "{frame: 7, x_m: 3.0}";
+    let args = ["topic", "pub", "--qos-profile", "sensor_data", "-r", "10", "-t", "50"];
+    let args = [&args[..], &["/rover/telemetry", "rover_msgs/msg/Telemetry", telemetry]].concat();
+    let (_, published) = ros2(&domain, Duration::from_secs(8), &args);
+    let answers: Vec<_> = replies.all().into_iter().filter(|reply| reply.frame == 7).collect();
+    assert!(!answers.is_empty(), "no drive command answered the sensor-data telemetry; ros2 topic pub:\n{published}");
+    assert!(answers.iter().all(|reply| reply.brake == 7.0 && (reply.throttle - 0.003).abs() < 1e-6));
+}

@@ -53,15 +53,17 @@ VALUE_TOLERANCE = 2e-3
 
 
 class GraphTopic:
-    """A topic of DESIGN.md: its type, the node at its other end, and whether it is latched."""
+    """A topic of DESIGN.md: its type, the node at its other end, whether it is latched, and
+    whether it is one of the lock-step loop's per-frame topics, which the graph reads best effort."""
 
-    def __init__(self, name, msg_type, publisher=None, subscriber=None, latched=False, timed=True):
+    def __init__(self, name, msg_type, publisher=None, subscriber=None, latched=False, timed=True, per_frame=False):
         self.name = name
         self.msg_type = msg_type
         self.type_name = f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
         self.publisher = publisher
         self.subscriber = subscriber
         self.latched = latched
+        self.per_frame = per_frame
         # Whether its first message counts in the discovery figures (published continuously).
         self.timed = timed
 
@@ -71,20 +73,20 @@ class GraphTopic:
 
 
 TOPICS = [
-    GraphTopic("camera/image_raw/compressed", CompressedImage, publisher="bridge", subscriber="perception"),
+    GraphTopic("camera/image_raw/compressed", CompressedImage, publisher="bridge", subscriber="perception", per_frame=True),
     GraphTopic("camera/image_raw", Image, publisher="bridge"),
     GraphTopic("camera/camera_info", CameraInfo, publisher="bridge"),
     GraphTopic("odom", Odometry, publisher="bridge"),
     GraphTopic("/tf", TFMessage, publisher="bridge"),
-    GraphTopic("rover/telemetry", Telemetry, publisher="bridge", subscriber="pickup"),
+    GraphTopic("rover/telemetry", Telemetry, publisher="bridge", subscriber="pickup", per_frame=True),
     GraphTopic("sim/sample_truth", PoseArray, publisher="bridge", latched=True),
-    GraphTopic("rover/terrain", TerrainScan, publisher="perception", subscriber="decision"),
+    GraphTopic("rover/terrain", TerrainScan, publisher="perception", subscriber="decision", per_frame=True),
     GraphTopic("rover/vision", Image, publisher="perception", subscriber="bridge"),
     GraphTopic("map", OccupancyGrid, publisher="mapping", subscriber="decision", latched=True),
     GraphTopic("map/image", Image, publisher="mapping", subscriber="bridge"),
     GraphTopic("rover/map_stats", MapStats, publisher="mapping"),
     GraphTopic("rover/rocks", PoseArray, publisher="mapping", subscriber="decision"),
-    GraphTopic("rover/drive_cmd", DriveCommand, publisher="decision", subscriber="bridge"),
+    GraphTopic("rover/drive_cmd", DriveCommand, publisher="decision", subscriber="bridge", per_frame=True),
     GraphTopic("rover/pickup", PickupRequest, publisher="pickup", subscriber="bridge", timed=False),
     GraphTopic("rover/mode", DecisionState, publisher="decision"),
     GraphTopic("cmd_vel", Twist, subscriber="bridge", timed=False),
@@ -424,8 +426,12 @@ def graph_mismatches(node, nodes):
             for end in ends:
                 if end.topic_type != topic.type_name:
                     found.append(f"{topic.absolute}: /{wanted} uses {end.topic_type}, expected {topic.type_name}")
-                if end.qos_profile.reliability != ReliabilityPolicy.RELIABLE:
-                    found.append(f"{topic.absolute}: {role} of /{wanted} is not reliable")
+                reliability = end.qos_profile.reliability
+                if role == "subscription" and topic.per_frame:
+                    if reliability != ReliabilityPolicy.BEST_EFFORT:
+                        found.append(f"{topic.absolute}: {role} of /{wanted} is {reliability.name}, expected BEST_EFFORT")
+                elif reliability != ReliabilityPolicy.RELIABLE:
+                    found.append(f"{topic.absolute}: {role} of /{wanted} is {reliability.name}, expected RELIABLE")
                 if role == "publisher" and topic.latched and end.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL:
                     found.append(f"{topic.absolute}: publisher is not transient local")
     types = dict(node.get_topic_names_and_types())

@@ -209,7 +209,7 @@ impl RosNode {
     pub fn subscription<M: RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<Subscription<M>> {
         let dds_topic = self.dds_topic(topic)?;
         self.inner()
-            .create_subscription(&dds_topic, None)
+            .create_subscription(&dds_topic, Some(topic.reader_qos()))
             .with_context(|| format!("cannot create a subscription on {}", topic.name))
     }
 

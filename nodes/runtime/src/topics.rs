@@ -19,18 +19,37 @@ use crate::qos::{latched, reliable};
 pub struct Topic<M> {
     /// Topic name as the nodes use it before namespacing and remapping.
     pub name: &'static str,
-    /// QoS of publishers and subscriptions.
+    /// QoS of publishers (offered to every reader: reliable ones such as rclpy's defaults too).
     pub qos: QosProfile,
+    /// Whether the graph reads it best effort (a message of the lock-step loop, see
+    /// [`Topic::per_frame`]).
+    read_best_effort: bool,
     message: PhantomData<fn() -> M>,
 }
 
 impl<M> Topic<M> {
     const fn new(name: &'static str, qos: QosProfile) -> Self {
-        Topic { name, qos, message: PhantomData }
+        Topic { name, qos, read_best_effort: false, message: PhantomData }
     }
 
-    /// The same topic with a history of `depth` messages, e.g. for a reader that must not lose
-    /// messages while it lags behind (history is not part of QoS matching).
+    /// A topic of the lock-step loop, one message a frame, that the graph's nodes read best
+    /// effort: a frame's message repaired after its deadline is worth nothing (the bridge holds
+    /// the last command instead), and a reliable reader would answer every sample's heartbeat
+    /// with an acknowledgement and hold later frames back behind a lost one. A best-effort
+    /// reader also takes a best-effort publisher's messages (rclpy's `qos_profile_sensor_data`).
+    const fn per_frame(name: &'static str, qos: QosProfile) -> Self {
+        Topic { name, qos, read_best_effort: true, message: PhantomData }
+    }
+
+    /// QoS of subscriptions: the publishers' `qos`, best effort for a topic of the loop.
+    pub fn reader_qos(&self) -> QosProfile {
+        let qos = self.qos.clone();
+        if self.read_best_effort { qos.reliability_best_effort() } else { qos }
+    }
+
+    /// The same topic read reliably with a history of `depth` messages, for a reader that must
+    /// not lose messages while it lags behind, such as a recorder (history is not part of QoS
+    /// matching).
     pub fn with_history_depth(&self, depth: usize) -> Self {
         Topic::new(self.name, self.qos.clone().history(History::KeepLast { depth }))
     }
@@ -68,7 +87,7 @@ pub fn visit_all(visitor: &mut impl TopicVisitor) -> anyhow::Result<()> {
 }
 
 /// The simulator's JPEG, untouched.
-pub const CAMERA_COMPRESSED: Topic<CompressedImage> = Topic::new("camera/image_raw/compressed", reliable(5));
+pub const CAMERA_COMPRESSED: Topic<CompressedImage> = Topic::per_frame("camera/image_raw/compressed", reliable(5));
 /// The decoded camera image, rgb8 320x160 (optional).
 pub const CAMERA_RAW: Topic<Image> = Topic::new("camera/image_raw", reliable(1));
 /// The calibrated pinhole model of the camera.
@@ -80,11 +99,11 @@ pub const TF: Topic<TFMessage> = Topic::new("/tf", reliable(100));
 /// Static transforms (latched).
 pub const TF_STATIC: Topic<TFMessage> = Topic::new("/tf_static", latched());
 /// Parsed simulator telemetry, one per frame.
-pub const TELEMETRY: Topic<Telemetry> = Topic::new("rover/telemetry", reliable(10));
+pub const TELEMETRY: Topic<Telemetry> = Topic::per_frame("rover/telemetry", reliable(10));
 /// True sample positions (scoring only, never for decisions).
 pub const SAMPLE_TRUTH: Topic<PoseArray> = Topic::new("sim/sample_truth", latched());
 /// Classified terrain per camera frame.
-pub const TERRAIN: Topic<TerrainScan> = Topic::new("rover/terrain", reliable(10));
+pub const TERRAIN: Topic<TerrainScan> = Topic::per_frame("rover/terrain", reliable(10));
 /// Classified bird's-eye view (becomes the simulator's `inset_image2`).
 pub const VISION: Topic<Image> = Topic::new("rover/vision", reliable(1));
 /// The world map (latched).
@@ -96,7 +115,7 @@ pub const MAP_STATS: Topic<MapStats> = Topic::new("rover/map_stats", reliable(10
 /// De-duplicated world positions of detected rock samples.
 pub const ROCKS: Topic<PoseArray> = Topic::new("rover/rocks", latched());
 /// Drive commands answering telemetry frames.
-pub const DRIVE_CMD: Topic<DriveCommand> = Topic::new("rover/drive_cmd", reliable(10));
+pub const DRIVE_CMD: Topic<DriveCommand> = Topic::per_frame("rover/drive_cmd", reliable(10));
 /// Pickup requests.
 pub const PICKUP: Topic<PickupRequest> = Topic::new("rover/pickup", reliable(10));
 /// State of the decision node.
