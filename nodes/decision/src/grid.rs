@@ -1,6 +1,8 @@
 //! Planning on the 200 x 200 occupancy grid: path costs from the rover to every cell (Dijkstra with
 //! wall clearance and a premium for unknown ground), frontiers, and paths.
 
+use std::sync::Mutex;
+
 use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_at, cell_centre_m, cell_of_point, cell_xy, checked_cell_at};
 
 /// What a cell of the occupancy grid says.
@@ -81,8 +83,7 @@ impl Grid {
         self.near_wall[i]
     }
 
-    /// Path costs from `start` to every cell and each cell's predecessor: [`Planner::costs_from`]
-    /// for one plan.
+    /// Path costs from `start` to every cell and each cell's predecessor: [`Planner::costs_from`].
     pub fn costs_from(&self, start: usize, costs: &Costs) -> CostMap {
         Planner::new(self, costs).costs_from(start)
     }
@@ -272,10 +273,12 @@ impl<'a> Planner<'a> {
     /// Path costs from map cell `start` to every cell and each cell's predecessor (Dijkstra,
     /// 8-connected, no corner cutting past obstacles). The start cell is free of charge whatever
     /// it holds, and obstacle cells right around it can be crossed at a premium: a rover that the
-    /// map puts in or against a wall (a sample by the wall, a wall margin) can still leave.
-    pub fn costs_from(&mut self, start: usize) -> CostMap {
-        let search = self.search(start, |_, _| false);
-        CostMap { distance: search.distance, parent: search.parent }
+    /// map puts in or against a wall (a sample by the wall, a wall margin) can still leave. The
+    /// search goes only as far as the cells asked for need (see [`CostMap`]).
+    pub fn costs_from(mut self, start: usize) -> CostMap {
+        self.open_escape(start);
+        let search = Search::new(padded(start), self.steps.max);
+        CostMap { lazy: Mutex::new(LazySearch { search, steps: self.steps, bucket: 0 }) }
     }
 
     /// The path costs from map cell `start` to each of `goals` (infinite where unreachable), as
@@ -295,13 +298,7 @@ impl<'a> Planner<'a> {
         let mut search = Search::new(padded(start), steps.max);
         let mut k = 0;
         while search.open.len > 0 && !done(&search.distance, (k + 1) as f32) {
-            let keys = search.open.take(k);
-            for (d, p) in keys.iter().map(|&key| from_order_key(key)) {
-                if d <= search.distance[p] {
-                    search.expand(p, d, steps);
-                }
-            }
-            search.open.give_back(k, keys);
+            search.expand_bucket(k, steps);
             k += 1;
         }
         self.close_escape(&escapes);
@@ -329,7 +326,7 @@ impl<'a> Planner<'a> {
     }
 }
 
-/// The state of [`Grid::costs_from`] on the padded grid: the best cost found so far of each cell
+/// The state of a search on the padded grid: the best cost found so far of each cell
 /// and its predecessor (a padded index), and the cells still to expand.
 struct Search {
     distance: Vec<f32>,
@@ -348,6 +345,19 @@ impl Search {
         search.distance[start] = 0.0;
         search.open.push(0.0, start);
         search
+    }
+
+    /// Expands the open cells of bucket `k` (costs in [k, k + 1)). Before it, with the buckets
+    /// below expanded, every cost below k + 1 and its predecessor are final: a lower cost or a
+    /// tie could only come from a cell at least 1 cheaper, expanded already.
+    fn expand_bucket(&mut self, k: usize, steps: &Steps) {
+        let keys = self.open.take(k);
+        for (d, p) in keys.iter().map(|&key| from_order_key(key)) {
+            if d <= self.distance[p] {
+                self.expand(p, d, steps);
+            }
+        }
+        self.open.give_back(k, keys);
     }
 
     /// Relaxes the neighbours of padded cell `p`, reached at cost `d`; no diagonal step cuts the
@@ -435,23 +445,68 @@ impl UnitBuckets {
     }
 }
 
-/// The result of [`Grid::costs_from`], on the padded grid of the search.
-#[derive(Debug, Clone)]
+/// The result of [`Grid::costs_from`]: a search from one start that goes on, bucket by bucket,
+/// only until the cost asked for is final. The costs and paths are those of the whole search
+/// whatever is asked in which order, but a plan that asks only for cells near the rover (the
+/// frontiers, a sample, home) leaves the far unknown ground unsearched.
 pub struct CostMap {
-    distance: Vec<f32>,
-    /// Each cell's predecessor, a padded index.
-    parent: Vec<u32>,
+    lazy: Mutex<LazySearch>,
+}
+
+/// A search from one start with its own entry costs, expanded up to `bucket`.
+struct LazySearch {
+    search: Search,
+    steps: Steps,
+    /// The next bucket to expand: every cost below `bucket + 1` is final.
+    bucket: usize,
+}
+
+impl LazySearch {
+    /// Expands buckets until the cost of padded cell `p` is final; the cost.
+    fn settle(&mut self, p: usize) -> f32 {
+        if self.steps.straight[p] == f32::INFINITY && self.search.distance[p] == f32::INFINITY {
+            return f32::INFINITY;
+        }
+        while self.search.open.len > 0 && self.search.distance[p] >= (self.bucket + 1) as f32 {
+            self.expand_next_bucket();
+        }
+        self.search.distance[p]
+    }
+
+    /// Expands every bucket left.
+    fn settle_all(&mut self) -> &Search {
+        while self.search.open.len > 0 {
+            self.expand_next_bucket();
+        }
+        &self.search
+    }
+
+    fn expand_next_bucket(&mut self) {
+        self.search.expand_bucket(self.bucket, &self.steps);
+        self.bucket += 1;
+    }
+}
+
+impl std::fmt::Debug for CostMap {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CostMap").field("final_below", &(self.lazy().bucket + 1)).finish_non_exhaustive()
+    }
 }
 
 impl CostMap {
+    /// The search, as far as it has gone.
+    fn lazy(&self) -> std::sync::MutexGuard<'_, LazySearch> {
+        self.lazy.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
     /// Path cost to map cell `cell` (infinite when unreachable).
     pub fn distance(&self, cell: usize) -> f32 {
-        self.distance[padded(cell)]
+        self.lazy().settle(padded(cell))
     }
 
     /// How many cells can be reached.
     pub fn reachable_cells(&self) -> usize {
-        self.distance.iter().filter(|d| d.is_finite()).count()
+        self.lazy().settle_all().distance.iter().filter(|d| d.is_finite()).count()
     }
 
     /// `goal` when it is reachable, else the cheapest reachable cell within `radius` cells of it
@@ -470,10 +525,11 @@ impl CostMap {
         if !self.distance(goal).is_finite() {
             return None;
         }
+        let lazy = self.lazy();
         let mut path = vec![goal];
         let mut at = padded(goal);
-        while self.parent[at] != NO_PARENT {
-            at = self.parent[at] as usize;
+        while lazy.search.parent[at] != NO_PARENT {
+            at = lazy.search.parent[at] as usize;
             path.push(unpadded(at));
         }
         path.reverse();
@@ -750,5 +806,28 @@ mod tests {
             unreachable += want.iter().filter(|d| d.is_infinite()).count();
         }
         assert!(reached > 0 && unreachable > 0, "{reached} goals reached, {unreachable} not");
+    }
+
+    #[test]
+    fn a_cost_map_gives_the_whole_search_in_any_order_and_searches_only_as_far_as_asked() {
+        for seed in 0..6 {
+            let grid = Grid::from_occupancy(&random_patch(seed)).unwrap();
+            let costs = Costs { cross_unknown: seed % 2 == 0, ..COSTS };
+            let start = cell_at(25 + seed as usize, 30);
+            let whole = grid.costs_from(start, &costs);
+            let reachable = whole.reachable_cells();
+            let lazy = grid.costs_from(start, &costs);
+            let near = cell_at(26 + seed as usize, 31);
+            let near_cost = lazy.distance(near);
+            let searched_for_near = lazy.lazy().bucket;
+            assert!(searched_for_near < whole.lazy().bucket, "seed {seed}: the near cell searched everything");
+            for cell in (0..CELLS).rev() {
+                let (from_whole, from_lazy) = (whole.distance(cell), lazy.distance(cell));
+                assert_eq!(from_whole.to_bits(), from_lazy.to_bits(), "seed {seed}, cell {cell}");
+                assert_eq!(whole.path_to(cell), lazy.path_to(cell), "seed {seed}, cell {cell}");
+            }
+            assert_eq!(near_cost.to_bits(), whole.distance(near).to_bits());
+            assert_eq!(lazy.reachable_cells(), reachable);
+        }
     }
 }

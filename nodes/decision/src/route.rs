@@ -66,8 +66,10 @@ pub fn staging_cell(
 /// The map that plans are made on, and its version: a new map is a reason to plan again. It keeps
 /// the path costs it gave last, for a request that repeats (a rover that has not left its cell
 /// since the last plan), and makes path costs ahead of time, between two frames, so that the frame
-/// that asks for them does not wait for the search: a periodic replan's ([`PlanningMap::prepare`]),
-/// or the first plan's on a map built before it takes effect ([`PlanningMap::make_ahead`]).
+/// that asks for them does not wait for their cells' entry costs: a periodic replan's
+/// ([`PlanningMap::prepare`]), or the first plan's on a map built before it takes effect
+/// ([`PlanningMap::make_ahead`]). The search itself goes only as far as the frame's questions
+/// need ([`CostMap`]).
 #[derive(Debug, Clone)]
 pub struct PlanningMap {
     grid: Grid,
@@ -197,7 +199,7 @@ impl PlanningMap {
         self.searched.borrow().last.as_ref().map(|(answer, _)| Arc::clone(&answer.costs))
     }
 
-    /// Searches the path costs from cell `start` with `costs` now, for the next request to take,
+    /// Makes the path costs from cell `start` with `costs` now, for the next request to take,
     /// unless they are known already.
     pub(crate) fn make_ahead(&self, start: usize, costs: &Costs) {
         let request = CostsRequest { start_cell: start, costs: *costs };
