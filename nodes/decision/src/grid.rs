@@ -278,7 +278,7 @@ impl<'a> Planner<'a> {
     pub fn costs_from(mut self, start: usize) -> CostMap {
         self.open_escape(start);
         let search = Search::new(padded(start), self.steps.max);
-        CostMap { lazy: Mutex::new(LazySearch { search, steps: self.steps, bucket: 0 }) }
+        CostMap { lazy: Mutex::new(LazySearch { search, steps: self.steps }) }
     }
 
     /// The path costs from map cell `start` to each of `goals` (infinite where unreachable), as
@@ -289,18 +289,13 @@ impl<'a> Planner<'a> {
         goals.iter().map(|&goal| search.distance[goal]).collect()
     }
 
-    /// Runs the search from map cell `start` until no cell is left open or `done(distances,
-    /// below)` says the costs it needs are final: all costs below `below` are, as the cells
-    /// still open cost at least `below - 1` and every step at least 1.
+    /// Runs the search from map cell `start`, the escape around it open, until `done` says the
+    /// costs it needs are final ([`Search::expand_until`]).
     fn search(&mut self, start: usize, done: impl Fn(&[f32], f32) -> bool) -> Search {
         let escapes = self.open_escape(start);
         let steps = &self.steps;
         let mut search = Search::new(padded(start), steps.max);
-        let mut k = 0;
-        while search.open.len > 0 && !done(&search.distance, (k + 1) as f32) {
-            search.expand_bucket(k, steps);
-            k += 1;
-        }
+        search.expand_until(steps, done);
         self.close_escape(&escapes);
         search
     }
@@ -327,11 +322,13 @@ impl<'a> Planner<'a> {
 }
 
 /// The state of a search on the padded grid: the best cost found so far of each cell
-/// and its predecessor (a padded index), and the cells still to expand.
+/// and its predecessor (a padded index), the cells still to expand, and the next bucket of them.
 struct Search {
     distance: Vec<f32>,
     parent: Vec<u32>,
     open: UnitBuckets,
+    /// The bucket expanded next: every cost below `next_bucket + 1` is final.
+    next_bucket: usize,
 }
 
 impl Search {
@@ -341,23 +338,29 @@ impl Search {
             distance: vec![f32::INFINITY; PADDED_CELLS],
             parent: vec![NO_PARENT; PADDED_CELLS],
             open: UnitBuckets::new(max_step * std::f32::consts::SQRT_2),
+            next_bucket: 0,
         };
         search.distance[start] = 0.0;
         search.open.push(0.0, start);
         search
     }
 
-    /// Expands the open cells of bucket `k` (costs in [k, k + 1)). Before it, with the buckets
-    /// below expanded, every cost below k + 1 and its predecessor are final: a lower cost or a
-    /// tie could only come from a cell at least 1 cheaper, expanded already.
-    fn expand_bucket(&mut self, k: usize, steps: &Steps) {
-        let keys = self.open.take(k);
-        for (d, p) in keys.iter().map(|&key| from_order_key(key)) {
-            if d <= self.distance[p] {
-                self.expand(p, d, steps);
+    /// Expands bucket after bucket until no cell is left open or `done(distances, below)` says
+    /// the costs it needs are final: with the buckets below k expanded, every cost below k + 1
+    /// and its predecessor are, as a lower cost or a tie could only come from a cell at least 1
+    /// cheaper, expanded already.
+    fn expand_until(&mut self, steps: &Steps, done: impl Fn(&[f32], f32) -> bool) {
+        while self.open.len > 0 && !done(&self.distance, (self.next_bucket + 1) as f32) {
+            let k = self.next_bucket;
+            let keys = self.open.take(k);
+            for (d, p) in keys.iter().map(|&key| from_order_key(key)) {
+                if d <= self.distance[p] {
+                    self.expand(p, d, steps);
+                }
             }
+            self.open.give_back(k, keys);
+            self.next_bucket += 1;
         }
-        self.open.give_back(k, keys);
     }
 
     /// Relaxes the neighbours of padded cell `p`, reached at cost `d`; no diagonal step cuts the
@@ -453,43 +456,33 @@ pub struct CostMap {
     lazy: Mutex<LazySearch>,
 }
 
-/// A search from one start with its own entry costs, expanded up to `bucket`.
+/// A search from one start with its own entry costs, expanded as far as it was asked to.
 struct LazySearch {
     search: Search,
     steps: Steps,
-    /// The next bucket to expand: every cost below `bucket + 1` is final.
-    bucket: usize,
 }
 
 impl LazySearch {
-    /// Expands buckets until the cost of padded cell `p` is final; the cost.
+    /// Expands buckets until the cost of padded cell `p` is final (at once for a cell that
+    /// cannot be entered); the cost.
     fn settle(&mut self, p: usize) -> f32 {
         if self.steps.straight[p] == f32::INFINITY && self.search.distance[p] == f32::INFINITY {
             return f32::INFINITY;
         }
-        while self.search.open.len > 0 && self.search.distance[p] >= (self.bucket + 1) as f32 {
-            self.expand_next_bucket();
-        }
+        self.search.expand_until(&self.steps, |distance, below| distance[p] < below);
         self.search.distance[p]
     }
 
     /// Expands every bucket left.
     fn settle_all(&mut self) -> &Search {
-        while self.search.open.len > 0 {
-            self.expand_next_bucket();
-        }
+        self.search.expand_until(&self.steps, |_, _| false);
         &self.search
-    }
-
-    fn expand_next_bucket(&mut self) {
-        self.search.expand_bucket(self.bucket, &self.steps);
-        self.bucket += 1;
     }
 }
 
 impl std::fmt::Debug for CostMap {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("CostMap").field("final_below", &(self.lazy().bucket + 1)).finish_non_exhaustive()
+        f.debug_struct("CostMap").field("final_below", &(self.lazy().search.next_bucket + 1)).finish_non_exhaustive()
     }
 }
 
@@ -819,8 +812,9 @@ mod tests {
             let lazy = grid.costs_from(start, &costs);
             let near = cell_at(26 + seed as usize, 31);
             let near_cost = lazy.distance(near);
-            let searched_for_near = lazy.lazy().bucket;
-            assert!(searched_for_near < whole.lazy().bucket, "seed {seed}: the near cell searched everything");
+            let searched_for_near = lazy.lazy().search.next_bucket;
+            let searched_for_all = whole.lazy().search.next_bucket;
+            assert!(searched_for_near < searched_for_all, "seed {seed}: the near cell searched everything");
             for cell in (0..CELLS).rev() {
                 let (from_whole, from_lazy) = (whole.distance(cell), lazy.distance(cell));
                 assert_eq!(from_whole.to_bits(), from_lazy.to_bits(), "seed {seed}, cell {cell}");
