@@ -14,9 +14,9 @@ use rover_decision::grid::Grid;
 use rover_decision::machine::{Machine, Mode};
 use rover_decision::params::DecisionParams;
 use rover_mapping::map::WorldMap;
-use rover_mapping::mission::MappingCore;
+use rover_mapping::mission::{MapPublication, MappingCore};
 use rover_mapping::params::MappingParams;
-use rover_mapping::score::LocatedSamples;
+use rover_mapping::score::{LocatedSamples, occupancy_scores};
 use rover_msgs::std_msgs::Header;
 use rover_node::{Rejections, RosArgs, Shutdown, resolve_params};
 use rover_perception::node::PerceptionParams;
@@ -175,10 +175,11 @@ pub fn run_in_process(
         if mapping.publication_due() {
             mapping.mark_published();
             located.update(&mapping.map().rock_cells());
-            let grid = Grid::from_occupancy(&mapping.map().occupancy()).expect("the map has the cells of map_grid");
+            let MapPublication { occupancy, rocks, .. } = mapping.publication(Header::default());
+            mapped_pct = occupancy_scores(&occupancy, &truth).mapped_pct;
+            let grid = Grid::from_occupancy(&occupancy).expect("the map has the cells of map_grid");
             machine.receive_map(frame, grid);
-            machine.receive_rocks(frame, mapping.rocks());
-            mapped_pct = mapping.map().scores(&truth).mapped_pct;
+            machine.receive_rocks(frame, rocks);
         }
         let observation = rover_decision::observation(&scan, &mut rays);
         let drive = machine.step(&observation);

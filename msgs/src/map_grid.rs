@@ -7,6 +7,13 @@ pub const SIDE_CELLS: usize = 200;
 /// Cells of the whole map.
 pub const CELLS: usize = SIDE_CELLS * SIDE_CELLS;
 
+/// The occupancy value of a navigable cell.
+pub const OCCUPANCY_FREE: i8 = 0;
+/// The occupancy value of an obstacle cell.
+pub const OCCUPANCY_OCCUPIED: i8 = 100;
+/// The occupancy value of a cell not known yet.
+pub const OCCUPANCY_UNKNOWN: i8 = -1;
+
 /// The cell at column `x`, row `y` (both on the map).
 #[inline]
 pub const fn cell_at(x: usize, y: usize) -> usize {

@@ -3,7 +3,9 @@
 
 use std::sync::Mutex;
 
-use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_at, cell_centre_m, cell_of_point, cell_xy, checked_cell_at};
+use rover_msgs::map_grid::{
+    CELLS, OCCUPANCY_UNKNOWN, SIDE_CELLS, cell_at, cell_centre_m, cell_of_point, cell_xy, checked_cell_at,
+};
 
 /// What a cell of the occupancy grid says.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -50,7 +52,7 @@ impl Grid {
         let cells: Vec<Cell> = data
             .iter()
             .map(|&v| match v {
-                -1 => Cell::Unknown,
+                OCCUPANCY_UNKNOWN => Cell::Unknown,
                 v if v > 50 => Cell::Blocked,
                 _ => Cell::Free,
             })

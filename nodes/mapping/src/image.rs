@@ -3,9 +3,7 @@
 
 use rover_imaging::RgbImage;
 use rover_imaging::text::draw_text;
-use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_xy};
-
-use crate::map::WorldMap;
+use rover_msgs::map_grid::{CELLS, OCCUPANCY_FREE, OCCUPANCY_OCCUPIED, SIDE_CELLS, cell_xy};
 
 /// Height of the statistics band under the map, pixels.
 const BAND_PX: usize = 24;
@@ -25,20 +23,22 @@ pub struct InsetStats {
     pub collected: usize,
 }
 
-/// Draws the inset of `map`.
-pub fn map_inset(map: &WorldMap, ground_truth: Option<&[bool]>, rocks: &[(f64, f64)], stats: &InsetStats) -> RgbImage {
+/// Draws the inset of the map whose cells are `occupancy` (row = y).
+pub fn map_inset(
+    occupancy: &[i8],
+    ground_truth: Option<&[bool]>,
+    rocks: &[(f64, f64)],
+    stats: &InsetStats,
+) -> RgbImage {
     let mut image = RgbImage::new(SIDE_CELLS, SIDE_CELLS + BAND_PX);
-    for cell in 0..CELLS {
+    for (cell, &value) in occupancy.iter().enumerate().take(CELLS) {
         let (x, y) = cell_xy(cell);
         let truth = ground_truth.is_some_and(|t| t[cell]);
-        let rgb = if map.is_navigable(cell) {
-            [0, if truth { 40 } else { 0 }, 255]
-        } else if map.is_obstacle(cell) {
-            [255, if truth { 40 } else { 0 }, 0]
-        } else if truth {
-            [0, 45, 0]
-        } else {
-            [0, 0, 0]
+        let rgb = match value {
+            OCCUPANCY_FREE => [0, if truth { 40 } else { 0 }, 255],
+            OCCUPANCY_OCCUPIED => [255, if truth { 40 } else { 0 }, 0],
+            _ if truth => [0, 45, 0],
+            _ => [0, 0, 0],
         };
         image.set_pixel(x, SIDE_CELLS - 1 - y, rgb);
     }
@@ -60,14 +60,18 @@ pub fn map_inset(map: &WorldMap, ground_truth: Option<&[bool]>, rocks: &[(f64, f
 
 #[cfg(test)]
 mod tests {
+    use rover_msgs::map_grid::{OCCUPANCY_UNKNOWN, cell_at};
+
     use super::*;
-    use crate::map::MapConfig;
 
     #[test]
-    fn draws_truth_rocks_and_text() {
-        let map = WorldMap::new(MapConfig::default());
+    fn draws_cells_truth_rocks_and_text() {
+        let mut occupancy = vec![OCCUPANCY_UNKNOWN; CELLS];
+        occupancy[cell_at(10, 20)] = OCCUPANCY_FREE;
+        occupancy[cell_at(11, 20)] = OCCUPANCY_OCCUPIED;
         let mut truth = vec![false; CELLS];
         truth[0] = true;
+        truth[cell_at(10, 20)] = true;
         let stats = InsetStats {
             time_s: 12.0,
             mapped_pct: Some(50.0),
@@ -75,9 +79,12 @@ mod tests {
             rocks_located: 2,
             collected: 1,
         };
-        let image = map_inset(&map, Some(&truth), &[(100.5, 100.5)], &stats);
+        let image = map_inset(&occupancy, Some(&truth), &[(100.5, 100.5)], &stats);
         assert_eq!((image.width, image.height), (200, 224));
         assert_eq!(image.pixel(0, 199), [0, 45, 0], "ground truth of cell (0, 0) at the bottom left");
+        assert_eq!(image.pixel(10, 179), [0, 40, 255], "navigable where the truth is navigable");
+        assert_eq!(image.pixel(11, 179), [255, 0, 0], "an obstacle");
+        assert_eq!(image.pixel(12, 179), [0, 0, 0], "unknown");
         assert_eq!(image.pixel(100, 99), [255, 255, 255], "rock, north up");
         assert!((200..224).any(|y| (0..200).any(|x| image.pixel(x, y) == [255, 255, 255])), "text band");
     }

@@ -2,11 +2,13 @@
 //! scans, each cell counted at most once per frame and class, and the decisions drawn from it.
 
 use rover_msgs::body::{ARM_REACH_M, CameraMount, SAMPLE_SPREAD_M};
-use rover_msgs::map_grid::{CELLS, cell_at, cell_of_point, cell_xy};
+use rover_msgs::map_grid::{
+    CELLS, OCCUPANCY_FREE, OCCUPANCY_OCCUPIED, OCCUPANCY_UNKNOWN, cell_at, cell_of_point, cell_xy,
+};
 
 use crate::projection::{Pose, Projector};
 use crate::rocks::{RockCell, rock_positions};
-use crate::score::{Scores, udacity_scores};
+use crate::score::{Scores, occupancy_counts, occupancy_scores};
 
 /// Terrain-scan class codes (`rover_msgs/TerrainScan`).
 const NAVIGABLE: u8 = rover_msgs::msg::TerrainScan::NAVIGABLE;
@@ -51,6 +53,21 @@ impl Default for MapConfig {
             shadow_margin_m: 1.5,
             min_obstacle_hits: 2,
             min_rock_hits: 2,
+        }
+    }
+}
+
+impl MapConfig {
+    /// What a cell with `hits` (navigable, obstacle frames) and `weighed` (navigable, obstacle
+    /// evidence) is, as an occupancy value.
+    fn occupancy(&self, hits: [u16; 2], weighed: [f32; 2]) -> i8 {
+        let [nav, obs] = weighed;
+        if hits[0] >= self.min_navigable_hits && nav >= self.navigable_ratio * obs {
+            OCCUPANCY_FREE
+        } else if hits[1] >= self.min_obstacle_hits && obs >= nav {
+            OCCUPANCY_OCCUPIED
+        } else {
+            OCCUPANCY_UNKNOWN
         }
     }
 }
@@ -355,14 +372,17 @@ impl WorldMap {
 
     /// True if the map calls the cell navigable.
     pub fn is_navigable(&self, cell: usize) -> bool {
-        let (nav, obs) = self.weighed_evidence(cell);
-        self.hits[0][cell] >= self.config.min_navigable_hits && nav >= self.config.navigable_ratio * obs
+        self.occupancy_of(cell) == OCCUPANCY_FREE
     }
 
     /// True if the map calls the cell an obstacle.
     pub fn is_obstacle(&self, cell: usize) -> bool {
-        let (nav, obs) = self.weighed_evidence(cell);
-        self.hits[1][cell] >= self.config.min_obstacle_hits && !self.is_navigable(cell) && obs >= nav
+        self.occupancy_of(cell) == OCCUPANCY_OCCUPIED
+    }
+
+    /// What the map calls the cell, as an occupancy value.
+    fn occupancy_of(&self, cell: usize) -> i8 {
+        self.config.occupancy([self.hits[0][cell], self.hits[1][cell]], [self.weight[0][cell], self.weight[1][cell]])
     }
 
     /// True if the map holds a rock in the cell.
@@ -370,33 +390,28 @@ impl WorldMap {
         self.hits[2][cell] >= self.config.min_rock_hits
     }
 
-    /// The occupancy grid: 0 navigable, 100 obstacle, -1 unknown; row = y.
+    /// The occupancy grid: [`OCCUPANCY_FREE`] navigable, [`OCCUPANCY_OCCUPIED`] obstacle,
+    /// [`OCCUPANCY_UNKNOWN`] unknown; row = y. One pass over the evidence: what is asked of the
+    /// whole map (counts, scores, the inset) is best asked of this.
     pub fn occupancy(&self) -> Vec<i8> {
-        (0..CELLS)
-            .map(|cell| {
-                if self.is_navigable(cell) {
-                    0
-                } else if self.is_obstacle(cell) {
-                    100
-                } else {
-                    -1
-                }
-            })
+        let [nav_hits, obs_hits] = [&self.hits[0], &self.hits[1]];
+        let [nav, obs] = [&self.weight[0], &self.weight[1]];
+        nav_hits
+            .iter()
+            .zip(obs_hits)
+            .zip(nav.iter().zip(obs))
+            .map(|((&nav_hits, &obs_hits), (&nav, &obs))| self.config.occupancy([nav_hits, obs_hits], [nav, obs]))
             .collect()
     }
 
     /// Counts of navigable and obstacle cells.
     pub fn cell_counts(&self) -> (usize, usize) {
-        let navigable = (0..CELLS).filter(|&c| self.is_navigable(c)).count();
-        let obstacle = (0..CELLS).filter(|&c| self.is_obstacle(c)).count();
-        (navigable, obstacle)
+        occupancy_counts(&self.occupancy())
     }
 
     /// The Udacity scores of the map against a ground-truth navigable mask.
     pub fn scores(&self, ground_truth: &[bool]) -> Scores {
-        let channel =
-            |test: &dyn Fn(usize) -> bool| (0..CELLS).map(|c| if test(c) { 255.0 } else { 0.0 }).collect::<Vec<f32>>();
-        udacity_scores(&channel(&|c| self.is_obstacle(c)), &channel(&|c| self.is_navigable(c)), ground_truth)
+        occupancy_scores(&self.occupancy(), ground_truth)
     }
 
     /// Cells (x, y) holding a rock.

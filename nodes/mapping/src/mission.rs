@@ -12,7 +12,7 @@ use rover_node::{Rejections, topics};
 use crate::map::{ScanGrid, Update, WorldMap};
 use crate::params::MappingParams;
 use crate::projection::Pose;
-use crate::score::samples_located;
+use crate::score::{occupancy_counts, occupancy_scores, samples_located};
 use crate::snapshot::{Home, Memory};
 
 /// Where a scan stands in time: its stamp (seconds, nanoseconds), then its frame. Scans come in
@@ -214,18 +214,27 @@ impl MappingCore {
         self.tally = memory.tally;
     }
 
-    /// The statistics of `rover/map_stats`, stamped with `header`; the scores are NaN without a
-    /// ground truth.
-    pub fn stats(&self, header: Header) -> MapStats {
-        let (navigable_cells, obstacle_cells) = self.map.cell_counts();
-        let scores = self.ground_truth.as_deref().map(|truth| self.map.scores(truth));
+    /// What a publication of the map shows, stamped with `header`: the map's cells classified
+    /// once, for the occupancy grid, the statistics and the inset alike.
+    pub fn publication(&self, header: Header) -> MapPublication {
+        let occupancy = self.map.occupancy();
+        let rocks = self.rocks();
+        let stats = self.stats(&occupancy, &rocks, header);
+        MapPublication { occupancy, stats, rocks }
+    }
+
+    /// The statistics of `rover/map_stats` of the map whose cells are `occupancy` and whose rocks
+    /// are `rocks`; the scores are NaN without a ground truth.
+    fn stats(&self, occupancy: &[i8], rocks: &[(f64, f64)], header: Header) -> MapStats {
+        let (navigable_cells, obstacle_cells) = occupancy_counts(occupancy);
+        let scores = self.ground_truth.as_deref().map(|truth| occupancy_scores(occupancy, truth));
         MapStats {
             header,
             navigable_cells: navigable_cells as u32,
             obstacle_cells: obstacle_cells as u32,
             mapped_pct: scores.map_or(f32::NAN, |s| s.mapped_pct as f32),
             fidelity_pct: scores.map_or(f32::NAN, |s| s.fidelity_pct as f32),
-            rocks_located: self.rocks_located() as u32,
+            rocks_located: self.rocks_located(rocks) as u32,
             home_frame: self.home.map_or(0, |h| h.frame),
             home_x_m: self.home.map_or(f64::NAN, |h| h.x_m),
             home_y_m: self.home.map_or(f64::NAN, |h| h.y_m),
@@ -233,13 +242,24 @@ impl MappingCore {
         }
     }
 
-    /// True samples with a rock on the map, once they are known; the rocks on the map until then.
-    fn rocks_located(&self) -> usize {
+    /// True samples with a rock on the map, once they are known; the located `rocks` until then.
+    fn rocks_located(&self, rocks: &[(f64, f64)]) -> usize {
         match &self.samples_truth {
             Some(samples) => samples_located(&self.map.rock_cells(), samples),
-            None => self.rocks().len(),
+            None => rocks.len(),
         }
     }
+}
+
+/// One publication of the map (see [`MappingCore::publication`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapPublication {
+    /// The occupancy grid's cells (row = y).
+    pub occupancy: Vec<i8>,
+    /// The statistics.
+    pub stats: MapStats,
+    /// The located rocks, world metres.
+    pub rocks: Vec<(f64, f64)>,
 }
 
 #[cfg(test)]
@@ -323,11 +343,11 @@ mod tests {
     #[test]
     fn home_is_where_the_first_scan_was_taken() {
         let mut mapping = core();
-        assert_eq!(mapping.stats(Header::default()).home_frame, 0, "no home before any scan");
+        assert_eq!(mapping.publication(Header::default()).stats.home_frame, 0, "no home before any scan");
         mapping.add_scan(&rock_scan(3, 3, (99.0, 85.0)));
         mapping.add_scan(&rock_scan(4, 4, (120.0, 90.0)));
         assert_eq!(mapping.home(), Some(Home { frame: 3, x_m: 99.0, y_m: 85.0 }));
-        let stats = mapping.stats(Header::default());
+        let stats = mapping.publication(Header::default()).stats;
         assert_eq!((stats.home_frame, stats.home_x_m, stats.home_y_m), (3, 99.0, 85.0));
     }
 
@@ -346,7 +366,7 @@ mod tests {
         let rocks = mapping.rocks();
         assert_eq!(rocks.len(), 1, "{rocks:?}");
         assert!((rocks[0].0 - other.0).hypot(rocks[0].1 - other.1) < 3.0, "the other rock stays: {rocks:?}");
-        assert_eq!(mapping.stats(Header::default()).samples_collected, 1);
+        assert_eq!(mapping.publication(Header::default()).stats.samples_collected, 1);
     }
 
     #[test]

@@ -17,7 +17,7 @@ use rover_node::{Publisher, Runtime, topics};
 use tracing::Instrument as _;
 
 use crate::image::{InsetStats, map_inset};
-use crate::mission::MappingCore;
+use crate::mission::{MapPublication, MappingCore};
 use crate::params::MappingParams;
 use crate::score::ground_truth_from_png;
 use crate::snapshot;
@@ -105,6 +105,7 @@ impl Outputs {
     fn publish(&mut self, mapping: &mut MappingCore, header: Header) {
         mapping.mark_published();
         self.published_at = Instant::now();
+        let MapPublication { occupancy, stats, rocks } = mapping.publication(header.clone());
         let grid = OccupancyGrid {
             header: header.clone(),
             info: MapMetaData {
@@ -114,11 +115,9 @@ impl Outputs {
                 height: SIDE_CELLS as u32,
                 origin: PoseMsg { position: Point::default(), orientation: Quaternion::from_yaw(0.0) },
             },
-            data: mapping.map().occupancy(),
+            data: occupancy.clone(),
         };
         warn_on_error("map", self.map.publish(grid));
-        let stats = mapping.stats(header.clone());
-        let rocks = mapping.rocks();
         let inset = InsetStats {
             time_s: self.started.elapsed().as_secs_f64(),
             mapped_pct: stats.mapped_pct.is_finite().then_some(stats.mapped_pct as f64),
@@ -126,7 +125,7 @@ impl Outputs {
             rocks_located: stats.rocks_located as usize,
             collected: mapping.samples_collected() as usize,
         };
-        let image = map_inset(mapping.map(), mapping.ground_truth(), &rocks, &inset);
+        let image = map_inset(&occupancy, mapping.ground_truth(), &rocks, &inset);
         let message = rgb8_message(image, header.clone());
         warn_on_error("map/image", self.image.publish(message));
         warn_on_error("rover/map_stats", self.stats.publish(stats));

@@ -2,7 +2,7 @@
 //! (unity-sim-spec 6.2): mapped % and fidelity % of a world map against the ground truth, and
 //! which samples count as located.
 
-use rover_msgs::map_grid::SIDE_CELLS;
+use rover_msgs::map_grid::{OCCUPANCY_FREE, OCCUPANCY_OCCUPIED, SIDE_CELLS};
 
 /// Mapped and fidelity percentages, rounded to one decimal like the starter.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -17,47 +17,34 @@ pub struct Scores {
     pub navigable_cells: usize,
 }
 
-fn normalised(channel: &[f32]) -> Vec<f32> {
-    let max = channel.iter().cloned().fold(0.0f32, f32::max);
-    if max <= 0.0 {
-        return channel.to_vec();
-    }
-    let positive: Vec<f32> = channel.iter().cloned().filter(|&v| v > 0.0).collect();
-    let mean = positive.iter().map(|&v| v as f64).sum::<f64>() / positive.len() as f64;
-    channel.iter().map(|&v| (v as f64 * 255.0 / mean) as f32).collect()
+/// Scores an occupancy grid (row = y) like a Udacity world map: its navigable channel is 255 on
+/// the free cells and 0 elsewhere, which the starter's normalisation by the mean of the non-zero
+/// cells leaves as it is, so the scores are counts of cells.
+pub fn occupancy_scores(occupancy: &[i8], ground_truth: &[bool]) -> Scores {
+    let free = || occupancy.iter().map(|&v| v == OCCUPANCY_FREE);
+    let navigable_cells = free().filter(|&f| f).count();
+    let good_cells = free().zip(ground_truth).filter(|&(f, &truth)| f && truth).count();
+    scores_of_counts(good_cells, navigable_cells, ground_truth)
 }
 
-/// Scores a Udacity world map given as its obstacle and navigable channels (row = y) against the
-/// ground-truth navigable mask.
-pub fn udacity_scores(obstacle: &[f32], navigable: &[f32], ground_truth: &[bool]) -> Scores {
-    let nav = normalised(navigable);
-    let mut obs = normalised(obstacle);
-    for (o, n) in obs.iter_mut().zip(&nav) {
-        if *n >= *o {
-            *o = 0.0;
-        }
-    }
-    let plot_nav: Vec<f32> = nav.iter().map(|v| v.clamp(0.0, 255.0)).collect();
-    let navigable_cells = plot_nav.iter().filter(|&&v| v != 0.0).count();
-    let good_cells = plot_nav.iter().zip(ground_truth).filter(|(v, gt)| **v > 0.0 && **gt).count();
+/// The scores of a map with `navigable_cells` navigable cells, `good_cells` of them navigable in
+/// `ground_truth`, rounded to one decimal like the starter.
+fn scores_of_counts(good_cells: usize, navigable_cells: usize, ground_truth: &[bool]) -> Scores {
     let truth = ground_truth.iter().filter(|&&g| g).count();
     let round1 = |v: f64| (v * 10.0).round() / 10.0;
+    let percent = |part: usize, whole: usize| if whole > 0 { round1(100.0 * part as f64 / whole as f64) } else { 0.0 };
     Scores {
-        mapped_pct: if truth > 0 { round1(100.0 * good_cells as f64 / truth as f64) } else { 0.0 },
-        fidelity_pct: if navigable_cells > 0 {
-            round1(100.0 * good_cells as f64 / navigable_cells as f64)
-        } else {
-            0.0
-        },
+        mapped_pct: percent(good_cells, truth),
+        fidelity_pct: percent(good_cells, navigable_cells),
         good_cells,
         navigable_cells,
     }
 }
 
-/// Scores an occupancy grid (0 free, 100 occupied, -1 unknown; row = y) like a Udacity world map.
-pub fn occupancy_scores(occupancy: &[i8], ground_truth: &[bool]) -> Scores {
-    let channel = |value: i8| occupancy.iter().map(|&v| if v == value { 255.0 } else { 0.0 }).collect::<Vec<f32>>();
-    udacity_scores(&channel(100), &channel(0), ground_truth)
+/// Counts of the navigable and the obstacle cells of an occupancy grid.
+pub fn occupancy_counts(occupancy: &[i8]) -> (usize, usize) {
+    let count = |value: i8| occupancy.iter().filter(|&&v| v == value).count();
+    (count(OCCUPANCY_FREE), count(OCCUPANCY_OCCUPIED))
 }
 
 /// Samples counted as located: a rock cell (x, y) lies within 3 cells of the sample's truncated
@@ -115,18 +102,29 @@ pub fn ground_truth_from_png(png: &[u8]) -> Result<Vec<bool>, String> {
 mod tests {
     use super::*;
 
-    #[test]
-    fn scores_follow_the_starter() {
-        let mut truth = vec![false; 16];
-        truth[..8].fill(true);
-        let mut navigable = vec![0.0f32; 16];
-        navigable[..4].fill(3.0);
-        navigable[8..10].fill(1.0);
-        let obstacle = vec![0.0f32; 16];
-        let scores = udacity_scores(&obstacle, &navigable, &truth);
-        assert_eq!((scores.good_cells, scores.navigable_cells), (4, 6));
-        assert_eq!(scores.mapped_pct, 50.0);
-        assert_eq!(scores.fidelity_pct, 66.7);
+    /// The starter's `create_output_images` scoring of a world map given as its obstacle and
+    /// navigable channels: each channel scaled so that the mean of its non-zero cells is 255,
+    /// obstacle cleared where navigable is as strong, navigable clipped to 0..255, then counted.
+    fn starter_scores(obstacle: &[f32], navigable: &[f32], ground_truth: &[bool]) -> Scores {
+        let normalised = |channel: &[f32]| {
+            let positive: Vec<f64> = channel.iter().filter(|&&v| v > 0.0).map(|&v| v as f64).collect();
+            if positive.is_empty() {
+                return channel.to_vec();
+            }
+            let mean = positive.iter().sum::<f64>() / positive.len() as f64;
+            channel.iter().map(|&v| (v as f64 * 255.0 / mean) as f32).collect::<Vec<f32>>()
+        };
+        let nav = normalised(navigable);
+        let mut obs = normalised(obstacle);
+        for (o, n) in obs.iter_mut().zip(&nav) {
+            if *n >= *o {
+                *o = 0.0;
+            }
+        }
+        let plot_nav: Vec<f32> = nav.iter().map(|v| v.clamp(0.0, 255.0)).collect();
+        let navigable_cells = plot_nav.iter().filter(|&&v| v != 0.0).count();
+        let good_cells = plot_nav.iter().zip(ground_truth).filter(|(v, gt)| **v > 0.0 && **gt).count();
+        scores_of_counts(good_cells, navigable_cells, ground_truth)
     }
 
     #[test]
@@ -135,12 +133,27 @@ mod tests {
         let scores = occupancy_scores(&occupancy, &[true, false, true, true]);
         assert_eq!((scores.good_cells, scores.navigable_cells), (1, 2));
         assert_eq!((scores.mapped_pct, scores.fidelity_pct), (33.3, 50.0));
+        assert_eq!(occupancy_counts(&occupancy), (2, 1));
     }
 
     #[test]
     fn empty_maps_score_zero() {
-        let scores = udacity_scores(&[0.0; 4], &[0.0; 4], &[true; 4]);
+        let scores = occupancy_scores(&[-1; 4], &[true; 4]);
         assert_eq!((scores.mapped_pct, scores.fidelity_pct), (0.0, 0.0));
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn occupancy_scores_are_the_starters_scores_of_its_channels(
+            cells in proptest::collection::vec((proptest::sample::select(vec![-1i8, 0, 100]), proptest::bool::ANY), 1..400)
+        ) {
+            let (occupancy, truth): (Vec<i8>, Vec<bool>) = cells.into_iter().unzip();
+            let channel = |value: i8| occupancy.iter().map(|&v| if v == value { 255.0 } else { 0.0 }).collect::<Vec<f32>>();
+            proptest::prop_assert_eq!(
+                occupancy_scores(&occupancy, &truth),
+                starter_scores(&channel(OCCUPANCY_OCCUPIED), &channel(OCCUPANCY_FREE), &truth)
+            );
+        }
     }
 
     #[test]
