@@ -29,7 +29,8 @@ pub trait FrameSink: Send + Sync + 'static {
 pub struct LockStepConfig {
     /// Deadline, silence limit and brake value.
     pub policy: ReplyPolicy,
-    /// Largest accepted telemetry payload, bytes.
+    /// Largest accepted packet from the simulator (a telemetry event with its payload), bytes;
+    /// a larger one is not parsed.
     pub max_payload_bytes: usize,
     /// Expected camera image size (width, height).
     pub image_size: (usize, usize),
@@ -147,7 +148,7 @@ impl<S: FrameSink> LockStep<S> {
         let received_at = Instant::now();
         let config = self.config();
         self.stats.frame_received();
-        let state = match payload.map(|p| parse_telemetry_value(p, config.max_payload_bytes)) {
+        let state = match payload.map(parse_telemetry_value) {
             None | Some(Ok(None)) => FrameState::Decided(Reply::Manual),
             Some(Err(e)) => FrameState::Decided(self.reject(&config, e.kind(), &e.to_string())),
             Some(Ok(Some(telemetry))) => {

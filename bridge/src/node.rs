@@ -44,7 +44,8 @@ rover_node::node_params! {
         /// Brake value sent when braking on silence, on a rejected frame or on a bad cmd_vel (at
         /// least 1, which decelerates 3.6 m/s^2; 10 locks the wheels).
         brake: f64 [1.0, 100.0] = 10.0,
-        /// Largest accepted telemetry payload, bytes; larger frames are rejected with a brake.
+        /// Largest accepted packet from the simulator (a telemetry event with its payload), bytes;
+        /// a larger one is not parsed but answered with a brake.
         max_payload_bytes: i64 [1024, 16777216] = 1048576,
         /// Width of the simulator's camera image, pixels.
         image_width: i64 [1, 4096] = 320,

@@ -28,6 +28,7 @@ use crate::lockstep::{FrameSink, InFlight, LockStep};
 use crate::reply::{DataEvent, Reply};
 use crate::sio::{self, Packet};
 use crate::stats::BridgeStats;
+use crate::telemetry::check_size;
 
 /// Settings of the Socket.IO server.
 #[derive(Debug, Clone, Copy)]
@@ -212,14 +213,14 @@ impl<S: FrameSink> EngineIoHandler for SimulatorLink<S> {
         if !self.served.serves(socket.id) {
             return;
         }
-        let in_flight = match sio::decode(&message) {
+        let in_flight = match self.packet(&message) {
             Ok(Packet::Event { name, args }) if name == "telemetry" => self.core.receive(args.first()),
             Ok(Packet::Event { name, .. }) => {
                 tracing::debug!(sid = %socket.id, "ignored event {name:?}");
                 return;
             }
             Ok(_) => return,
-            Err(e) => self.core.receive_garbage("unparseable_packet", &format!("unparseable Socket.IO packet: {e}")),
+            Err((kind, problem)) => self.core.receive_garbage(kind, &problem),
         };
         self.spawn_reply(in_flight, socket);
     }
@@ -247,6 +248,13 @@ impl<S: FrameSink> SimulatorLink<S> {
             );
         }
         socket.close(DisconnectReason::ClosingServer);
+    }
+
+    /// The Socket.IO packet of a websocket message; or why it was refused: too large (then it is
+    /// not parsed at all) or not a packet, as a kind for the counters and a message for the log.
+    fn packet(&self, message: &str) -> Result<Packet, (&'static str, String)> {
+        check_size(message.len(), self.core.config().max_payload_bytes).map_err(|e| (e.kind(), e.to_string()))?;
+        sio::decode(message).map_err(|e| ("unparseable_packet", format!("unparseable Socket.IO packet: {e}")))
     }
 
     fn spawn_reply(&self, in_flight: InFlight, socket: Arc<Socket<()>>) {

@@ -103,19 +103,21 @@ impl TelemetryError {
 /// Parses the JSON text of a `telemetry` event's argument. `Ok(None)` means an empty payload,
 /// which the simulator's own client answers with `manual`.
 pub fn parse_telemetry(payload: &str, max_bytes: usize) -> Result<Option<SimTelemetry>, TelemetryError> {
-    if payload.len() > max_bytes {
-        return Err(TelemetryError::TooLarge { bytes: payload.len(), limit: max_bytes });
-    }
+    check_size(payload.len(), max_bytes)?;
     let value: Value = serde_json::from_str(payload).map_err(|e| TelemetryError::InvalidJson(e.to_string()))?;
-    parse_telemetry_value(&value, max_bytes)
+    parse_telemetry_value(&value)
 }
 
-/// Like [`parse_telemetry`], on an already parsed argument.
-pub fn parse_telemetry_value(value: &Value, max_bytes: usize) -> Result<Option<SimTelemetry>, TelemetryError> {
-    let bytes = json_len(value);
+/// Refuses a payload of `bytes` bytes when it is larger than `max_bytes`, before it is parsed.
+pub fn check_size(bytes: usize, max_bytes: usize) -> Result<(), TelemetryError> {
     if bytes > max_bytes {
         return Err(TelemetryError::TooLarge { bytes, limit: max_bytes });
     }
+    Ok(())
+}
+
+/// Like [`parse_telemetry`], on an already parsed argument (whose text passed [`check_size`]).
+pub fn parse_telemetry_value(value: &Value) -> Result<Option<SimTelemetry>, TelemetryError> {
     let fields = match value {
         Value::Null => return Ok(None),
         Value::Object(fields) if fields.is_empty() => return Ok(None),
@@ -123,23 +125,6 @@ pub fn parse_telemetry_value(value: &Value, max_bytes: usize) -> Result<Option<S
         other => return Err(TelemetryError::NotAnObject(json_kind(other))),
     };
     parse_fields(fields).map(Some)
-}
-
-/// Length of the compact JSON text of `value`, counted without building it.
-fn json_len(value: &Value) -> usize {
-    struct Counter(usize);
-    impl std::io::Write for Counter {
-        fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
-            self.0 += bytes.len();
-            Ok(bytes.len())
-        }
-        fn flush(&mut self) -> std::io::Result<()> {
-            Ok(())
-        }
-    }
-    let mut counter = Counter(0);
-    let _ = serde_json::to_writer(&mut counter, value);
-    counter.0
 }
 
 fn parse_fields(fields: &Map<String, Value>) -> Result<SimTelemetry, TelemetryError> {
