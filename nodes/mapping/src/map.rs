@@ -382,7 +382,8 @@ impl WorldMap {
 
     /// What the map calls the cell, as an occupancy value.
     fn occupancy_of(&self, cell: usize) -> i8 {
-        self.config.occupancy([self.hits[0][cell], self.hits[1][cell]], [self.weight[0][cell], self.weight[1][cell]])
+        let ((nav_hits, obs_hits, _), (nav, obs)) = (self.evidence(cell), self.weighed_evidence(cell));
+        self.config.occupancy([nav_hits, obs_hits], [nav, obs])
     }
 
     /// True if the map holds a rock in the cell.
