@@ -7,7 +7,7 @@ use rover_bridge::convert::{rep103_roll_rad, wrapped_rad};
 use rover_mapping::map::{ScanGrid, Update, WorldMap};
 use rover_mapping::params::MappingParams;
 use rover_mapping::projection::Pose;
-use rover_mapping::score::ground_truth_from_png;
+use rover_mapping::score::{ground_truth_from_png, occupancy_counts, occupancy_scores};
 use rover_perception::node::PerceptionParams;
 use rover_perception::scan::ScanGeometry;
 use serde::Serialize;
@@ -121,7 +121,8 @@ pub fn replay_frames(
             Update::Malformed => rejected += 1,
         }
     }
-    let scores = ground_truth.map(|truth| map.scores(truth));
+    let occupancy = map.occupancy();
+    let scores = ground_truth.map(|truth| occupancy_scores(&occupancy, truth));
     let report = ReplayReport {
         frames: frames.len(),
         frames_mapped: mapped,
@@ -130,7 +131,7 @@ pub fn replay_frames(
         mapped_pct: scores.map(|s| s.mapped_pct),
         fidelity_pct: scores.map(|s| s.fidelity_pct),
         rocks_located: map.rocks(mapping.rock_merge_m).len(),
-        navigable_cells: map.cell_counts().0,
+        navigable_cells: occupancy_counts(&occupancy).0,
         perception_ms_median: median_ms(perception_times),
         mapping_ms_median: median_ms(mapping_times),
     };

@@ -370,18 +370,9 @@ impl WorldMap {
         (self.weight[0][cell], self.weight[1][cell])
     }
 
-    /// True if the map calls the cell navigable.
-    pub fn is_navigable(&self, cell: usize) -> bool {
-        self.occupancy_of(cell) == OCCUPANCY_FREE
-    }
-
-    /// True if the map calls the cell an obstacle.
-    pub fn is_obstacle(&self, cell: usize) -> bool {
-        self.occupancy_of(cell) == OCCUPANCY_OCCUPIED
-    }
-
-    /// What the map calls the cell, as an occupancy value.
-    fn occupancy_of(&self, cell: usize) -> i8 {
+    /// What the map calls the cell, as an occupancy value (see [`WorldMap::occupancy`] for the
+    /// whole map).
+    pub fn cell_occupancy(&self, cell: usize) -> i8 {
         let ((nav_hits, obs_hits, _), (nav, obs)) = (self.evidence(cell), self.weighed_evidence(cell));
         self.config.occupancy([nav_hits, obs_hits], [nav, obs])
     }
@@ -483,9 +474,9 @@ mod tests {
         assert_eq!(map.update(&scan(&cells, 4, 4), pose), Update::Used(16));
         let cell = cell_of_point(101.8, 100.2).unwrap();
         assert_eq!(map.evidence(cell), (1, 0, 0), "four scan cells in one map cell count once");
-        assert!(!map.is_navigable(cell));
+        assert_ne!(map.cell_occupancy(cell), OCCUPANCY_FREE);
         map.update(&scan(&cells, 4, 4), pose);
-        assert!(map.is_navigable(cell));
+        assert_eq!(map.cell_occupancy(cell), OCCUPANCY_FREE);
         assert_eq!(map.occupancy()[cell], 0);
     }
 
@@ -510,7 +501,7 @@ mod tests {
         }
         map.update(&scan(&[NAVIGABLE; 16], 4, 4), pose);
         let cell = cell_of_point(51.8, 50.2).unwrap();
-        assert!(map.is_obstacle(cell) && !map.is_navigable(cell));
+        assert_eq!(map.cell_occupancy(cell), OCCUPANCY_OCCUPIED);
         assert_eq!(map.occupancy()[cell], 100);
         let tilted = Pose { pitch_rad: 5f64.to_radians(), ..pose };
         assert_eq!(map.update(&scan(&[NAVIGABLE; 16], 4, 4), tilted), Update::SkippedTilt);
@@ -544,9 +535,9 @@ mod tests {
         assert!((navigable - 3.0).abs() < 1e-6, "seen from 2.25 m: full weight, {navigable}");
         let far_weight = (3.0f32 / 7.25).powi(2);
         assert!((obstacle / (6.0 * far_weight) - 1.0).abs() < 0.01, "seen from 7.25 m: {obstacle}");
-        assert!(map.is_navigable(cell), "three near frames outweigh six far ones");
+        assert_eq!(map.cell_occupancy(cell), OCCUPANCY_FREE, "three near frames outweigh six far ones");
         let unweighed = observe(MapConfig { full_weight_range_m: 20.0, ..config });
-        assert!(unweighed.is_obstacle(cell), "counted alike, the six far frames win");
+        assert_eq!(unweighed.cell_occupancy(cell), OCCUPANCY_OCCUPIED, "counted alike, the six far frames win");
     }
 
     #[test]
