@@ -1,6 +1,7 @@
 //! `rover replay --via-dds`: the recorded frames published as the bridge would publish them,
-//! one at a time, each waiting for its terrain scan from the perception node; the map statistics
-//! of the mapping node are read once it has gone quiet after the last frame.
+//! one at a time, each waiting for its terrain scan from the perception node (and sent again while
+//! none comes); the map statistics of the mapping node are read once it has gone quiet after the
+//! last frame.
 
 use std::time::{Duration, Instant};
 
@@ -15,6 +16,10 @@ use crate::replay::ReplayReport;
 
 /// How long to wait for the terrain scan of a frame.
 const SCAN_TIMEOUT: Duration = Duration::from_secs(5);
+/// A frame without a terrain scan after this long is sent again with the same stamp: a node that
+/// has just been discovered may miss the first samples. The mapping node skips a second scan of a
+/// frame it has mapped (it comes no later than the last scan taken).
+const RESEND_AFTER: Duration = Duration::from_secs(1);
 /// How long to wait for the nodes to appear.
 const DISCOVERY_TIMEOUT: Duration = Duration::from_secs(20);
 /// After the last frame, the mapping node has mapped every scan once it publishes no statistics for
@@ -53,19 +58,29 @@ pub async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> any
         let messages =
             FrameMessages::new(&frame.sim_telemetry(frame.jpeg()?), number, Time::now(), &PinholeCamera::rover());
         let started = Instant::now();
-        camera.publish(messages.compressed).map_err(|e| anyhow::anyhow!("cannot publish the camera frame: {e:?}"))?;
-        telemetry.publish(messages.telemetry).map_err(|e| anyhow::anyhow!("cannot publish telemetry: {e:?}"))?;
         let answered = tokio::time::timeout(SCAN_TIMEOUT, async {
             loop {
-                tokio::select! {
-                    Some(scan) = scans.next() => if scan.telemetry.frame == number { return true },
-                    Some(s) = stats.next() => latest = Some(s),
-                    else => return false,
+                camera
+                    .publish(messages.compressed.clone())
+                    .map_err(|e| anyhow::anyhow!("cannot publish the camera frame: {e:?}"))?;
+                telemetry
+                    .publish(messages.telemetry.clone())
+                    .map_err(|e| anyhow::anyhow!("cannot publish telemetry: {e:?}"))?;
+                let resend = tokio::time::sleep(RESEND_AFTER);
+                tokio::pin!(resend);
+                loop {
+                    tokio::select! {
+                        Some(scan) = scans.next() => if scan.telemetry.frame == number { return anyhow::Ok(true) },
+                        Some(s) = stats.next() => latest = Some(s),
+                        () = &mut resend => break,
+                        else => return Ok(false),
+                    }
                 }
+                tracing::info!("no terrain scan for frame {number} within {RESEND_AFTER:?}: sending it again");
             }
         })
         .await
-        .unwrap_or(false);
+        .unwrap_or(Ok(false))?;
         if answered {
             round_trips.push(started.elapsed());
         } else {
