@@ -177,7 +177,7 @@ pub struct Boulder {
 /// shape follows from the kind.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BoulderSpec {
-    /// Centre (x, y), metres.
+    /// Centre x, metres.
     pub x_m: f64,
     /// Centre y, metres.
     pub y_m: f64,

@@ -6,7 +6,7 @@ use anyhow::Context as _;
 
 use crate::look::Look;
 use crate::procgen::procedural_world;
-use crate::sim::{SimConfig, SimReport, Simulator};
+use crate::sim::{DEFAULT_STEP_S, SimConfig, SimReport, Simulator};
 use crate::unity_world::unity_world;
 use crate::wire::client::{ClientConfig, run_client};
 use crate::world::World;
@@ -76,7 +76,7 @@ pub struct SimArgs {
     #[arg(long, default_value_t = 4567)]
     pub port: u16,
     /// Simulated time per command, seconds.
-    #[arg(long, default_value_t = 0.04, value_name = "SECONDS")]
+    #[arg(long, default_value_t = DEFAULT_STEP_S, value_name = "SECONDS")]
     pub step_seconds: f64,
     /// Pace the simulation to the wall clock (default: as fast as the graph answers).
     #[arg(long)]
@@ -139,7 +139,12 @@ pub async fn run(args: &SimArgs, stop: impl std::future::Future<Output = ()>) ->
     let client = ClientConfig::unity(&args.host, args.port);
     let stats = run_client(&mut simulator, &client, stop).await;
     let report = simulator.report();
-    tracing::info!("{} connections, {} commands dropped", stats.connections, stats.commands_dropped);
+    tracing::info!(
+        "{} connections, {} commands dropped, {} events ignored",
+        stats.connections,
+        stats.commands_dropped,
+        stats.events_ignored
+    );
     println!("{report}");
     if let Some(path) = &args.report {
         let json = serde_json::to_string_pretty(&report)?;

@@ -19,21 +19,24 @@ pub const PHYSICS_STEP_S: f64 = 0.02;
 /// Distance between the left and right wheels, metres.
 const TRACK_M: f64 = 0.64;
 /// Drive acceleration per unit throttle and speed damping under throttle (fit to robot_log.csv).
-const THROTTLE_ACCEL: f64 = 0.944;
-const THROTTLE_DAMPING: f64 = 0.140;
+const THROTTLE_ACCEL_MPS2: f64 = 0.944;
+const THROTTLE_DAMPING_PER_S: f64 = 0.140;
 /// Coasting deceleration: proportional part and constant part.
-const COAST_DAMPING: f64 = 0.057;
-const COAST_FRICTION: f64 = 0.05;
+const COAST_DAMPING_PER_S: f64 = 0.057;
+const COAST_FRICTION_MPS2: f64 = 0.05;
 /// Braking deceleration per unit brake, and the friction limit.
-const BRAKE_ACCEL: f64 = 3.59;
-const BRAKE_LIMIT: f64 = 4.9;
+const BRAKE_ACCEL_MPS2: f64 = 3.59;
+const BRAKE_LIMIT_MPS2: f64 = 4.9;
 /// Turning in place starts below this speed, m/s.
 const TURN_IN_PLACE_BELOW_MPS: f64 = 0.316;
 /// Radius of the rover's footprint around its reported position, metres.
 pub const FOOTPRINT_RADIUS_M: f64 = 0.5;
 /// A blocked move slides along the obstacle when at least this fraction of it is left; otherwise
-/// the rover stops (a head-on collision).
+/// the rover stops.
 const SLIDE_MIN_FRACTION: f64 = 0.2;
+/// A new contact is a collision when the rover keeps less than this fraction of its speed (a stop,
+/// or a slide at a steep angle).
+const COLLISION_BELOW_SPEED_KEPT: f64 = 0.5;
 /// A contact ends only once the rover is this far from the obstacle, metres.
 const CONTACT_MARGIN_M: f64 = 0.05;
 /// The arm reaches samples around this point ahead of the position, metres.
@@ -291,12 +294,12 @@ impl Rover {
     fn next_speed(&self, h: f64) -> f64 {
         let v = self.speed_mps;
         let mut accel = if self.motor_input() {
-            THROTTLE_ACCEL * self.throttle - THROTTLE_DAMPING * v
+            THROTTLE_ACCEL_MPS2 * self.throttle - THROTTLE_DAMPING_PER_S * v
         } else {
-            -COAST_DAMPING * v - COAST_FRICTION * sign(v)
+            -COAST_DAMPING_PER_S * v - COAST_FRICTION_MPS2 * sign(v)
         };
         if self.brake > 0.0 {
-            accel -= (BRAKE_ACCEL * self.brake).min(BRAKE_LIMIT) * sign(v);
+            accel -= (BRAKE_ACCEL_MPS2 * self.brake).min(BRAKE_LIMIT_MPS2) * sign(v);
         }
         let next = v + accel * h;
         let stopping = !self.motor_input() || self.brake > 0.0;
@@ -331,7 +334,7 @@ impl Rover {
             }
         };
         if speed_kept < 1.0 {
-            if !self.in_contact && speed_kept < SLIDE_MIN_FRACTION.max(0.5) {
+            if !self.in_contact && speed_kept < COLLISION_BELOW_SPEED_KEPT {
                 events.collision = true;
             }
             self.in_contact = true;
@@ -432,8 +435,11 @@ fn sign(value: f64) -> f64 {
     }
 }
 
-fn wrap_degrees(degrees: f64) -> f64 {
-    degrees.rem_euclid(360.0)
+/// Wraps degrees into [0, 360), as Unity's `localEulerAngles` report them (a tiny negative angle,
+/// which `rem_euclid` rounds up to 360, is 0).
+pub(crate) fn wrap_degrees(degrees: f64) -> f64 {
+    let wrapped = degrees.rem_euclid(360.0);
+    if wrapped >= 360.0 { 0.0 } else { wrapped }
 }
 
 #[cfg(test)]

@@ -16,6 +16,8 @@ use crate::world::{Sample, World};
 
 /// How often a long run logs its progress.
 const PROGRESS_PERIOD: Duration = Duration::from_secs(5);
+/// Simulated time per command by default, seconds (25 commands a simulated second).
+pub const DEFAULT_STEP_S: f64 = 0.04;
 
 /// Settings of a run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,7 +34,7 @@ pub struct SimConfig {
 
 impl Default for SimConfig {
     fn default() -> Self {
-        SimConfig { step_s: 1.0 / 25.0, realtime: false, max_sim_seconds: None, grid: false }
+        SimConfig { step_s: DEFAULT_STEP_S, realtime: false, max_sim_seconds: None, grid: false }
     }
 }
 
@@ -120,11 +122,6 @@ impl Simulator {
         &self.world
     }
 
-    /// The rover.
-    pub fn rover(&self) -> &Rover {
-        &self.rover
-    }
-
     /// Samples still on the ground.
     pub fn samples(&self) -> &[Sample] {
         &self.samples
@@ -162,18 +159,18 @@ impl Simulator {
     pub fn step(&mut self, command: Command) {
         self.rover.apply(command, &self.samples);
         let (picked, events) = self.rover.step(self.config.step_s, &self.world, &self.samples);
+        self.report.commands += 1;
+        self.report.sim_seconds = self.report.commands as f64 * self.config.step_s;
         if let Some(index) = picked {
             self.samples.remove(index);
             self.report.samples_collected += 1;
             tracing::info!(
                 "sample picked up at {:.1} s ({} of {})",
-                (self.report.commands + 1) as f64 * self.config.step_s,
+                self.report.sim_seconds,
                 self.report.samples_collected,
                 self.report.samples_total
             );
         }
-        self.report.commands += 1;
-        self.report.sim_seconds = self.report.commands as f64 * self.config.step_s;
         self.report.distance_m += events.distance_m;
         self.report.collisions += events.collision as u64;
         if events.stuck {
@@ -196,8 +193,7 @@ impl Simulator {
 
     /// The telemetry JSON object of the current state, with a freshly rendered camera JPEG.
     pub fn telemetry(&mut self) -> String {
-        let pose = self.pose();
-        self.renderer.render(&self.world, &self.samples, &pose, &mut self.image);
+        self.render();
         if let Err(e) = rover_imaging::encode_jpeg_into(&self.image, UNITY_JPEG_QUALITY, &mut self.jpeg) {
             tracing::error!("cannot encode the camera image: {e}");
         }

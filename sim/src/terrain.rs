@@ -4,7 +4,7 @@
 
 use crate::distance::distance_to;
 use crate::random::value_noise;
-use crate::world::WORLD_SIZE;
+use crate::world::{WORLD_SIZE, inside_world};
 
 /// Spacing of the height field's nodes, metres.
 pub const TERRAIN_STEP_M: f64 = 0.25;
@@ -70,20 +70,9 @@ impl Terrain {
     pub fn from_floor(floor: &[bool], salt: u64) -> Self {
         assert_eq!(floor.len(), WORLD_SIZE * WORLD_SIZE, "the floor mask must be 200x200");
         let side = WORLD_SIZE * NODES_PER_M;
-        let on_floor: Vec<bool> =
-            (0..side * side).map(|i| floor[(i / side / NODES_PER_M) * WORLD_SIZE + (i % side) / NODES_PER_M]).collect();
-        let outside = distance_to(&on_floor, side);
-        let inside = distance_to(&on_floor.iter().map(|f| !f).collect::<Vec<_>>(), side);
-        let half_step = TERRAIN_STEP_M / 2.0;
-        let edge_distance_m: Vec<f32> = (0..side * side)
-            .map(|i| {
-                let edge = if on_floor[i] {
-                    -(inside[i] as f64 * TERRAIN_STEP_M - half_step)
-                } else {
-                    outside[i] as f64 * TERRAIN_STEP_M - half_step
-                };
-                (edge + FLAT_INSET_M).min(f32::MAX as f64) as f32
-            })
+        let edge_distance_m: Vec<f32> = signed_edge_distances_m(floor)
+            .into_iter()
+            .map(|edge_m| (edge_m + FLAT_INSET_M).min(f32::MAX as f64) as f32)
             .collect();
         let quantile = uniform_quantiles(side, salt);
         let heights_m: Vec<f32> = (0..side * side)
@@ -179,7 +168,7 @@ impl Terrain {
         self.cell_max_m[iy as usize * WORLD_SIZE + ix as usize]
     }
 
-    /// Every node as (x, y, height), for statistics.
+    /// Every node as (x, y, height), metres, row by row.
     pub fn nodes(&self) -> impl Iterator<Item = (f64, f64, f32)> + '_ {
         (0..self.side * self.side).map(|i| {
             let (x, y) = node_position(i, self.side);
@@ -194,9 +183,24 @@ pub(crate) fn floor_from_minus_one(v: f64) -> i64 {
     (v + 1.0) as i64 - 1
 }
 
-fn inside_world(x_m: f64, y_m: f64) -> bool {
-    let size = WORLD_SIZE as f64;
-    (0.0..size).contains(&x_m) && (0.0..size).contains(&y_m)
+/// Signed distance of every terrain node from the edge of `cells` (the 1 m cells of the world, row
+/// = y, set on one side of the edge), metres: negative on the cells, positive beyond them.
+pub(crate) fn signed_edge_distances_m(cells: &[bool]) -> Vec<f64> {
+    let side = WORLD_SIZE * NODES_PER_M;
+    let on_cells: Vec<bool> =
+        (0..side * side).map(|i| cells[(i / side / NODES_PER_M) * WORLD_SIZE + (i % side) / NODES_PER_M]).collect();
+    let outside = distance_to(&on_cells, side);
+    let inside = distance_to(&on_cells.iter().map(|on| !on).collect::<Vec<_>>(), side);
+    let half_step = TERRAIN_STEP_M / 2.0;
+    (0..side * side)
+        .map(|i| {
+            if on_cells[i] {
+                half_step - inside[i] as f64 * TERRAIN_STEP_M
+            } else {
+                outside[i] as f64 * TERRAIN_STEP_M - half_step
+            }
+        })
+        .collect()
 }
 
 /// Position of node `index` of a `side` x `side` grid, metres.

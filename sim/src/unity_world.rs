@@ -4,8 +4,8 @@
 use crate::boulder::{Boulder, BoulderKind, BoulderSpec, Cap};
 use crate::random::SplitMix64;
 use crate::world::{
-    BODY_TOP_M, SAMPLE_COUNT, Sample, StartPose, WORLD_SIZE, World, WorldError, WorldPlan, outer_region, read_mask,
-    widen_floor,
+    BODY_TOP_M, MIN_MAP_NAVIGABLE_CELLS, SAMPLE_COUNT, Sample, StartPose, WORLD_SIZE, World, WorldError, WorldPlan,
+    neighbours4, outer_region, read_mask, widen_floor,
 };
 
 /// The 33 sample placeholders of the Unity scene (unity-sim-spec 5.3), x and z in metres.
@@ -95,8 +95,8 @@ pub const UNITY_ROCKS: [UnityRock; 16] = [
 /// Footprint radius per unit of scale, metres: the unit-scale rocks' islands in `map_bw.png` are
 /// one to two cells across.
 const FOOTPRINT_RADIUS_PER_SCALE_M: f64 = 0.7;
-/// A fitted boulder's footprint lies between these fractions of the radius its scale gives.
-const FOOTPRINT_FIT_RANGE: (usize, usize) = (5, 15);
+/// A fitted boulder's footprint lies between these tenths of the radius its scale gives.
+const FOOTPRINT_FIT_TENTHS: (usize, usize) = (5, 15);
 /// Salt of the Unity world's wall shapes and boulder facets (one terrain for every run).
 const UNITY_TERRAIN_SALT: u64 = 0x0_5eed_u64;
 
@@ -112,7 +112,7 @@ pub fn unity_world(map_png: &[u8], floor_png: Option<&[u8]>, seed: u64) -> Resul
 pub fn unity_plan(map_png: &[u8], floor_png: Option<&[u8]>, seed: u64) -> Result<WorldPlan, WorldError> {
     let navigable = read_mask(map_png, "map")?;
     let count = navigable.iter().filter(|&&n| n).count();
-    if count < 100 {
+    if count < MIN_MAP_NAVIGABLE_CELLS {
         return Err(WorldError::TooSmall(count));
     }
     let mut floor = match floor_png {
@@ -169,7 +169,7 @@ pub fn fitted_boulder(rock: &UnityRock, keep_free: &[bool], islands: &[bool], in
         };
         Boulder::new(&spec, &mut SplitMix64::new(UNITY_TERRAIN_SALT ^ index))
     };
-    let (smallest, largest) = FOOTPRINT_FIT_RANGE;
+    let (smallest, largest) = FOOTPRINT_FIT_TENTHS;
     let fits = (smallest..=largest)
         .map(|tenths| (tenths, boulder_of(tenths)))
         .filter(|(_, boulder)| boulder.cells_under(keep_free, BODY_TOP_M).is_empty())
@@ -203,8 +203,7 @@ fn carve_access(floor: &mut [bool], x_m: f64, y_m: f64) {
             reached = Some(cell);
             break;
         }
-        for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
-            let next = index(x + dx, y + dy);
+        for next in neighbours4(cell) {
             if came_from[next] == usize::MAX {
                 came_from[next] = cell;
                 queue.push_back(next);

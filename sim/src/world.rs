@@ -10,6 +10,16 @@ use crate::terrain::{NODES_PER_M, TERRAIN_STEP_M, Terrain};
 const PAINT_UNDER_ROCK_M: f64 = 8.0;
 /// Side of the world, metres and map cells.
 pub const WORLD_SIZE: usize = 200;
+
+/// True if (x, y), metres, lies inside the world's square.
+pub(crate) fn inside_world(x_m: f64, y_m: f64) -> bool {
+    let size = WORLD_SIZE as f64;
+    (0.0..size).contains(&x_m) && (0.0..size).contains(&y_m)
+}
+
+/// Fewest navigable cells a world read from a map image may have.
+pub const MIN_MAP_NAVIGABLE_CELLS: usize = 100;
+
 /// Number of samples spawned per run.
 pub const SAMPLE_COUNT: usize = 6;
 /// The rover cannot drive where the terrain rises more than this per metre (56 degrees)...
@@ -98,7 +108,7 @@ pub enum WorldError {
         reason: String,
     },
     /// Too little navigable ground.
-    #[error("map has only {0} navigable pixels (values > 0); a world needs at least 100")]
+    #[error("map has only {0} navigable pixels (values > 0); a world needs at least {MIN_MAP_NAVIGABLE_CELLS}")]
     TooSmall(usize),
     /// The floor image leaves navigable map cells out.
     #[error("the floor image leaves out {0} navigable cells of the map; it must contain all of them")]

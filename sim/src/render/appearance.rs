@@ -8,10 +8,9 @@ use wide::bytemuck::cast;
 use wide::{f32x4, i16x8, i32x4, i32x8, u8x16};
 
 use super::truncated_index;
-use crate::distance::distance_to;
 use crate::look::Look;
 use crate::random::value_noise;
-use crate::terrain::{NODES_PER_M, TERRAIN_STEP_M, Terrain};
+use crate::terrain::{NODES_PER_M, Terrain, signed_edge_distances_m};
 use crate::world::{WORLD_SIZE, World};
 
 /// Entries of the table of floor colours by depth and their spacing, per metre (the colour is
@@ -123,15 +122,17 @@ pub(super) struct Appearance {
 }
 
 impl Appearance {
+    /// Bakes how `world` looks: the shade of every terrain node, the cells of plain floor and the
+    /// floor's colour by depth.
     pub(super) fn new(world: &World) -> Self {
         let look = world.look;
         let terrain = world.terrain();
         let side = WORLD_SIZE * NODES_PER_M;
-        let paint = paint_distances(world.painted());
+        let paint_m = signed_edge_distances_m(world.painted());
         let shades: Vec<PackedShade> = terrain
             .nodes()
-            .zip(paint)
-            .map(|((x, y, h), paint_m)| node_shade(terrain, &look, [x, y, h as f64], paint_m))
+            .zip(paint_m)
+            .map(|((x, y, h), paint_m)| node_shade(terrain, &look, [x, y, h as f64], paint_m as f32))
             .map(|shade| PackedShade::pack(&shade))
             .collect();
         let plain_floor = (0..WORLD_SIZE * WORLD_SIZE)
@@ -282,27 +283,6 @@ where
 {
     let top = a + (b - a) * fx;
     top + (c + (d - c) * fx - top) * fy
-}
-
-/// Signed distance of every terrain node from the edge of the cells where the floor's texture is
-/// painted, metres: positive beyond it, negative inside.
-fn paint_distances(painted_cells: &[bool]) -> Vec<f32> {
-    let side = WORLD_SIZE * NODES_PER_M;
-    let painted: Vec<bool> = (0..side * side)
-        .map(|i| painted_cells[(i / side / NODES_PER_M) * WORLD_SIZE + (i % side) / NODES_PER_M])
-        .collect();
-    let outside = distance_to(&painted, side);
-    let inside = distance_to(&painted.iter().map(|p| !p).collect::<Vec<_>>(), side);
-    let half_step = TERRAIN_STEP_M as f32 / 2.0;
-    (0..side * side)
-        .map(|i| {
-            if painted[i] {
-                half_step - inside[i] * TERRAIN_STEP_M as f32
-            } else {
-                outside[i] * TERRAIN_STEP_M as f32 - half_step
-            }
-        })
-        .collect()
 }
 
 /// The baked shade of the terrain node at `node` (x, y, height), `paint_m` beyond the painted

@@ -13,7 +13,7 @@ use super::objects::PieceInView;
 use super::view::{LevelView, Window, ceil_row};
 use super::{Hit, RenderOptions, Surface, truncated_index};
 use crate::terrain::{MAX_TERRAIN_HEIGHT_M, Terrain};
-use crate::world::{Sample, WORLD_SIZE, World};
+use crate::world::{Sample, World, inside_world};
 
 /// Rays stop after this horizontal depth, metres (the world's diagonal).
 const MAX_DEPTH_M: f64 = 290.0;
@@ -459,11 +459,6 @@ impl Painter<'_, '_> {
         }
         first.min(bottom)
     }
-}
-
-fn inside_world(x: f64, y: f64) -> bool {
-    let size = WORLD_SIZE as f64;
-    (0.0..size).contains(&x) && (0.0..size).contains(&y)
 }
 
 /// True if nothing of a cell whose terrain reaches `highest` metres, crossed between forward depths

@@ -124,11 +124,6 @@ impl Renderer {
         &self.hits
     }
 
-    /// The camera being rendered.
-    pub fn camera(&self) -> &CameraModel {
-        &self.camera
-    }
-
     /// Renders the camera view of the rover at `pose`, with `samples` on the ground, into `out`.
     /// A rover that has not moved (stopped, or picking up a sample) sees the scene it saw: only
     /// the sensor noise is new.
@@ -184,19 +179,23 @@ impl Renderer {
         };
         let hit_rows =
             self.hits.chunks_mut((rows_per_band * width).max(1)).map(Some).chain(std::iter::repeat_with(|| None));
-        let bands: Vec<_> = out.data.chunks_mut(rows_per_band * width * 3).zip(hit_rows).enumerate().collect();
-        std::thread::scope(|scope| {
-            let mut bands = bands.into_iter();
-            let own = bands.next();
-            for (band, (rgb, hits)) in bands {
-                let resampler = &resampler;
-                scope.spawn(move || resampler.rows(band * rows_per_band, rgb, hits));
-            }
-            if let Some((band, (rgb, hits))) = own {
-                resampler.rows(band * rows_per_band, rgb, hits);
-            }
-        });
+        let bands = out.data.chunks_mut(rows_per_band * width * 3).zip(hit_rows).enumerate();
+        run_split(bands, |(band, (rgb, hits))| resampler.rows(band * rows_per_band, rgb, hits));
     }
+}
+
+/// Runs `work` on each of `parts`: the first on this thread, each other on a thread of its own.
+fn run_split<T: Send>(mut parts: impl Iterator<Item = T>, work: impl Fn(T) + Sync) {
+    let own = parts.next();
+    std::thread::scope(|scope| {
+        for part in parts {
+            let work = &work;
+            scope.spawn(move || work(part));
+        }
+        if let Some(part) = own {
+            work(part);
+        }
+    });
 }
 
 /// A non-negative `value` truncated to an index (beyond `i64` it saturates). The conversion goes
@@ -230,19 +229,9 @@ fn draw_level(frame: &Frame, threads: usize, rgb: &mut [[u8; 3]], depth: &mut [f
         (rgb, depth, hits) = (rest_rgb, rest_depth, rest_hits);
         work[number % threads].push(Band { columns, rgb: band_rgb, depth: band_depth, hits: band_hits });
     }
-    let draw = |bands: Vec<Band>| {
+    run_split(work.into_iter(), |bands: Vec<Band>| {
         for band in bands {
             Painter { frame, band }.draw();
-        }
-    };
-    std::thread::scope(|scope| {
-        let mut work = work.into_iter();
-        let own = work.next();
-        for bands in work {
-            scope.spawn(move || draw(bands));
-        }
-        if let Some(bands) = own {
-            draw(bands);
         }
     });
 }
@@ -386,9 +375,10 @@ mod tests {
     /// pixels show a boulder, and at how many the drawing and the ray disagree about it.
     fn boulder_pixels_and_disagreements(world: &World, pose: &BodyPose) -> (usize, usize) {
         let options = RenderOptions { record_hits: true, ..RenderOptions::default() };
-        let mut renderer = Renderer::new(world, CameraModel::rover(), options);
+        let camera = CameraModel::rover();
+        let mut renderer = Renderer::new(world, camera, options);
         renderer.render(world, &[], pose, &mut RgbImage::default());
-        let view = LevelView::new(renderer.camera(), renderer.camera().position(pose), pose.yaw_deg);
+        let view = LevelView::new(&camera, camera.position(pose), pose.yaw_deg);
         let faces: Vec<_> = world
             .boulders()
             .iter()

@@ -16,16 +16,20 @@ pub(super) const NEAR_M: f64 = 0.05;
 /// The rectangle of the level view drawn for a frame: columns u0..u1, rows v0..v1.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(super) struct Window {
+    /// First column.
     pub(super) u0: usize,
+    /// Column after the last.
     pub(super) u1: usize,
+    /// First row.
     pub(super) v0: usize,
+    /// Row after the last.
     pub(super) v1: usize,
 }
 
 impl Window {
     /// The part of a level view of `level` (width, height) pixels that an image of `camera` rotated
     /// by `rotation` needs: the camera's own rectangle when level, otherwise the bounding box of the
-    /// rotated rectangle plus one pixel for interpolation.
+    /// rotated rectangle plus one pixel for the rounding to the nearest level pixel.
     pub(super) fn needed(rotation: &Rotation, camera: &CameraModel, level: (usize, usize)) -> Self {
         let (width, height) = (camera.width, camera.height);
         if rotation.is_identity() {
@@ -48,10 +52,15 @@ impl Window {
 pub(super) struct LevelView {
     /// Camera position (x, y, height above the floor), metres.
     pub(super) camera: Point3<f64>,
+    /// Unit vector of the camera's heading on the floor.
     pub(super) forward: [f64; 2],
+    /// Unit vector to the camera's right on the floor.
     pub(super) right: [f64; 2],
+    /// Principal point in level-view pixels (the margin included): column...
     pub(super) cx: f64,
+    /// ...and row.
     pub(super) cy: f64,
+    /// Focal length, pixels.
     pub(super) focal: f64,
 }
 

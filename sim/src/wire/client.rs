@@ -235,7 +235,7 @@ async fn serve_connection<S: Simulation>(
         };
         let Some(inbound) = inbound else { return false };
         let sent = match inbound {
-            Inbound::Open { .. } => emit_telemetry(connection, simulation, stats).await,
+            Inbound::Open => emit_telemetry(connection, simulation, stats).await,
             Inbound::Ping => connection.send_text(packet::PONG).await,
             Inbound::Pong => {
                 next_ping = Some(Instant::now() + config.ping_interval);

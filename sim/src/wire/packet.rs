@@ -15,11 +15,8 @@ pub const CLOSE: &str = "1";
 /// A decoded packet from the server.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Inbound {
-    /// Engine.IO OPEN with the session id.
-    Open {
-        /// Session id from the handshake.
-        sid: String,
-    },
+    /// Engine.IO OPEN (the handshake; the websocket transport needs nothing from it).
+    Open,
     /// Engine.IO PING: answer with PONG.
     Ping,
     /// Engine.IO PONG: the answer to our ping.
@@ -55,7 +52,7 @@ pub fn encode_event(name: &str, json_object: &str) -> String {
 pub fn decode(text: &str) -> Inbound {
     let mut chars = text.chars();
     match chars.next() {
-        Some('0') => Inbound::Open { sid: open_sid(&text[1..]) },
+        Some('0') => Inbound::Open,
         Some('1') => Inbound::Close,
         Some('2') => Inbound::Ping,
         Some('3') => Inbound::Pong,
@@ -63,13 +60,6 @@ pub fn decode(text: &str) -> Inbound {
         Some('6') => Inbound::Ignored("noop"),
         _ => Inbound::Ignored("unknown Engine.IO packet type"),
     }
-}
-
-fn open_sid(json: &str) -> String {
-    serde_json::from_str::<Value>(json)
-        .ok()
-        .and_then(|v| v.get("sid").and_then(Value::as_str).map(str::to_string))
-        .unwrap_or_default()
 }
 
 fn decode_message(body: &str) -> Inbound {
@@ -111,7 +101,7 @@ mod tests {
 
     #[test]
     fn control_packets() {
-        assert_eq!(decode("0{\"sid\":\"abc\",\"pingInterval\":25000}"), Inbound::Open { sid: "abc".into() });
+        assert_eq!(decode("0{\"sid\":\"abc\",\"pingInterval\":25000}"), Inbound::Open);
         assert_eq!(decode("2"), Inbound::Ping);
         assert_eq!(decode("3"), Inbound::Pong);
         assert_eq!(decode("1"), Inbound::Close);

@@ -6,6 +6,8 @@ use std::fmt::Write as _;
 use base64::Engine as _;
 use rover_msgs::unity::ReportedState;
 
+use crate::physics::wrap_degrees;
+
 /// The values of one telemetry event, in the simulator's conventions.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TelemetryValues<'a> {
@@ -52,12 +54,6 @@ fn format_grouped(value: f64, decimals: usize) -> String {
     out
 }
 
-/// Wraps degrees into [0, 360) as Unity's `localEulerAngles` report them.
-pub fn unity_degrees(degrees: f64) -> f64 {
-    let wrapped = degrees.rem_euclid(360.0);
-    if wrapped >= 360.0 { 0.0 } else { wrapped }
-}
-
 impl TelemetryValues<'_> {
     /// The JSON object of the `telemetry` event, keys in the Unity order.
     pub fn to_json(&self) -> String {
@@ -71,9 +67,9 @@ impl TelemetryValues<'_> {
         field("brake", &n4(self.state.brake));
         field("speed", &n4(self.state.speed_mps));
         field("position", &format!("{};{}", n4(self.state.x_m), n4(self.state.y_m)));
-        field("pitch", &n4(unity_degrees(self.state.pitch_deg)));
-        field("yaw", &n4(unity_degrees(self.state.yaw_deg)));
-        field("roll", &n4(unity_degrees(self.state.roll_deg)));
+        field("pitch", &n4(wrap_degrees(self.state.pitch_deg)));
+        field("yaw", &n4(wrap_degrees(self.state.yaw_deg)));
+        field("roll", &n4(wrap_degrees(self.state.roll_deg)));
         field("near_sample", if self.near_sample { "1" } else { "0" });
         field("picking_up", if self.picking_up { "1" } else { "0" });
         field("sample_count", &self.samples.len().to_string());
@@ -105,9 +101,9 @@ mod tests {
 
     #[test]
     fn angles_wrap_like_euler_angles() {
-        assert_eq!(unity_degrees(-0.5), 359.5);
-        assert_eq!(unity_degrees(360.0), 0.0);
-        assert_eq!(unity_degrees(56.8255), 56.8255);
+        assert_eq!(wrap_degrees(-0.5), 359.5);
+        assert_eq!(wrap_degrees(360.0), 0.0);
+        assert_eq!(wrap_degrees(56.8255), 56.8255);
     }
 
     #[test]
