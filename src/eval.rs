@@ -209,9 +209,11 @@ pub fn run_in_process_eval(
         let samples = world.samples.len();
         let this_process = [(IN_PROCESS, std::process::id())];
         let cpu_meter = CpuMeter::start(this_process);
-        let outcome =
-            run_in_process(world, settings, args.max_sim_seconds, 2500, shutdown, |p| print_progress(seed, p))
-                .with_context(|| format!("seed {seed}"))?;
+        let progress_every_frames = (PROGRESS_EVERY_SIM_S / settings.decision.frame_period_s).round() as u64;
+        let outcome = run_in_process(world, settings, args.max_sim_seconds, progress_every_frames, shutdown, |p| {
+            print_progress(seed, p)
+        })
+        .with_context(|| format!("seed {seed}"))?;
         let report = &outcome.report;
         let cpu = cpu_meter.used(this_process);
         let result = RunResult::of(seed, samples, report, &outcome.progress, report.wall_seconds, &cpu);

@@ -206,8 +206,6 @@ pub fn send_signal(pid: u32, signal: Signal) {
 
 /// First wait before a dead node starts again; it doubles with each death soon after a start.
 const RESPAWN_FIRST_DELAY: Duration = Duration::from_millis(250);
-/// Longest wait before a dead node starts again.
-const RESPAWN_MAX_DELAY: Duration = Duration::from_secs(8);
 /// A node that ran this long before it died starts again after the first delay.
 const RESPAWN_STABLE_AFTER: Duration = Duration::from_secs(10);
 /// A node that died this many times in a row soon after its start is not started again.
@@ -245,7 +243,7 @@ impl BackOff {
         if self.given_up() {
             return None;
         }
-        let delay = RESPAWN_FIRST_DELAY.saturating_mul(1 << self.quick_deaths.min(8)).min(RESPAWN_MAX_DELAY);
+        let delay = RESPAWN_FIRST_DELAY.saturating_mul(1 << self.quick_deaths);
         self.quick_deaths += 1;
         self.restart_at = (!self.given_up()).then(|| Instant::now() + delay);
         self.restart_at.map(|_| delay)
@@ -311,17 +309,7 @@ impl Graph {
         }
     }
 
-    /// Starts node `name` again (after [`Graph::kill`]).
-    pub fn restart(&mut self, name: &str) -> anyhow::Result<()> {
-        self.kill(name);
-        self.nodes.push(NodeProcess::start_again(&self.config, name)?);
-        if let Some(back_off) = self.back_off(name) {
-            back_off.started();
-        }
-        Ok(())
-    }
-
-    /// Times node `name` was started again, by [`Graph::restart`] or [`Graph::respawn_dead`].
+    /// Times node `name` was started again by [`Graph::respawn_dead`].
     pub fn restarts(&self, name: &str) -> u32 {
         self.back_offs.iter().find(|b| b.name == name).map_or(0, |b| b.restarts)
     }
@@ -341,7 +329,7 @@ impl Graph {
     }
 
     /// Takes the nodes that died out of the graph and starts each again once its back-off has
-    /// passed: 0.25 s after its first death, doubling up to 8 s while it keeps dying within 10 s
+    /// passed: 0.25 s after its first death, doubling (up to 4 s) while it keeps dying within 10 s
     /// of a start, and not after the sixth such death in a row ([`Graph::given_up`]). Call it
     /// often (e.g. every 100 ms); it never blocks. Returns the nodes it started. A node that
     /// cannot be started is tried again after the next back-off.

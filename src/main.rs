@@ -50,7 +50,8 @@ enum Command {
     /// Record and play rosbag2 bags (MCAP storage) of the graph's topics, as `ros2 bag` does, and
     /// turn a recorded dataset into a bag.
     Bag(rover::bag::BagArgs),
-    /// Serve the graph's camera, map, odometry, TF, rocks, mode and telemetry live to Foxglove
+    /// Serve the graph's camera and its calibration, map, odometry, TF, rocks, mode, plan and
+    /// telemetry live to Foxglove
     /// (Open connection, Foxglove WebSocket, ws://127.0.0.1:8765) until Ctrl-C.
     #[command(name = "live-view", after_help = ROS_ARGS_HELP)]
     LiveView(rover::live_view::LiveViewArgs),

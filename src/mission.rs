@@ -7,6 +7,7 @@ use std::collections::VecDeque;
 use std::time::Instant;
 
 use rover_bridge::convert::telemetry_message;
+use rover_bridge::node::BridgeParams;
 use rover_bridge::reply::{DataEvent, DriveValues};
 use rover_bridge::telemetry::{SimTelemetry, parse_telemetry};
 use rover_decision::drive::Drive;
@@ -31,8 +32,6 @@ use crate::nodes::Node;
 use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
 use crate::timeline::Timeline;
 
-/// The largest telemetry payload accepted, bytes (as the bridge's default).
-const MAX_TELEMETRY_BYTES: usize = 4 << 20;
 /// Telemetry messages in flight, as between the simulator's client and the bridge: the client
 /// emits one when the websocket opens and one on the Engine.IO open packet, then one per command
 /// (unity-sim-spec 1.5), so two request/reply loops circulate and each command is applied one
@@ -227,8 +226,8 @@ fn drive_as_sent(drive: &Drive, brake: f64) -> Command {
 }
 
 fn read_telemetry(sim: &mut Simulator) -> anyhow::Result<SimTelemetry> {
-    parse_telemetry(&sim.telemetry(), MAX_TELEMETRY_BYTES)?
-        .ok_or_else(|| anyhow::anyhow!("the simulator sent empty telemetry"))
+    let max_bytes = BridgeParams::default().max_payload_bytes as usize;
+    parse_telemetry(&sim.telemetry(), max_bytes)?.ok_or_else(|| anyhow::anyhow!("the simulator sent empty telemetry"))
 }
 
 #[cfg(test)]

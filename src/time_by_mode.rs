@@ -55,11 +55,6 @@ impl TimeByMode {
     pub fn seconds(&self, activity: &str) -> f64 {
         self.0.get(activity).copied().unwrap_or(0.0)
     }
-
-    /// Seconds counted in all.
-    pub fn total(&self) -> f64 {
-        self.0.values().sum()
-    }
 }
 
 /// Counts a mission's frames by telemetry: each frame's time goes to the activity of the frame
@@ -115,7 +110,6 @@ mod tests {
         let times = clock.times();
         assert!((times.seconds("explore") - 0.16).abs() < 1e-9, "frames 1-5: {times:?}");
         assert!((times.seconds(STOPPED) - 0.04).abs() < 1e-9);
-        assert!((times.total() - 0.2).abs() < 1e-9);
         assert_eq!(times.seconds("recover"), 0.0);
         assert_eq!(serde_json::to_value(times).unwrap()["stopped"], 0.04);
     }

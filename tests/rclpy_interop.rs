@@ -1,5 +1,5 @@
 //! rclpy against the whole graph, run against the headless simulator: a plain rclpy process
-//! (`tests/python/interop_probe.py`) sees every node and topic of DESIGN.md with its type, checks
+//! (`tests/python/interop_probe.py`) sees every node and topic of the graph (`rover_node::topics`) with its type, checks
 //! the content of the messages, joins the latched map late, sets a bridge parameter through the
 //! standard parameter services, drives the rover over `cmd_vel`, and times discovery. Run once with
 //! every node in its own process and once with all of them in one (`rover all`).
@@ -29,8 +29,9 @@ const IMAGE_DISCOVERY_LIMIT_S: f64 = 3.0;
 const IMAGE_TOPICS: [&str; 3] = ["/camera/image_raw", "/map/image", "/rover/vision"];
 /// The probe normally finishes in about 20 s.
 const PROBE_TIMEOUT: Duration = Duration::from_secs(90);
-/// Topics that carry messages continuously while the rover drives (DESIGN.md "Topics", without
-/// the on-demand `rover/pickup` and the teleop input `cmd_vel`).
+/// Topics of `rover_node::topics` that carry messages while the rover drives; not among them: the
+/// on-demand `rover/pickup`, the teleop input `cmd_vel`, the latched `/tf_static` and
+/// `rover/plan`, and `/clock`.
 const STREAMING_TOPICS: [&str; 16] = [
     "/camera/image_raw/compressed",
     "/camera/image_raw",

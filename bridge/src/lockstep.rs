@@ -121,11 +121,6 @@ impl<S: FrameSink> LockStep<S> {
         &self.stats
     }
 
-    /// The sink frames go to.
-    pub fn sink(&self) -> &S {
-        &self.sink
-    }
-
     /// The current inset images.
     pub fn insets(&self) -> Insets {
         lock(&self.insets).clone()

@@ -61,9 +61,10 @@ impl Steering {
         self.turning = None;
     }
 
-    /// Drives toward `bearing_rad` (relative to the heading, positive left) at up to `speed_mps`,
-    /// turning in place when the bearing is large. A turn keeps its side while the goal stays on
-    /// that side (or behind), and changes side when a new goal lies on the other.
+    /// Drives toward `bearing_rad` (relative to the heading, positive left) at up to `target_mps`
+    /// (`speed_mps` is the rover's speed now), turning in place when the bearing is large. A turn
+    /// keeps its side while the goal stays on that side (or behind), and changes side when a new
+    /// goal lies on the other.
     pub fn toward(&mut self, bearing_rad: f64, target_mps: f64, speed_mps: f64, params: &DecisionParams) -> Drive {
         let bearing_deg = bearing_rad.to_degrees();
         let goal_switched_side =

@@ -113,7 +113,8 @@ pub struct Status {
     pub home: Option<(f64, f64)>,
 }
 
-/// What a restarted machine takes over from the one before (from the latched `rover/mode`).
+/// What a restarted machine takes over from the one before (from the mapping node's
+/// `rover/map_stats`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Memory {
     /// The start of the mission.

@@ -55,7 +55,6 @@ pub fn checked_arm_input(telemetry: &Telemetry, rejections: &mut Rejections) -> 
 pub struct Pickup {
     mission_frames: MissionFrames,
     requested_frame: Option<u64>,
-    arm_busy: bool,
     tally: SampleTally,
     /// Pickup requests sent.
     pub requests: u64,
@@ -68,11 +67,9 @@ impl Pickup {
             tracing::info!("sample collected: {} so far, {} left", self.tally.collected(), input.samples_remaining);
         }
         if input.picking_up {
-            self.arm_busy = true;
             self.requested_frame = None;
             return false;
         }
-        self.arm_busy = false;
         let frame = self.mission_frames.of(input.frame);
         let retry_frames = (params.retry_s / params.frame_period_s).ceil() as u64;
         let waiting = self.requested_frame.is_some_and(|requested| frame < requested + retry_frames);
@@ -88,11 +85,6 @@ impl Pickup {
     /// Samples collected since the node started.
     pub fn collected(&self) -> u32 {
         self.tally.collected()
-    }
-
-    /// Whether the arm was busy in the last frame.
-    pub fn arm_busy(&self) -> bool {
-        self.arm_busy
     }
 }
 
@@ -112,7 +104,6 @@ mod tests {
         assert!(pickup.on_telemetry(&input(2, 0.0, true, false, 6), &params));
         assert!(!pickup.on_telemetry(&input(3, 0.0, true, false, 6), &params), "one request, not one per frame");
         assert!(!pickup.on_telemetry(&input(4, 0.0, true, true, 6), &params));
-        assert!(pickup.arm_busy());
         for frame in 5..255 {
             assert!(!pickup.on_telemetry(&input(frame, 0.0, true, true, 6), &params), "never while the arm works");
         }

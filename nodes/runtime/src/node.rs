@@ -85,11 +85,6 @@ impl Runtime {
         self.shutdown.clone()
     }
 
-    /// The process's ROS arguments.
-    pub fn ros_args(&self) -> &RosArgs {
-        &self.ros_args
-    }
-
     /// Creates the node whose default name is `default_name`, with its parameters `P` resolved from
     /// the defaults, `--params-file` files and `-p` overrides, its parameter services answered and,
     /// with `use_sim_time`, its clock following `/clock`.
