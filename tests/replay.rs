@@ -6,7 +6,7 @@ mod support;
 use std::time::{Duration, Instant};
 
 use rover_msgs::builtin_interfaces::Time;
-use rover_msgs::msg::{Telemetry, TerrainScan};
+use rover_msgs::msg::{MapStats, Telemetry, TerrainScan};
 use rover_msgs::sensor_msgs::CompressedImage;
 use rover_msgs::std_msgs::Header;
 use rover_node::{Publisher, RosNode, Runtime, topics};
@@ -90,13 +90,15 @@ fn telemetry(frame: u64, sec: i32, x_m: f64) -> Telemetry {
 }
 
 /// The test's own node: it sends camera frames and telemetry to perception, sees the terrain scans
-/// that perception publishes and sends scans of its own to mapping.
+/// that perception publishes, sends scans of its own to mapping and sees its statistics.
 struct Tester {
     camera: Publisher<CompressedImage>,
     telemetry: Publisher<Telemetry>,
     scans_out: Publisher<TerrainScan>,
     scans: Latest<TerrainScan>,
-    node: RosNode,
+    stats: Latest<MapStats>,
+    /// The node the publishers and subscriptions belong to, kept alive.
+    _node: RosNode,
 }
 
 impl Tester {
@@ -107,7 +109,8 @@ impl Tester {
             telemetry: node.publisher(&topics::TELEMETRY).unwrap(),
             scans_out: node.publisher(&topics::TERRAIN).unwrap(),
             scans: Latest::subscribe(&mut node, &topics::TERRAIN),
-            node,
+            stats: Latest::subscribe(&mut node, &topics::MAP_STATS),
+            _node: node,
         }
     }
 
@@ -166,7 +169,12 @@ async fn bad_frames_are_logged_counted_and_skipped() {
     tester.scans_out.publish(TerrainScan { telemetry: with_telemetry(1005, f64::NAN), ..scan.clone() }).unwrap();
     let malformed = TerrainScan { telemetry: with_telemetry(1006, 99.7), rows: 3, cells: vec![1; 5], ..scan.clone() };
     tester.scans_out.publish(malformed).unwrap();
-    tokio::time::sleep(Duration::from_millis(500)).await;
+    let malformed_rejected = "field `cells` = 5 values";
+    assert!(
+        eventually(Duration::from_secs(10), || mapping.log_text().contains(malformed_rejected)),
+        "the mapping node rejects the malformed scan:\n{}",
+        mapping.log_text()
+    );
     perception.interrupt(STOP_TIMEOUT);
     mapping.interrupt(STOP_TIMEOUT);
     let perception_log = perception.log_text();
@@ -193,7 +201,8 @@ async fn bad_frames_are_logged_counted_and_skipped() {
     );
 }
 
-/// Scans sent to the mapping node right before it is asked to stop: fewer than its queue holds.
+/// Scans sent to the mapping node right before it is asked to stop (after a first one): fewer than
+/// its queue holds.
 const SCANS_BEFORE_STOP: u64 = 8;
 
 #[tokio::test(flavor = "multi_thread")]
@@ -206,24 +215,27 @@ async fn a_mapping_node_asked_to_stop_first_maps_the_scans_already_sent_to_it() 
     let scan = tester.await_scan(&good_jpeg()).await;
     perception.interrupt(STOP_TIMEOUT);
     let mut mapping = start_mapping(&domain);
-    let readers = || tester.node.subscription_count(&tester.scans_out);
-    assert!(eventually(Duration::from_secs(20), || readers() >= 2), "the mapping node subscribes to rover/terrain");
-    // Time for the node's reader to match the test's writer in turn (the tester's own reader
-    // counts as the first match).
-    tokio::time::sleep(Duration::from_millis(500)).await;
-    for frame in 1..=SCANS_BEFORE_STOP {
-        tester
-            .scans_out
-            .publish(TerrainScan {
-                header: stamp(frame as i32),
-                telemetry: Telemetry { frame, ..scan.telemetry.clone() },
-                ..scan.clone()
-            })
-            .unwrap();
+    let scan_of = |frame: u64| TerrainScan {
+        header: stamp(frame as i32),
+        telemetry: Telemetry { frame, ..scan.telemetry.clone() },
+        ..scan.clone()
+    };
+    // Frame 1 goes out until the node's statistics show it mapped: a reader drops the samples of a
+    // writer it has not matched yet, and only then are both sides surely matched. The node skips
+    // the repeats (they come no later than the scan it took).
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let first_mapped = |t: &Tester| t.stats.last().is_some_and(|s| s.home_frame == 1);
+    while !first_mapped(&tester) && Instant::now() < deadline {
+        tester.scans_out.publish(scan_of(1)).unwrap();
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+    assert!(first_mapped(&tester), "the mapping node maps frame 1:\n{}", mapping.log_text());
+    for frame in 2..=SCANS_BEFORE_STOP + 1 {
+        tester.scans_out.publish(scan_of(frame)).unwrap();
     }
     mapping.interrupt(STOP_TIMEOUT);
     let log = mapping.log_text();
-    assert_log_has("mapping", &log, &[&format!("mapping: {SCANS_BEFORE_STOP} frames mapped")]);
+    assert_log_has("mapping", &log, &[&format!("mapping: {} frames mapped", SCANS_BEFORE_STOP + 1)]);
 }
 
 fn assert_log_has(node: &str, log: &str, needles: &[&str]) {
