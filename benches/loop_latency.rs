@@ -28,7 +28,7 @@ use rover_node::{spawn_subscriber, topics};
 use rover_sim::wire::client::{ClientConfig, Simulation, run_client};
 use rover_sim::wire::command::Command;
 use support::echo_sim::{LoadedFrame, recorded_frames, telemetry_json};
-use support::{Domain, NoParams, Percentiles, percentiles, test_runtime, wait_for_port};
+use support::{Domain, Percentiles, percentiles, test_runtime, wait_for_port};
 
 /// Times the 283 frames are replayed in each pass.
 const ROUNDS: usize = 4;
@@ -117,7 +117,7 @@ struct Probe {
 impl Probe {
     fn start(domain: &Domain) -> Probe {
         let runtime = test_runtime(domain);
-        let (mut node, _) = runtime.node::<NoParams>("latency_probe").expect("the probe node");
+        let (mut node, _) = runtime.node::<rover_node::NoParams>("latency_probe").expect("the probe node");
         let (telemetry, terrain, drive) = (Arrivals::default(), Arrivals::default(), Arrivals::default());
         let sink = telemetry.clone();
         let subscription = node.subscription(&topics::TELEMETRY).expect("subscribe");

@@ -13,11 +13,6 @@ use rover_msgs::RosMessage;
 use rover_node::names::NodeIdentity;
 use rover_node::topics::{Topic, TopicVisitor, visit_all};
 
-rover_node::node_params! {
-    /// The recorder and player nodes have no parameters.
-    pub struct BagParams {}
-}
-
 /// Options of `rover bag`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct BagArgs {

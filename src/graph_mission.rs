@@ -15,7 +15,7 @@ use rover_msgs::frames::MissionFrames;
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{DecisionState, Telemetry};
 use rover_msgs::nav_msgs::OccupancyGrid;
-use rover_node::{Runtime, spawn_subscriber, topics};
+use rover_node::{NoParams, Runtime, spawn_subscriber, topics};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
 use rover_sim::wire::client::{ClientConfig, run_client};
 use rover_sim::world::World;
@@ -36,11 +36,6 @@ const SUPERVISION_PERIOD: Duration = Duration::from_millis(100);
 const STALL_LIMIT: Duration = Duration::from_secs(60);
 /// How long each node gets to exit after SIGINT.
 const STOP_TIMEOUT: Duration = Duration::from_secs(5);
-
-rover_node::node_params! {
-    /// The evaluator node has no parameters.
-    pub struct EvaluatorParams {}
-}
 
 /// How a graph mission ended.
 #[derive(Debug)]
@@ -173,7 +168,7 @@ pub async fn run_graph_mission(
     let client_config = ClientConfig::unity("127.0.0.1", config.port);
     let evaluator = Arc::new(Mutex::new(Evaluator::new(&world)));
     let done = Arc::new(Notify::new());
-    let (mut node, _) = runtime.node::<EvaluatorParams>("evaluator")?;
+    let (mut node, _) = runtime.node::<NoParams>("evaluator")?;
     let subscribers = subscribe_evaluator(&mut node, &evaluator, &done, step_s)?;
     let mut graph = Graph::start(config)?;
     let mut simulator = Simulator::new(world, sim_config);

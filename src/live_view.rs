@@ -11,7 +11,7 @@ use foxglove::{ChannelBuilder, Context, PartialMetadata, RawChannel, Schema, Web
 use rover_bag::schema::{SCHEMA_ENCODING, schema_text};
 use rover_msgs::RosMessage;
 use rover_node::topics::{self, Topic, TopicVisitor, visit_all};
-use rover_node::{MessageInfo, RosNode, Runtime, spawn_subscriber_with_info};
+use rover_node::{MessageInfo, NoParams, RosNode, Runtime, spawn_subscriber_with_info};
 use tokio::task::JoinHandle;
 
 use crate::bag::record::message_time;
@@ -33,11 +33,6 @@ const LIVE_TOPICS: [&str; 10] = [
     topics::PLAN.name,
     topics::TELEMETRY.name,
 ];
-
-rover_node::node_params! {
-    /// The live view has no parameters of its own.
-    pub struct LiveViewParams {}
-}
 
 /// Options of `rover live-view` (and `rover demo --foxglove`).
 #[derive(Debug, Clone, clap::Args)]
@@ -71,7 +66,7 @@ impl LiveView {
             .start()
             .await
             .map_err(|e| anyhow::anyhow!("cannot serve Foxglove on {}:{}: {e}", args.host, args.port))?;
-        let (mut node, _) = runtime.node::<LiveViewParams>("live_view")?;
+        let (mut node, _) = runtime.node::<NoParams>("live_view")?;
         let mut forward = Forward { node: &mut node, context: &context, subscribers: Vec::new() };
         visit_all(&mut forward)?;
         let subscribers = std::mem::take(&mut forward.subscribers);

@@ -9,7 +9,7 @@ use futures::StreamExt;
 use rover_bridge::convert::{FrameMessages, PinholeCamera};
 use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::msg::MapStats;
-use rover_node::{Runtime, messages, topics};
+use rover_node::{NoParams, Runtime, messages, topics};
 
 use crate::dataset::RecordedFrame;
 use crate::replay::ReplayReport;
@@ -29,14 +29,9 @@ const MAPPING_QUIET: Duration = Duration::from_millis(1500);
 /// The longest wait for the mapping node to go quiet after the last frame.
 const MAPPING_DONE_TIMEOUT: Duration = Duration::from_secs(30);
 
-rover_node::node_params! {
-    /// The replay node has no parameters.
-    pub struct ReplayParams {}
-}
-
 /// Replays `frames` through the running perception and mapping nodes.
 pub async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> anyhow::Result<ReplayReport> {
-    let (mut node, _) = runtime.node::<ReplayParams>("replay")?;
+    let (mut node, _) = runtime.node::<NoParams>("replay")?;
     let telemetry = node.publisher(&topics::TELEMETRY)?;
     let camera = node.publisher(&topics::CAMERA_COMPRESSED)?;
     let terrain_subscription = node.subscription(&topics::TERRAIN)?;

@@ -173,7 +173,7 @@ fn rosbags_and_rclpy_read_every_message_of_the_recorded_mission() {
 /// the nodes. Needs a tokio runtime (the test's node).
 fn play_and_read_map_stats(domain: &Domain, bag: &Path, play_args: &[&str]) -> MapStats {
     let runtime = test_runtime(domain);
-    let (mut node, _) = runtime.node::<support::NoParams>("bag_test").expect("test node");
+    let (mut node, _) = runtime.node::<rover_node::NoParams>("bag_test").expect("test node");
     let stats = Latest::subscribe(&mut node, &topics::MAP_STATS);
     let terrain = node.publisher(&topics::TERRAIN).expect("a rover/terrain publisher");
     let mapping_ready = eventually(SUBSCRIBER_WAIT, || node.subscription_count(&terrain) >= 1);

@@ -169,7 +169,7 @@ impl BadInputCase {
         let domain = Domain::reserve();
         let bridge = start_bridge(&domain, extra);
         let runtime = test_runtime(&domain);
-        let (mut node, _) = runtime.node::<support::NoParams>("observer").unwrap();
+        let (mut node, _) = runtime.node::<rover_node::NoParams>("observer").unwrap();
         let diagnostics = Latest::subscribe(&mut node, &rover_node::topics::DIAGNOSTICS);
         let telemetry = Latest::subscribe(&mut node, &rover_node::topics::TELEMETRY);
         BadInputCase { domain, bridge, diagnostics, telemetry, _runtime: runtime, node }
@@ -335,7 +335,7 @@ async fn raw_images_insets_params_file_and_clean_shutdown() {
     );
     wait_for_port(domain.port(), Duration::from_secs(20));
     let runtime = test_runtime(&domain);
-    let (mut node, _) = runtime.node::<support::NoParams>("observer").unwrap();
+    let (mut node, _) = runtime.node::<rover_node::NoParams>("observer").unwrap();
     let raw = Latest::subscribe(&mut node, &rover_node::topics::CAMERA_RAW);
     let map_image = node.publisher(&rover_node::topics::MAP_IMAGE).unwrap();
     let inset = rover_msgs::sensor_msgs::Image {

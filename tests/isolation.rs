@@ -18,7 +18,7 @@ use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{DriveCommand, Telemetry};
 use rover_node::ros_args::Remap;
 use rover_node::{RosArgs, RosNode, Runtime, Shutdown, topics};
-use support::{Domain, Latest, NoParams, Process, STOP_TIMEOUT, eventually, rover, start_process};
+use support::{Domain, Latest, Process, STOP_TIMEOUT, eventually, rover, start_process};
 
 /// What a test node receives in one namespace of one domain.
 struct Observer {
@@ -30,7 +30,7 @@ struct Observer {
 
 impl Observer {
     fn start(runtime: &Runtime, name: &str) -> Observer {
-        let (mut node, _) = runtime.node::<NoParams>(name).expect("create the observer node");
+        let (mut node, _) = runtime.node::<rover_node::NoParams>(name).expect("create the observer node");
         Observer {
             telemetry: Latest::subscribe(&mut node, &topics::TELEMETRY),
             drive: Latest::subscribe(&mut node, &topics::DRIVE_CMD),
@@ -61,7 +61,8 @@ impl DomainView {
         let runtime = Runtime::on_domain(domain.id, ros_args, Shutdown::new()).expect("the test's DDS participant");
         let a = Observer::start(&runtime, "obs_a");
         let b = Observer::start(&runtime, "obs_b");
-        let (mut node, _) = runtime.node::<NoParams>("obs_diagnostics").expect("create the diagnostics observer");
+        let (mut node, _) =
+            runtime.node::<rover_node::NoParams>("obs_diagnostics").expect("create the diagnostics observer");
         let diagnostics = Latest::subscribe(&mut node, &topics::DIAGNOSTICS);
         DomainView { diagnostics, a, b, _diagnostics_node: node, _runtime: runtime }
     }

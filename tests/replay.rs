@@ -103,7 +103,7 @@ struct Tester {
 
 impl Tester {
     fn new(runtime: &Runtime) -> Self {
-        let (mut node, _) = runtime.node::<support::NoParams>("tester").unwrap();
+        let (mut node, _) = runtime.node::<rover_node::NoParams>("tester").unwrap();
         Tester {
             camera: node.publisher(&topics::CAMERA_COMPRESSED).unwrap(),
             telemetry: node.publisher(&topics::TELEMETRY).unwrap(),

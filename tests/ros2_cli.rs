@@ -275,7 +275,7 @@ async fn a_sensor_data_publisher_reaches_the_loops_readers() {
     let Some(domain) = support::ros2_domain_or_skip() else { return };
     let _echo = start_process(&support::echo_node(), &[], &domain, "ros2-cli-echo");
     let runtime = support::test_runtime(&domain);
-    let (mut node, _) = runtime.node::<support::NoParams>("sensor_data_observer").expect("the observer node");
+    let (mut node, _) = runtime.node::<rover_node::NoParams>("sensor_data_observer").expect("the observer node");
     let replies = support::Latest::subscribe(&mut node, &rover_node::topics::DRIVE_CMD);
     let telemetry = "{frame: 7, x_m: 3.0}";
     let args = ["topic", "pub", "--qos-profile", "sensor_data", "-r", "10", "-t", "50"];

@@ -17,7 +17,7 @@ use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image};
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tf2_msgs::TFMessage;
 use rover_node::sync::lock;
-use rover_node::{Publisher, RosNode, Runtime, spawn_subscriber, topics};
+use rover_node::{Publisher, RosNode, Runtime, publish_or_warn, spawn_subscriber, topics};
 use tracing::Instrument as _;
 
 use crate::clock::SimClock;
@@ -120,7 +120,7 @@ impl DdsSink {
         let tf_static = node.publisher(&topics::TF_STATIC)?;
         let static_transforms =
             convert::static_transforms_message(&CameraMount::UNITY, &Header::at(frame_ids::MAP, clock.now()));
-        log_publish("/tf_static", tf_static.publish(static_transforms));
+        publish_or_warn(&tf_static, &topics::TF_STATIC, static_transforms);
         Ok(DdsSink {
             _tf_static: tf_static,
             telemetry: node.publisher(&topics::TELEMETRY)?,
@@ -139,7 +139,7 @@ impl DdsSink {
 
     fn publish_raw(&self, publisher: &Publisher<Image>, jpeg: &[u8], header: Header) {
         match rover_imaging::decode_jpeg(jpeg, self.camera.width as usize, self.camera.height as usize) {
-            Ok(image) => log_publish("camera/image_raw", publisher.publish(rgb8_message(image, header))),
+            Ok(image) => publish_or_warn(publisher, &topics::CAMERA_RAW, rgb8_message(image, header)),
             Err(e) => tracing::warn!("camera/image_raw not published: {e}"),
         }
     }
@@ -150,31 +150,25 @@ impl DdsSink {
             *last = Some(telemetry.samples.clone());
             let message =
                 convert::sample_truth_message(telemetry, Header { frame_id: frame_ids::MAP.into(), ..header });
-            log_publish("sim/sample_truth", self.sample_truth.publish(message));
+            publish_or_warn(&self.sample_truth, &topics::SAMPLE_TRUTH, message);
         }
     }
 }
 
 impl FrameSink for DdsSink {
     fn publish_frame(&self, frame: u64, telemetry: &SimTelemetry) {
-        log_publish("/clock", self.clock_publisher.publish(self.clock.clock_message(frame)));
+        publish_or_warn(&self.clock_publisher, &topics::CLOCK, self.clock.clock_message(frame));
         let messages = FrameMessages::new(telemetry, frame, self.clock.stamp_frame(frame), &self.camera);
         let (odom_header, camera_header) = (messages.telemetry.header.clone(), messages.compressed.header.clone());
-        log_publish("rover/telemetry", self.telemetry.publish(messages.telemetry));
-        log_publish("camera/image_raw/compressed", self.compressed.publish(messages.compressed));
-        log_publish("camera/camera_info", self.camera_info.publish(messages.camera_info));
-        log_publish("odom", self.odom.publish(messages.odom));
-        log_publish("/tf", self.tf.publish(messages.tf));
+        publish_or_warn(&self.telemetry, &topics::TELEMETRY, messages.telemetry);
+        publish_or_warn(&self.compressed, &topics::CAMERA_COMPRESSED, messages.compressed);
+        publish_or_warn(&self.camera_info, &topics::CAMERA_INFO, messages.camera_info);
+        publish_or_warn(&self.odom, &topics::ODOM, messages.odom);
+        publish_or_warn(&self.tf, &topics::TF, messages.tf);
         if let Some(raw) = &self.raw {
             self.publish_raw(raw, &telemetry.image_jpeg, camera_header);
         }
         self.publish_sample_truth(telemetry, odom_header);
-    }
-}
-
-fn log_publish<E: std::fmt::Debug>(topic: &str, result: Result<(), E>) {
-    if let Err(e) = result {
-        tracing::warn!("cannot publish on {topic}: {e:?}");
     }
 }
 
@@ -204,7 +198,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             loop {
                 ticks.tick().await;
                 let message = diagnostics_core.stats().diagnostics(&name, Header::at("", clock.now()));
-                log_publish("/diagnostics", diagnostics.publish(message));
+                publish_or_warn(&diagnostics, &topics::DIAGNOSTICS, message);
             }
         }
         .instrument(span.clone()),

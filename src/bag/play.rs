@@ -9,9 +9,9 @@ use futures::future::BoxFuture;
 use rover_bag::{BagMessage, BagReader, TopicInfo};
 use rover_msgs::RosMessage;
 use rover_node::topics::{Topic, TopicVisitor, visit_all};
-use rover_node::{Publisher, RosNode, Runtime, Shutdown};
+use rover_node::{NoParams, Publisher, RosNode, Runtime, Shutdown};
 
-use super::{BagParams, check_known, resolve_names};
+use super::{check_known, resolve_names};
 
 /// The player's node name (as `ros2 bag play`'s).
 const PLAYER_NODE: &str = "rosbag2_player";
@@ -192,7 +192,7 @@ async fn play_messages(
 /// Runs `rover bag play` until the end of the bag or shutdown.
 pub async fn play(args: &PlayArgs, runtime: &Runtime) -> anyhow::Result<Played> {
     let bag = BagReader::open(&args.bag)?;
-    let (mut node, _) = runtime.node::<BagParams>(PLAYER_NODE)?;
+    let (mut node, _) = runtime.node::<NoParams>(PLAYER_NODE)?;
     let wanted = wanted_topics(&node, &bag, &args.topics)?;
     let publishers = publishers(&mut node, &wanted)?;
     let wait_for = resolve_names(node.identity(), &args.wait_for)?;

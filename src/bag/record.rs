@@ -10,11 +10,11 @@ use rover_bag::{BagMetadata, BagWriter, MessageTime, TopicId};
 use rover_msgs::RosMessage;
 use rover_node::sync::lock;
 use rover_node::topics::{Topic, TopicVisitor, visit_all};
-use rover_node::{MessageInfo, RosNode, Runtime, spawn_subscriber_with_info};
+use rover_node::{MessageInfo, NoParams, RosNode, Runtime, spawn_subscriber_with_info};
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
-use super::{BagParams, add_topic, check_known, now_ns, resolve_names, resolved_table_names, summary};
+use super::{add_topic, check_known, now_ns, resolve_names, resolved_table_names, summary};
 
 /// The recorder's node name (as `ros2 bag record`'s).
 const RECORDER_NODE: &str = "rosbag2_recorder";
@@ -68,7 +68,7 @@ impl Recorder {
     /// Creates the bag `dir` and subscribes to `topics` (resolved or table names; every topic of
     /// the table when empty) with a node on `runtime`.
     pub fn start(runtime: &Runtime, dir: &Path, topics: &[String]) -> anyhow::Result<Self> {
-        let (mut node, _) = runtime.node::<BagParams>(RECORDER_NODE)?;
+        let (mut node, _) = runtime.node::<NoParams>(RECORDER_NODE)?;
         let selected = selected_topics(&node, topics)?;
         let mut writer = BagWriter::create(dir)?;
         let (sender, receiver) = mpsc::unbounded_channel();

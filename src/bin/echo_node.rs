@@ -7,12 +7,7 @@
 use rover_msgs::frame_ids;
 use rover_msgs::msg::DriveCommand;
 use rover_msgs::std_msgs::Header;
-use rover_node::{Runtime, Shutdown, logging, spawn_subscriber, split_ros_args, topics};
-
-rover_node::node_params! {
-    /// The echo node has no settings of its own.
-    pub struct EchoParams {}
-}
+use rover_node::{NoParams, Runtime, Shutdown, logging, publish_or_warn, spawn_subscriber, split_ros_args, topics};
 
 fn main() -> anyhow::Result<()> {
     let (own, ros_args) = split_ros_args(std::env::args().collect())?;
@@ -25,7 +20,7 @@ fn main() -> anyhow::Result<()> {
     logging::init(ros_args.log_level.as_deref());
     tokio::runtime::Runtime::new()?.block_on(async move {
         let runtime = Runtime::new(ros_args, Shutdown::on_signals())?;
-        let (mut node, _params) = runtime.node::<EchoParams>("echo")?;
+        let (mut node, _params) = runtime.node::<NoParams>("echo")?;
         let drive = node.publisher(&topics::DRIVE_CMD)?;
         spawn_subscriber(node.subscription(&topics::TELEMETRY)?, node.span(), move |telemetry| {
             let command = DriveCommand {
@@ -35,9 +30,7 @@ fn main() -> anyhow::Result<()> {
                 brake: telemetry.frame as f32,
                 steering_angle_deg: 0.0,
             };
-            if let Err(e) = drive.publish(command) {
-                tracing::warn!("cannot publish a drive command: {e:?}");
-            }
+            publish_or_warn(&drive, &topics::DRIVE_CMD, command);
         });
         runtime.shutdown().wait().await;
         anyhow::Ok(())

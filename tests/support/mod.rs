@@ -118,11 +118,6 @@ pub fn test_runtime(domain: &Domain) -> rover_node::Runtime {
         .expect("create the test's DDS participant")
 }
 
-rover_node::node_params! {
-    /// The test observer node has no parameters.
-    pub struct NoParams {}
-}
-
 /// Keeps the latest message of a topic, received by a subscription in the test process.
 pub struct Latest<M> {
     latest: std::sync::Arc<std::sync::Mutex<Vec<M>>>,

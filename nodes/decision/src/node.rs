@@ -13,7 +13,7 @@ use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, Telemetry, TerrainS
 use rover_msgs::nav_msgs::{OccupancyGrid, Path};
 use rover_msgs::std_msgs::Header;
 use rover_node::snapshot::SnapshotFile;
-use rover_node::{Publisher, Rejections, Runtime, topics};
+use rover_node::{Publisher, Rejections, Runtime, publish_or_warn, topics};
 use tracing::Instrument as _;
 
 use crate::checked_observation;
@@ -88,9 +88,7 @@ impl Decision {
             brake: drive.brake as f32,
             steering_angle_deg: drive.steering_deg as f32,
         };
-        if let Err(e) = self.drive.publish(command) {
-            tracing::warn!("cannot publish rover/drive_cmd: {e:?}");
-        }
+        publish_or_warn(&self.drive, &topics::DRIVE_CMD, command);
         if self.machine.take_change() || telemetry.frame.is_multiple_of(STATUS_EVERY_FRAMES) {
             self.publish_status(telemetry);
         }
@@ -105,9 +103,7 @@ impl Decision {
 
     fn publish_plan(&mut self, telemetry: &Telemetry) {
         let header = Header { frame_id: frame_ids::MAP.to_string(), ..telemetry.header.clone() };
-        if let Err(e) = self.plan.publish(path_message(&self.planned, header)) {
-            tracing::warn!("cannot publish rover/plan: {e:?}");
-        }
+        publish_or_warn(&self.plan, &topics::PLAN, path_message(&self.planned, header));
     }
 
     fn publish_status(&mut self, telemetry: &Telemetry) {
@@ -125,9 +121,7 @@ impl Decision {
             home_x_m,
             home_y_m,
         };
-        if let Err(e) = self.mode.publish(state) {
-            tracing::warn!("cannot publish rover/mode: {e:?}");
-        }
+        publish_or_warn(&self.mode, &topics::MODE, state);
     }
 
     fn set_map(&mut self, map: &OccupancyGrid) {

@@ -13,7 +13,7 @@ use rover_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
 use rover_msgs::sensor_msgs::Image;
 use rover_msgs::std_msgs::Header;
 use rover_node::snapshot::SnapshotFile;
-use rover_node::{Publisher, Runtime, topics};
+use rover_node::{Publisher, Runtime, publish_or_warn, topics};
 use tracing::Instrument as _;
 
 use crate::image::{InsetStats, map_inset};
@@ -117,7 +117,7 @@ impl Outputs {
             },
             data: occupancy.clone(),
         };
-        warn_on_error("map", self.map.publish(grid));
+        publish_or_warn(&self.map, &topics::MAP, grid);
         let inset = InsetStats {
             time_s: self.started.elapsed().as_secs_f64(),
             mapped_pct: stats.mapped_pct.is_finite().then_some(stats.mapped_pct as f64),
@@ -127,22 +127,16 @@ impl Outputs {
         };
         let image = map_inset(&occupancy, mapping.ground_truth(), &rocks, &inset);
         let message = rgb8_message(image, header.clone());
-        warn_on_error("map/image", self.image.publish(message));
-        warn_on_error("rover/map_stats", self.stats.publish(stats));
+        publish_or_warn(&self.image, &topics::MAP_IMAGE, message);
+        publish_or_warn(&self.stats, &topics::MAP_STATS, stats);
         if self.last_rocks.as_ref() != Some(&rocks) {
             let poses = rocks
                 .iter()
                 .map(|&(x, y)| PoseMsg { position: Point { x, y, z: 0.0 }, orientation: Quaternion::from_yaw(0.0) })
                 .collect();
-            warn_on_error("rover/rocks", self.rocks.publish(PoseArray { header, poses }));
+            publish_or_warn(&self.rocks, &topics::ROCKS, PoseArray { header, poses });
             self.last_rocks = Some(rocks);
         }
-    }
-}
-
-fn warn_on_error<E: std::fmt::Debug>(topic: &str, result: Result<(), E>) {
-    if let Err(e) = result {
-        tracing::warn!("cannot publish on {topic}: {e:?}");
     }
 }
 

@@ -8,7 +8,7 @@ use rover_msgs::msg::{Telemetry, TerrainScan};
 use rover_msgs::sensor_msgs::{CompressedImage, Image};
 use rover_msgs::std_msgs::Header;
 use rover_node::pairing::Pairer;
-use rover_node::{Publisher, Rejections, Runtime, topics};
+use rover_node::{Publisher, Rejections, Runtime, publish_or_warn, topics};
 
 use crate::classify::{RockRule, Thresholds};
 use crate::scan::{ScanGeometry, vision_image};
@@ -158,16 +158,12 @@ impl Worker {
         }
         self.frames += 1;
         let scan = self.geometry.terrain_scan(self.perception.classes(), &pose, header.clone());
-        if let Err(e) = self.terrain.publish(scan) {
-            tracing::warn!("cannot publish rover/terrain: {e:?}");
-        }
+        publish_or_warn(&self.terrain, &topics::TERRAIN, scan);
         let every = self.settings.vision_every_frames as u64;
         if every > 0 && self.frames.is_multiple_of(every) {
             let image = vision_image(self.perception.table(), self.perception.classes());
             let message = rgb8_message(image, header);
-            if let Err(e) = self.vision.publish(message) {
-                tracing::warn!("cannot publish rover/vision: {e:?}");
-            }
+            publish_or_warn(&self.vision, &topics::VISION, message);
         }
     }
 }

@@ -4,7 +4,7 @@ use futures::StreamExt;
 use rover_msgs::frame_ids;
 use rover_msgs::msg::PickupRequest;
 use rover_msgs::std_msgs::Header;
-use rover_node::{Rejections, Runtime, topics};
+use rover_node::{Rejections, Runtime, publish_or_warn, topics};
 use tracing::Instrument as _;
 
 use crate::{Pickup, PickupParams, checked_arm_input};
@@ -28,9 +28,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
                     if let Some(input) = checked_arm_input(&t, &mut rejections) && pickup.on_telemetry(&input, &settings) {
                         tracing::info!(frame = t.frame, "sample within reach and rover stopped: requesting a pickup");
                         let request = PickupRequest { header: Header { frame_id: frame_ids::BASE_LINK.to_string(), ..t.header }, frame: t.frame };
-                        if let Err(e) = requests.publish(request) {
-                            tracing::warn!("cannot publish rover/pickup: {e:?}");
-                        }
+                        publish_or_warn(&requests, &topics::PICKUP, request);
                     }
                 }
                 Ok(()) = changes.changed() => settings = changes.borrow_and_update().clone(),

@@ -22,10 +22,10 @@ pub mod sync;
 pub mod topics;
 
 pub use node::{
-    Params, RosNode, Runtime, domain_id_from_env, messages, resolve_params, spawn_subscriber,
+    Params, RosNode, Runtime, domain_id_from_env, messages, publish_or_warn, resolve_params, spawn_subscriber,
     spawn_subscriber_with_info,
 };
-pub use params::NodeParams;
+pub use params::{NoParams, NodeParams};
 pub use rejections::Rejections;
 pub use ros_args::{RosArgs, split_ros_args};
 pub use ros2_client::{MessageInfo, Publisher, Subscription};

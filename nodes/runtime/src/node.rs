@@ -274,6 +274,14 @@ fn log_malformed<M: RosMessage>(malformed: &mut u64, error: &dyn std::fmt::Debug
     }
 }
 
+/// Publishes `message` with `publisher`, made for `topic`; a failure is logged with the topic's
+/// name and the node goes on.
+pub fn publish_or_warn<M: RosMessage>(publisher: &Publisher<M>, topic: &Topic<M>, message: M) {
+    if let Err(e) = publisher.publish(message) {
+        tracing::warn!("cannot publish on {}: {e}", topic.name);
+    }
+}
+
 /// Spawns a task that calls `handler` for every message of `subscription` until the stream ends.
 /// Messages that fail to deserialise are logged and skipped.
 pub fn spawn_subscriber<M: RosMessage>(

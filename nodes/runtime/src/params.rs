@@ -390,6 +390,7 @@ macro_rules! node_params {
                 ),*]
             }
 
+            #[allow(unused_variables, reason = "a struct without fields reads no value")]
             fn from_values(values: &$crate::params::ParamValues) -> Self {
                 $name {$(
                     $field: values
@@ -408,6 +409,11 @@ macro_rules! node_params {
     };
     (@range $lo:literal, $hi:literal) => { Some(($lo as f64, $hi as f64)) };
     (@range) => { None };
+}
+
+crate::node_params! {
+    /// The parameters of a node that has none of its own (besides `use_sim_time`).
+    pub struct NoParams {}
 }
 
 #[cfg(test)]
