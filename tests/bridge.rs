@@ -440,7 +440,7 @@ impl ParameterClient {
 }
 
 #[tokio::test(flavor = "multi_thread")]
-async fn the_parameter_service_refuses_unsafe_safety_parameters_with_a_reason() {
+async fn the_parameter_service_refuses_unsafe_values_and_parameters_read_at_start_with_a_reason() {
     support::assert_isolated();
     let domain = Domain::reserve();
     let _bridge = start_bridge(&domain, &[]);
@@ -455,6 +455,9 @@ async fn the_parameter_service_refuses_unsafe_safety_parameters_with_a_reason() 
         assert!(!taken, "{name} := {value} was taken");
         assert!(reason.contains(&format!("is outside the allowed range {range}")), "{name} := {value}: {reason:?}");
     }
+    let (taken, reason) = parameters.set_double("frame_period_s", 0.05).await;
+    assert!(!taken, "frame_period_s, read when the bridge starts, was taken");
+    assert!(reason.contains("frame_period_s is read when the node starts"), "{reason:?}");
     let (taken, reason) = parameters.set_double("brake", 20.0).await;
     assert!(taken, "a safe brake is taken: {reason:?}");
 }

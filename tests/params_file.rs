@@ -31,9 +31,10 @@ const HEADER: &str = "\
 # Use: rover NODE --ros-args --params-file launch_scripts/rover_params.yaml [-r __ns:=/NAMESPACE]
 # (launch_scripts/rover.launch.py and launch_scripts/rover-graph pass it to every node).
 # The `/**/NODE` keys apply to the node of that name in any namespace.
-# Each parameter's comment gives its type, its allowed range and what it does; `rover NODE --help`
-# prints the same table. Generated from the nodes' declarations, and tests/params_file.rs fails
-# when the two differ. Regenerate: ROVER_WRITE_PARAMS_YAML=1 cargo test --test params_file
+# Each parameter's comment gives its type, its allowed range, whether the node reads it only when it
+# starts (`ros2 param set` refuses those) and what it does; `rover NODE --help` prints the same
+# table. Generated from the nodes' declarations, and tests/params_file.rs fails when the two
+# differ. Regenerate: ROVER_WRITE_PARAMS_YAML=1 cargo test --test params_file
 ";
 
 /// Width at which the description comments wrap.
@@ -45,7 +46,9 @@ fn expected_yaml() -> String {
     for (node, specs) in declared_nodes() {
         out.push_str(&format!("\n/**/{node}:\n  ros__parameters:\n"));
         for spec in &specs {
-            for line in wrap(&format!("{}. {}", type_and_range(spec), spec.description), COMMENT_WIDTH - 6) {
+            let at_start = if spec.read_at_start { ", read at start" } else { "" };
+            let comment = format!("{}{at_start}. {}", type_and_range(spec), spec.description);
+            for line in wrap(&comment, COMMENT_WIDTH - 6) {
                 out.push_str(&format!("    # {line}\n"));
             }
             out.push_str(&format!("    {}: {}\n", spec.name, yaml_value(&spec.default)));

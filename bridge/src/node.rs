@@ -62,13 +62,24 @@ rover_node::node_params! {
         diagnostics_period_ms: f64 [10.0, 60000.0] = 1000.0,
         /// JPEG quality of the inset images sent to the simulator.
         inset_jpeg_quality: i64 [1, 100] = 60,
-        /// A new simulator connection replaces the one being served instead of being refused
-        /// (read at start).
+        /// A new simulator connection replaces the one being served instead of being refused.
         replace_connected_simulator: bool = false,
         /// Simulated time per telemetry frame, s: /clock advances by it each frame, as the
-        /// simulator sends no time (read at start; the headless simulator steps 0.04 s).
+        /// simulator sends no time (the headless simulator steps 0.04 s).
         frame_period_s: f64 [0.001, 1.0] = 0.04,
     }
+    read_at_start: [
+        host,
+        port,
+        max_payload_bytes,
+        image_width,
+        image_height,
+        publish_raw_image,
+        diagnostics_period_ms,
+        inset_jpeg_quality,
+        replace_connected_simulator,
+        frame_period_s,
+    ]
 }
 
 impl BridgeParams {

@@ -246,6 +246,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
                 Some(s) = stats.next() => decision.resume_from(&s),
                 Ok(()) = changes.changed() => {
                     let updated = changes.borrow_and_update().clone();
+                    decision.rays = updated.free_space_rays();
                     decision.machine.set_params(updated);
                 }
             }

@@ -109,6 +109,7 @@ rover_node::node_params! {
         /// Write the snapshot at most this often, ms.
         snapshot_every_ms: f64 [100.0, 600000.0] = 1000.0,
     }
+    read_at_start: [state_dir]
 }
 
 impl DecisionParams {

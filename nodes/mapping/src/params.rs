@@ -46,6 +46,7 @@ rover_node::node_params! {
         /// faster than real time maps ten times as much ground in it, all of it lost in a crash).
         snapshot_every_ms: f64 [100.0, 600000.0] = 250.0,
     }
+    read_at_start: [ground_truth_png, state_dir]
 }
 
 impl MappingParams {

@@ -12,7 +12,7 @@ use ros2_client::rcl_interfaces as rcl;
 use ros2_client::service::Server;
 use ros2_client::{Message, Name, Node, Parameter, ParameterValue, RmwRequestId, ServiceMapping, ServiceTypeName};
 
-use crate::params::{self, ParamSpec, USE_SIM_TIME};
+use crate::params::{self, ParamSpec};
 use crate::sync::lock;
 
 /// Separator of the parts of a parameter name (`a.b.c`).
@@ -133,7 +133,7 @@ impl Table {
     /// Sets every parameter of the request or none: all are checked before the first is set.
     fn set_atomically(&self, request: rcl::SetParametersRequest) -> rcl::SetParametersAtomicallyResponse {
         let parameters: Vec<Parameter> = request.parameter.into_iter().map(Parameter::from).collect();
-        let checked = parameters.iter().try_for_each(|p| self.check(p).map(|_| ()));
+        let checked = parameters.iter().try_for_each(|p| settable_value(&self.specs, p).map(|_| ()));
         let outcome = checked.and_then(|()| parameters.into_iter().try_for_each(|p| self.set_one(p)));
         rcl::SetParametersAtomicallyResponse { result: result(outcome) }
     }
@@ -147,22 +147,23 @@ impl Table {
         rcl::DescribeParametersResponse { values: request.names.iter().map(|n| describe(&self.specs, n)).collect() }
     }
 
-    /// The value `parameter` would be set to (integers widened where a number is declared), if it
-    /// may be set: declared, of its type, within its range, and not `use_sim_time`, which a node
-    /// reads when it starts.
-    fn check(&self, parameter: &Parameter) -> Result<ParameterValue, String> {
-        if parameter.name == USE_SIM_TIME {
-            return Err(format!("{USE_SIM_TIME} is read when the node starts: start it with -p {USE_SIM_TIME}:=true"));
-        }
-        let spec = self.specs.iter().find(|s| s.name == parameter.name);
-        let spec = spec.ok_or_else(|| format!("unknown parameter `{}`", parameter.name))?;
-        params::check_value(spec, &parameter.value).map_err(|reason| format!("{} {reason}", parameter.name))
-    }
-
     fn set_one(&self, parameter: Parameter) -> Result<(), String> {
-        let value = self.check(&parameter)?;
+        let value = settable_value(&self.specs, &parameter)?;
         lock(&self.node).set_parameter(&parameter.name, value)
     }
+}
+
+/// The value `parameter` would be set to (integers widened where a number is declared), if it
+/// may be set: declared in `specs`, not read only when the node starts, of its type, within its
+/// range.
+fn settable_value(specs: &[ParamSpec], parameter: &Parameter) -> Result<ParameterValue, String> {
+    let spec = specs.iter().find(|s| s.name == parameter.name);
+    let spec = spec.ok_or_else(|| format!("unknown parameter `{}`", parameter.name))?;
+    if spec.read_at_start {
+        let name = spec.name;
+        return Err(format!("{name} is read when the node starts: start it with -p {name}:=VALUE"));
+    }
+    params::check_value(spec, &parameter.value).map_err(|reason| format!("{} {reason}", parameter.name))
 }
 
 fn result(outcome: Result<(), String>) -> raw::SetParametersResult {
@@ -215,7 +216,7 @@ fn describe(specs: &[ParamSpec], name: &str) -> raw::ParameterDescriptor {
         r#type: spec.map_or(raw::ParameterType::NOT_SET, |s| type_code(&s.default)),
         description: spec.map_or("not declared by this node", |s| s.description).to_string(),
         additional_constraints: String::new(),
-        read_only: spec.is_none(),
+        read_only: spec.is_none_or(|s| s.read_at_start),
         dynamic_typing: false,
         floating_point_range,
         integer_range,
@@ -240,9 +241,30 @@ mod tests {
         assert!(list(&names, &strings(&["nothing"]), 0).names.is_empty());
     }
 
+    fn spec(name: &'static str, default: ParameterValue, range: Option<(f64, f64)>) -> ParamSpec {
+        ParamSpec { name, description: "what it does", default, range, read_at_start: false }
+    }
+
+    #[test]
+    fn a_parameter_read_at_start_is_refused_and_described_read_only() {
+        let specs = [
+            ParamSpec { read_at_start: true, ..spec("port", ParameterValue::Integer(4567), Some((1.0, 65535.0))) },
+            spec("deadline_ms", ParameterValue::Double(50.0), Some((0.0, 250.0))),
+        ];
+        let set = |name: &str, value| settable_value(&specs, &Parameter { name: name.into(), value });
+        assert_eq!(
+            set("port", ParameterValue::Integer(80)),
+            Err("port is read when the node starts: start it with -p port:=VALUE".to_string())
+        );
+        assert_eq!(set("deadline_ms", ParameterValue::Integer(20)), Ok(ParameterValue::Double(20.0)), "widened");
+        assert!(set("deadline_ms", ParameterValue::Double(300.0)).unwrap_err().contains("outside the allowed range"));
+        assert!(describe(&specs, "port").read_only);
+        assert!(!describe(&specs, "deadline_ms").read_only);
+        assert!(describe(&specs, "missing").read_only, "not declared");
+    }
+
     #[test]
     fn a_described_parameter_has_its_type_description_and_range() {
-        let spec = |name, default, range| ParamSpec { name, description: "what it does", default, range };
         let specs = [
             spec("deadline_ms", ParameterValue::Double(50.0), Some((0.0, 250.0))),
             spec("every", ParameterValue::Integer(10), Some((0.0, 100.0))),

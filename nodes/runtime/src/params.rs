@@ -21,6 +21,9 @@ pub struct ParamSpec {
     pub default: ParameterValue,
     /// Inclusive numeric range, for integer and double parameters.
     pub range: Option<(f64, f64)>,
+    /// The node reads it only when it starts: the parameter services refuse to set it (ROS's
+    /// read-only parameters).
+    pub read_at_start: bool,
 }
 
 /// A parameter value type: conversion to and from [`ParameterValue`].
@@ -113,6 +116,7 @@ pub(crate) fn use_sim_time_spec() -> ParamSpec {
         description: "Stamp messages with the simulated time of /clock instead of the wall clock.",
         default: ParameterValue::Boolean(false),
         range: None,
+        read_at_start: true,
     }
 }
 
@@ -337,8 +341,9 @@ pub fn help_table(specs: &[ParamSpec]) -> String {
     let mut out = String::from("Parameters (set with --ros-args -p NAME:=VALUE or --params-file FILE):\n");
     for spec in specs {
         let range = spec.range.map(|(lo, hi)| format!(", range [{lo}, {hi}]")).unwrap_or_default();
+        let at_start = if spec.read_at_start { ", read at start" } else { "" };
         out.push_str(&format!(
-            "  {} ({}{range}, default {})\n      {}\n",
+            "  {} ({}{range}, default {}{at_start})\n      {}\n",
             spec.name,
             type_description(&spec.default),
             describe_value(&spec.default),
@@ -349,6 +354,8 @@ pub fn help_table(specs: &[ParamSpec]) -> String {
 }
 
 /// Declares a node's parameters: a struct with one field per parameter and its [`NodeParams`] impl.
+/// The parameters listed after `read_at_start` are read only when the node starts (a name that is
+/// not a field does not compile).
 ///
 /// ```
 /// rover_node::node_params! {
@@ -358,7 +365,10 @@ pub fn help_table(specs: &[ParamSpec]) -> String {
 ///         port: i64 [1, 65535] = 4567,
 ///         /// Host to bind.
 ///         host: String = "127.0.0.1",
+///         /// Seconds to wait for an answer.
+///         timeout_s: f64 [0.0, 60.0] = 1.0,
 ///     }
+///     read_at_start: [port, host]
 /// }
 /// ```
 #[macro_export]
@@ -371,6 +381,7 @@ macro_rules! node_params {
                 $field:ident : $ty:ty $([$lo:literal, $hi:literal])? = $default:expr
             ),* $(,)?
         }
+        $(read_at_start: [$($start:ident),* $(,)?])?
     ) => {
         $(#[$meta])*
         #[derive(Debug, Clone, PartialEq)]
@@ -379,13 +390,16 @@ macro_rules! node_params {
         }
 
         impl $crate::params::NodeParams for $name {
+            #[allow(unused_variables, reason = "a struct without fields has no parameter to look up")]
             fn specs() -> Vec<$crate::params::ParamSpec> {
+                let read_at_start: &[&str] = &[$($(stringify!($start)),*)?];
                 vec![$(
                     $crate::params::ParamSpec {
                         name: stringify!($field),
                         description: concat!($($doc),+).trim_ascii(),
                         default: <$ty as $crate::params::ParamType>::into_value(<$ty>::from($default)),
                         range: $crate::node_params!(@range $($lo, $hi)?),
+                        read_at_start: read_at_start.contains(&stringify!($field)),
                     }
                 ),*]
             }
@@ -406,6 +420,10 @@ macro_rules! node_params {
                 $name { $( $field: <$ty>::from($default), )* }
             }
         }
+
+        const _: fn(&$name) = |_params| {
+            $($(let _ = &_params.$start;)*)?
+        };
     };
     (@range $lo:literal, $hi:literal) => { Some(($lo as f64, $hi as f64)) };
     (@range) => { None };
