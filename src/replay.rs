@@ -27,7 +27,7 @@ pub struct ReplayArgs {
     pub json: bool,
     /// Publish the frames over DDS as the bridge would and score the map of the running
     /// perception and mapping nodes (start mapping with -p ground_truth_png:=MAP for the scores).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "ground_truth")]
     pub via_dds: bool,
 }
 
@@ -36,11 +36,11 @@ pub struct ReplayArgs {
 pub struct ReplayReport {
     /// Frames in the dataset.
     pub frames: usize,
-    /// Frames the map used.
-    pub frames_mapped: usize,
-    /// Frames skipped for pitch or roll.
-    pub frames_skipped_tilt: usize,
-    /// Frames whose image could not be used.
+    /// Frames the map used (unknown over DDS: the mapping node does not publish its count).
+    pub frames_mapped: Option<usize>,
+    /// Frames skipped for pitch or roll (unknown over DDS).
+    pub frames_skipped_tilt: Option<usize>,
+    /// Frames whose image could not be used (over DDS: frames without a terrain scan).
     pub frames_rejected: usize,
     /// Udacity mapped %, if a ground truth was given.
     pub mapped_pct: Option<f64>,
@@ -52,8 +52,8 @@ pub struct ReplayReport {
     pub navigable_cells: usize,
     /// Median time of perception per frame (JPEG decode, table, classes, scan grid), ms.
     pub perception_ms_median: f64,
-    /// Median time of a map update per frame, ms.
-    pub mapping_ms_median: f64,
+    /// Median time of a map update per frame, ms (not timed over DDS).
+    pub mapping_ms_median: Option<f64>,
 }
 
 fn median_ms(mut samples: Vec<Duration>) -> f64 {
@@ -125,15 +125,15 @@ pub fn replay_frames(
     let scores = ground_truth.map(|truth| occupancy_scores(&occupancy, truth));
     let report = ReplayReport {
         frames: frames.len(),
-        frames_mapped: mapped,
-        frames_skipped_tilt: skipped,
+        frames_mapped: Some(mapped),
+        frames_skipped_tilt: Some(skipped),
         frames_rejected: rejected,
         mapped_pct: scores.map(|s| s.mapped_pct),
         fidelity_pct: scores.map(|s| s.fidelity_pct),
         rocks_located: map.rocks(mapping.rock_merge_m).len(),
         navigable_cells: occupancy_counts(&occupancy).0,
         perception_ms_median: median_ms(perception_times),
-        mapping_ms_median: median_ms(mapping_times),
+        mapping_ms_median: Some(median_ms(mapping_times)),
     };
     Ok((report, map))
 }
@@ -172,9 +172,13 @@ fn print_report(args: &ReplayArgs, report: &ReplayReport) -> anyhow::Result<()> 
 
 fn print_table(report: &ReplayReport) {
     let percent = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1} %"));
+    let count = |v: Option<usize>| v.map_or("-".to_string(), |v| v.to_string());
     println!(
         "frames                {:>8}  (mapped {}, skipped for tilt {}, rejected {})",
-        report.frames, report.frames_mapped, report.frames_skipped_tilt, report.frames_rejected
+        report.frames,
+        count(report.frames_mapped),
+        count(report.frames_skipped_tilt),
+        report.frames_rejected
     );
     println!("mapped                {:>8}", percent(report.mapped_pct));
     println!("fidelity              {:>8}", percent(report.fidelity_pct));
@@ -184,5 +188,6 @@ fn print_table(report: &ReplayReport) {
         "perception per frame  {:>6.3} ms (median; over DDS: camera out to terrain scan back)",
         report.perception_ms_median
     );
-    println!("map update per frame  {:>6.3} ms (median)", report.mapping_ms_median);
+    let mapping_ms = report.mapping_ms_median.map_or("-".to_string(), |ms| format!("{ms:.3} ms"));
+    println!("map update per frame  {mapping_ms:>9} (median)");
 }

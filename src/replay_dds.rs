@@ -95,14 +95,14 @@ pub async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> any
     let finite = |v: f32| v.is_finite().then_some((v as f64 * 10.0).round() / 10.0);
     Ok(ReplayReport {
         frames: frames.len(),
-        frames_mapped: frames.len() - lost,
-        frames_skipped_tilt: 0,
+        frames_mapped: None,
+        frames_skipped_tilt: None,
         frames_rejected: lost,
         mapped_pct: finite(final_stats.mapped_pct),
         fidelity_pct: finite(final_stats.fidelity_pct),
         rocks_located: final_stats.rocks_located as usize,
         navigable_cells: final_stats.navigable_cells as usize,
         perception_ms_median: median,
-        mapping_ms_median: 0.0,
+        mapping_ms_median: None,
     })
 }
