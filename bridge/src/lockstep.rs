@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use rover_msgs::geometry_msgs::Twist;
 use rover_msgs::validate::Validate as _;
-use rover_node::rejections::{clipped, worth_logging};
+use rover_node::rejections::clipped;
 use rover_node::sync::lock;
 use tokio::sync::oneshot;
 
@@ -188,13 +188,8 @@ impl<S: FrameSink> LockStep<S> {
     }
 
     fn reject(&self, config: &LockStepConfig, kind: &str, problem: &str) -> Reply {
-        let count = self.stats.problem(kind);
-        if worth_logging(count) {
-            tracing::warn!(
-                "rejected telemetry frame: {}; answering with a brake ({count} such so far)",
-                clipped(problem)
-            );
-        }
+        let problem = clipped(problem);
+        self.stats.warn_problem(kind, format_args!("rejected telemetry frame: {problem}; answering with a brake"));
         Reply::Data(DriveValues::brake(config.policy.brake), CommandSource::RejectedFrame)
     }
 
@@ -267,10 +262,8 @@ impl<S: FrameSink> LockStep<S> {
         let values = match DriveValues::checked(throttle, brake, steering_deg) {
             Ok(values) => values,
             Err(problem) => {
-                let count = self.stats.bad_command();
-                if worth_logging(count) {
-                    tracing::warn!(frame, "rejected a drive command: {problem} ({count} such so far)");
-                }
+                let message = format_args!("rejected the drive command of frame {frame}: {problem}");
+                self.stats.warn_problem("bad_drive_command", message);
                 return;
             }
         };
@@ -289,10 +282,7 @@ impl<S: FrameSink> LockStep<S> {
     /// brakes the rover while it is fresh.
     pub fn on_teleop(&self, twist: Twist) {
         if let Err(invalid) = twist.validate() {
-            let count = self.stats.problem("bad_teleop");
-            if worth_logging(count) {
-                tracing::warn!("cmd_vel {invalid}: braking while it is fresh ({count} such so far)");
-            }
+            self.stats.warn_problem("bad_teleop", format_args!("cmd_vel {invalid}: braking while it is fresh"));
         }
         *lock(&self.teleop) = Some((twist, Instant::now()));
     }
@@ -420,6 +410,7 @@ mod tests {
     async fn teleop_overrides_while_fresh_and_nan_commands_are_rejected() {
         let (core, _frames) = core();
         core.on_drive_command(0, f32::NAN, 0.0, 0.0);
+        assert_eq!(core.stats().problem_count("bad_drive_command"), 1);
         assert_eq!(core.stats().deadline_misses(), 0);
         let mut twist = Twist::default();
         twist.linear.x = 2.0;

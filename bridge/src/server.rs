@@ -18,7 +18,6 @@ use engineioxide::handler::EngineIoHandler;
 use engineioxide::sid::Sid;
 use engineioxide::socket::{DisconnectReason, Socket};
 use engineioxide::{Str, config::EngineIoConfig, layer::EngineIoLayer};
-use rover_node::rejections::worth_logging;
 use rover_node::sync::lock;
 use tokio::sync::mpsc::error::TrySendError;
 use tokio::sync::oneshot;
@@ -239,14 +238,12 @@ impl<S: FrameSink> SimulatorLink<S> {
     /// Closes a connection that arrived while simulator `served` is being served; its frames
     /// never reach the lock-step core.
     fn refuse(&self, socket: &Socket<()>, served: Sid) {
-        let count = self.core.stats().problem("simulator_refused");
-        if worth_logging(count) {
-            tracing::warn!(
-                sid = %socket.id,
-                "refused a second simulator connection: simulator {served} is connected and served \
-                 (parameter replace_connected_simulator lets a new one take over; {count} refused so far)"
-            );
-        }
+        let message = format_args!(
+            "refused a second simulator connection ({}): simulator {served} is connected and served \
+             (parameter replace_connected_simulator lets a new one take over)",
+            socket.id
+        );
+        self.core.stats().warn_problem("simulator_refused", message);
         socket.close(DisconnectReason::ClosingServer);
     }
 

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use rover_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
 use rover_msgs::std_msgs::Header;
+use rover_node::rejections::worth_logging;
 use rover_node::sync::lock;
 
 use crate::reply::{CommandSource, Reply};
@@ -82,7 +83,6 @@ pub struct BridgeStats {
     replies_rejected: AtomicU64,
     replies_pickup: AtomicU64,
     replies_manual: AtomicU64,
-    bad_commands: AtomicU64,
     problems: Mutex<BTreeMap<String, u64>>,
     latencies: LatencyWindow,
     hops: [LatencyWindow; 3],
@@ -104,7 +104,6 @@ impl Default for BridgeStats {
             replies_rejected: AtomicU64::new(0),
             replies_pickup: AtomicU64::new(0),
             replies_manual: AtomicU64::new(0),
-            bad_commands: AtomicU64::new(0),
             problems: Mutex::new(BTreeMap::new()),
             latencies: LatencyWindow::default(),
             hops: Default::default(),
@@ -151,9 +150,13 @@ impl BridgeStats {
         *count
     }
 
-    /// Counts a drive command that was rejected (NaN...); returns the count so far.
-    pub fn bad_command(&self) -> u64 {
-        self.bad_commands.fetch_add(1, Ordering::Relaxed) + 1
+    /// Counts a problem of kind `kind` and logs `message` as a warning, with the count so far, when
+    /// that count is worth logging (the first, then at each power of two).
+    pub fn warn_problem(&self, kind: &str, message: std::fmt::Arguments) {
+        let count = self.problem(kind);
+        if worth_logging(count) {
+            tracing::warn!("{message} ({count} such so far)");
+        }
     }
 
     /// Counts one reply and records how long the frame took from arrival to reply, and where
@@ -270,7 +273,6 @@ impl BridgeStats {
             key_value("replies_rejected_frame", self.replies_rejected.load(Ordering::Relaxed).to_string()),
             key_value("replies_pickup", self.replies_pickup.load(Ordering::Relaxed).to_string()),
             key_value("replies_manual", self.replies_manual.load(Ordering::Relaxed).to_string()),
-            key_value("bad_drive_commands", self.bad_commands.load(Ordering::Relaxed).to_string()),
         ];
         for (name, hop) in HOP_NAMES.iter().zip(self.hops()) {
             values.push(key_value(&format!("hop_{name}_p50_ms"), format!("{:.3}", hop.p50_ms)));
