@@ -196,6 +196,7 @@ impl BridgeStats {
     }
 
     /// Count of problems of kind `kind`.
+    #[cfg(test)]
     pub fn problem_count(&self, kind: &str) -> u64 {
         lock(&self.problems).get(kind).copied().unwrap_or(0)
     }

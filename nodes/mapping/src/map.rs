@@ -370,9 +370,10 @@ impl WorldMap {
         (self.weight[0][cell], self.weight[1][cell])
     }
 
-    /// What the map calls the cell, as an occupancy value (see [`WorldMap::occupancy`] for the
-    /// whole map).
-    pub fn cell_occupancy(&self, cell: usize) -> i8 {
+    /// What the map calls the cell, as an occupancy value (the tests' view of one cell of
+    /// [`WorldMap::occupancy`]).
+    #[cfg(test)]
+    fn cell_occupancy(&self, cell: usize) -> i8 {
         let ((nav_hits, obs_hits, _), (nav, obs)) = (self.evidence(cell), self.weighed_evidence(cell));
         self.config.occupancy([nav_hits, obs_hits], [nav, obs])
     }
