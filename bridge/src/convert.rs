@@ -191,14 +191,7 @@ impl FrameMessages {
 
 /// The `sim/sample_truth` message: true positions of the samples on the ground.
 pub fn sample_truth_message(t: &SimTelemetry, header: Header) -> PoseArray {
-    PoseArray {
-        header,
-        poses: t
-            .samples
-            .iter()
-            .map(|&(x, y)| Pose { position: Point { x, y, z: 0.0 }, orientation: Quaternion::from_yaw(0.0) })
-            .collect(),
-    }
+    PoseArray::of_points(header, &t.samples)
 }
 
 #[cfg(test)]

@@ -170,6 +170,20 @@ pub mod geometry_msgs {
     ros_message! { /// A transform from `header.frame_id` to `child_frame_id`.
     "geometry_msgs" / TransformStamped { header: Header, child_frame_id: String, transform: Transform } }
 
+    impl PoseArray {
+        /// Points (x, y) on the floor of `header`'s frame, metres, as poses without rotation.
+        pub fn of_points(header: Header, points: &[(f64, f64)]) -> Self {
+            let pose =
+                |&(x, y): &(f64, f64)| Pose { position: Point { x, y, z: 0.0 }, orientation: Quaternion::IDENTITY };
+            PoseArray { header, poses: points.iter().map(pose).collect() }
+        }
+
+        /// The position (x, y) of every pose, metres.
+        pub fn points(&self) -> Vec<(f64, f64)> {
+            self.poses.iter().map(|pose| (pose.position.x, pose.position.y)).collect()
+        }
+    }
+
     impl Quaternion {
         /// No rotation.
         pub const IDENTITY: Quaternion = Quaternion { x: 0.0, y: 0.0, z: 0.0, w: 1.0 };

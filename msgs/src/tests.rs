@@ -103,3 +103,13 @@ fn definitions_list_the_type_then_each_nested_type_once_depth_first() {
     );
     assert_eq!(Telemetry::definitions()[0].fields, Telemetry::fields());
 }
+
+#[test]
+fn points_become_poses_without_rotation_and_back() {
+    use crate::geometry_msgs::{PoseArray, Quaternion};
+    let header = crate::std_msgs::Header { frame_id: "map".into(), ..Default::default() };
+    let poses = PoseArray::of_points(header, &[(97.4, 74.6), (122.3, 51.7)]);
+    assert_eq!(poses.header.frame_id, "map");
+    assert!(poses.poses.iter().all(|pose| pose.orientation == Quaternion::IDENTITY && pose.position.z == 0.0));
+    assert_eq!(poses.points(), [(97.4, 74.6), (122.3, 51.7)]);
+}

@@ -153,7 +153,7 @@ impl Decision {
 
     fn set_rocks(&mut self, rocks: &PoseArray) {
         if self.rejections.accept(topics::ROCKS.name, rocks) {
-            let located = rocks.poses.iter().map(|pose| (pose.position.x, pose.position.y)).collect();
+            let located = rocks.points();
             self.machine.receive_rocks(self.mission_frame_of(&rocks.header.stamp), located);
         }
     }

@@ -128,8 +128,7 @@ impl MappingCore {
     /// Keeps the first true sample positions received (for scoring the located rocks).
     pub fn set_samples_truth(&mut self, samples: &PoseArray) {
         if self.rejections.accept(topics::SAMPLE_TRUTH.name, samples) {
-            self.samples_truth
-                .get_or_insert_with(|| samples.poses.iter().map(|p| (p.position.x, p.position.y)).collect());
+            self.samples_truth.get_or_insert_with(|| samples.points());
         }
     }
 

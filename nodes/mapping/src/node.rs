@@ -130,11 +130,7 @@ impl Outputs {
         publish_or_warn(&self.image, &topics::MAP_IMAGE, message);
         publish_or_warn(&self.stats, &topics::MAP_STATS, stats);
         if self.last_rocks.as_ref() != Some(&rocks) {
-            let poses = rocks
-                .iter()
-                .map(|&(x, y)| PoseMsg { position: Point { x, y, z: 0.0 }, orientation: Quaternion::from_yaw(0.0) })
-                .collect();
-            publish_or_warn(&self.rocks, &topics::ROCKS, PoseArray { header, poses });
+            publish_or_warn(&self.rocks, &topics::ROCKS, PoseArray::of_points(header, &rocks));
             self.last_rocks = Some(rocks);
         }
     }
