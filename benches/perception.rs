@@ -13,7 +13,7 @@ use rover::dataset::read_log;
 use rover::replay::{frame_pose, scan_grid};
 use rover_mapping::map::WorldMap;
 use rover_mapping::params::MappingParams;
-use rover_perception::node::PerceptionParams;
+use rover_perception::params::PerceptionParams;
 
 const PASSES: usize = 5;
 

@@ -23,7 +23,7 @@ use rover_decision::route::path_costs;
 use rover_decision::tour::cluster_anchors;
 use rover_mapping::params::MappingParams;
 use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_of_point};
-use rover_perception::node::PerceptionParams;
+use rover_perception::params::PerceptionParams;
 
 /// Times every start is planned from.
 const PASSES: usize = 3;

@@ -53,7 +53,7 @@ impl Node {
     pub fn param_specs(self) -> Vec<ParamSpec> {
         match self {
             Node::Bridge => rover_bridge::node::BridgeParams::specs(),
-            Node::Perception => rover_perception::node::PerceptionParams::specs(),
+            Node::Perception => rover_perception::params::PerceptionParams::specs(),
             Node::Mapping => rover_mapping::params::MappingParams::specs(),
             Node::Decision => rover_decision::params::DecisionParams::specs(),
             Node::Pickup => rover_pickup::PickupParams::specs(),

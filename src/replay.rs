@@ -8,7 +8,7 @@ use rover_mapping::map::{ScanGrid, Update, WorldMap};
 use rover_mapping::params::MappingParams;
 use rover_mapping::projection::Pose;
 use rover_mapping::score::{ground_truth_from_png, occupancy_counts, occupancy_scores};
-use rover_perception::node::PerceptionParams;
+use rover_perception::params::PerceptionParams;
 use rover_perception::scan::ScanGeometry;
 use serde::Serialize;
 

@@ -8,7 +8,7 @@ use anyhow::Context as _;
 use rover_imaging::{RgbImage, UNITY_JPEG_QUALITY};
 use rover_perception::Perception;
 use rover_perception::classify::{Class, Thresholds};
-use rover_perception::node::PerceptionParams;
+use rover_perception::params::PerceptionParams;
 use rover_sim::camera::{BodyPose, CameraModel};
 use rover_sim::cli::WorldArgs;
 use rover_sim::render::{Hit, RenderOptions, Renderer, Surface};

@@ -172,7 +172,7 @@ fn the_params_file_loads_through_the_runtime_into_the_defaults() {
     };
     assert_eq!(resolve_params::<rover_bridge::node::BridgeParams>("bridge", &ros_args).unwrap(), Default::default());
     assert_eq!(
-        resolve_params::<rover_perception::node::PerceptionParams>("perception", &ros_args).unwrap(),
+        resolve_params::<rover_perception::params::PerceptionParams>("perception", &ros_args).unwrap(),
         Default::default()
     );
     assert_eq!(

@@ -42,18 +42,9 @@ pub struct MapConfig {
 }
 
 impl Default for MapConfig {
+    /// The configuration of the mapping node's default parameters.
     fn default() -> Self {
-        MapConfig {
-            max_range_m: 8.0,
-            max_tilt_deg: 3.0,
-            correct_tilt: true,
-            min_navigable_hits: 1,
-            navigable_ratio: 0.2,
-            full_weight_range_m: 3.0,
-            shadow_margin_m: 1.5,
-            min_obstacle_hits: 2,
-            min_rock_hits: 2,
-        }
+        crate::params::MappingParams::default().map_config()
     }
 }
 

@@ -9,6 +9,7 @@
 pub mod classify;
 pub mod homography;
 pub mod node;
+pub mod params;
 pub mod scan;
 pub mod warp;
 
