@@ -14,7 +14,7 @@ use std::time::Duration;
 use rover_bag::BagReader;
 use rover_msgs::msg::MapStats;
 use rover_node::topics;
-use support::{Domain, Latest, Process, eventually, rover, shared_dir, start_process, test_runtime};
+use support::{Domain, Latest, Process, eventually, map_bw_png, rover, start_process, test_dataset_dir, test_runtime};
 
 /// Simulated seconds of the recorded mission.
 const MISSION_SIM_SECONDS: &str = "40";
@@ -27,14 +27,6 @@ const SUBSCRIBER_WAIT: Duration = Duration::from_secs(30);
 /// Time for the other participants to match the mapping node's reader once the test's writer has
 /// (discovery runs in every participant at once).
 const MATCH_WAIT: Duration = Duration::from_secs(1);
-
-fn ground_truth() -> String {
-    shared_dir().join("udacity/calibration_images/map_bw.png").display().to_string()
-}
-
-fn dataset() -> String {
-    shared_dir().join("udacity/test_dataset").display().to_string()
-}
 
 fn scratch_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("rover-test-bag-{name}-{}", std::process::id()));
@@ -87,12 +79,12 @@ fn record_mission(name: &str) -> Recorded {
     let dir = scratch_dir(name);
     let bag = dir.join("mission_bag");
     let output = Command::new(rover())
-        .args(["demo", "--map", &ground_truth(), "--max-sim-seconds", MISSION_SIM_SECONDS, "--no-respawn"])
+        .args(["demo", "--map", &map_bw_png(), "--max-sim-seconds", MISSION_SIM_SECONDS, "--no-respawn"])
         .arg("--out")
         .arg(dir.join("demo"))
         .arg("--record")
         .arg(&bag)
-        .args(["--ros-args", "-p", &format!("mapping:ground_truth_png:={}", ground_truth())])
+        .args(["--ros-args", "-p", &format!("mapping:ground_truth_png:={}", map_bw_png())])
         .args(["-p", &format!("mapping:{PUBLISH_DELAY_MS}")])
         .env("ROS_DOMAIN_ID", domain.id.to_string())
         .output()
@@ -191,7 +183,7 @@ fn play_and_read_map_stats(domain: &Domain, bag: &Path, play_args: &[&str]) -> M
 fn start_mapping(domain: &Domain) -> Process {
     start_process(
         &rover(),
-        &["mapping", "--ros-args", "-p", &format!("ground_truth_png:={}", ground_truth()), "-p", PUBLISH_DELAY_MS],
+        &["mapping", "--ros-args", "-p", &format!("ground_truth_png:={}", map_bw_png()), "-p", PUBLISH_DELAY_MS],
         domain,
         "mapping",
     )
@@ -286,7 +278,7 @@ async fn the_recorded_scans_played_into_a_fresh_mapping_node_give_the_recorded_m
 
 fn replay_json() -> serde_json::Value {
     let output = Command::new(rover())
-        .args(["replay", &dataset(), "--ground-truth", &ground_truth(), "--json"])
+        .args(["replay", &test_dataset_dir(), "--ground-truth", &map_bw_png(), "--json"])
         .output()
         .expect("run rover replay");
     assert!(output.status.success(), "rover replay failed: {}", String::from_utf8_lossy(&output.stderr));
@@ -299,7 +291,7 @@ async fn the_test_dataset_as_a_bag_plays_through_perception_and_mapping_to_the_r
     let dir = scratch_dir("dataset");
     let bag = dir.join("test_dataset_bag");
     let output = Command::new(rover())
-        .args(["bag", "from-dataset", &dataset(), "-o", bag.to_str().unwrap()])
+        .args(["bag", "from-dataset", &test_dataset_dir(), "-o", bag.to_str().unwrap()])
         .output()
         .expect("run rover bag from-dataset");
     assert!(output.status.success(), "from-dataset failed: {}", String::from_utf8_lossy(&output.stderr));
@@ -346,7 +338,7 @@ fn bad_inputs_are_named_without_a_panic() {
     std::fs::write(corrupt.join("corrupt_0.mcap"), b"\x89MCAP0\r\n\x01\xff\xff\xff\xff\xff\xff\xff\x7f").unwrap();
     let error = run(&["bag", "play", corrupt.to_str().unwrap()]);
     assert!(error.contains("corrupt_0.mcap"), "{error}");
-    let existing = run(&["bag", "from-dataset", &dataset(), "-o", dir.to_str().unwrap()]);
+    let existing = run(&["bag", "from-dataset", &test_dataset_dir(), "-o", dir.to_str().unwrap()]);
     assert!(existing.contains("already exists"), "{existing}");
     assert!(
         run(&["bag", "from-dataset", dir.to_str().unwrap(), "-o", dir.join("x").to_str().unwrap()])

@@ -10,19 +10,13 @@ use rover_msgs::msg::{MapStats, Telemetry, TerrainScan};
 use rover_msgs::sensor_msgs::CompressedImage;
 use rover_msgs::std_msgs::Header;
 use rover_node::{Publisher, RosNode, Runtime, topics};
-use support::{Domain, Latest, Process, STOP_TIMEOUT, eventually, rover, shared_dir, start_process, test_runtime};
-
-fn ground_truth() -> String {
-    shared_dir().join("udacity/calibration_images/map_bw.png").display().to_string()
-}
-
-fn dataset() -> String {
-    shared_dir().join("udacity/test_dataset").display().to_string()
-}
+use support::{
+    Domain, Latest, Process, STOP_TIMEOUT, eventually, map_bw_png, rover, start_process, test_dataset_dir, test_runtime,
+};
 
 fn replay_json(args: &[&str], domain: Option<&Domain>) -> serde_json::Value {
     let mut command = std::process::Command::new(rover());
-    command.arg("replay").arg(dataset()).args(args).arg("--json");
+    command.arg("replay").arg(test_dataset_dir()).args(args).arg("--json");
     if let Some(domain) = domain {
         command.env("ROS_DOMAIN_ID", domain.id.to_string());
     }
@@ -33,7 +27,7 @@ fn replay_json(args: &[&str], domain: Option<&Domain>) -> serde_json::Value {
 
 #[test]
 fn the_libraries_map_the_test_dataset_with_at_least_85_percent_fidelity_and_20_percent_mapped() {
-    let report = replay_json(&["--ground-truth", &ground_truth()], None);
+    let report = replay_json(&["--ground-truth", &map_bw_png()], None);
     eprintln!("{report}");
     assert_eq!(report["frames"], 283);
     let (mapped, fidelity) = (report["mapped_pct"].as_f64().unwrap(), report["fidelity_pct"].as_f64().unwrap());
@@ -54,7 +48,7 @@ fn start_mapping(domain: &Domain) -> Process {
             "mapping",
             "--ros-args",
             "-p",
-            &format!("ground_truth_png:={}", ground_truth()),
+            &format!("ground_truth_png:={}", map_bw_png()),
             "-p",
             "publish_max_delay_ms:=100.0",
         ],
@@ -70,7 +64,7 @@ fn start_nodes(domain: &Domain) -> (Process, Process) {
 #[test]
 fn the_nodes_over_dds_give_the_same_map_as_the_libraries() {
     support::assert_isolated();
-    let offline = replay_json(&["--ground-truth", &ground_truth()], None);
+    let offline = replay_json(&["--ground-truth", &map_bw_png()], None);
     let domain = Domain::reserve();
     let (_perception, _mapping) = start_nodes(&domain);
     let over_dds = replay_json(&["--via-dds"], Some(&domain));
@@ -136,7 +130,8 @@ impl Tester {
 
 /// A recorded camera frame of the dataset.
 fn good_jpeg() -> Vec<u8> {
-    std::fs::read(rover::dataset::read_log(std::path::Path::new(&dataset())).unwrap()[20].image.clone()).unwrap()
+    std::fs::read(rover::dataset::read_log(std::path::Path::new(&test_dataset_dir())).unwrap()[20].image.clone())
+        .unwrap()
 }
 
 #[tokio::test(flavor = "multi_thread")]

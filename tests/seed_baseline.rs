@@ -7,6 +7,8 @@ mod support;
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
+use support::number;
+
 /// The Python modules of the baseline driver (drive_baseline.py, perception.py).
 const DRIVER_MODULES: [&str; 6] = ["socketio", "engineio", "eventlet", "numpy", "cv2", "PIL"];
 
@@ -38,10 +40,6 @@ fn eval_baseline(world: &[&str], seed: u64) -> Option<Vec<serde_json::Value>> {
 }
 
 /// The number `key` of a result row.
-fn number(row: &serde_json::Value, key: &str) -> f64 {
-    row[key].as_f64().unwrap_or_else(|| panic!("no number {key} in {row}"))
-}
-
 /// Checks the one row of a 60 s run of `seed`: six samples, the whole simulated time, a partial
 /// map of the baseline's usual fidelity (~93 %), a frame rate and a home distance.
 fn assert_one_plausible_row(rows: &[serde_json::Value], seed: u64) {
@@ -59,7 +57,7 @@ fn assert_one_plausible_row(rows: &[serde_json::Value], seed: u64) {
 
 #[test]
 fn the_baseline_evaluation_scores_a_60_s_run_on_the_udacity_map() {
-    let map = support::shared_dir().join("udacity/calibration_images/map_bw.png").display().to_string();
+    let map = support::map_bw_png();
     let Some(rows) = eval_baseline(&["--map", &map], 1) else { return };
     assert_one_plausible_row(&rows, 1);
 }

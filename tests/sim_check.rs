@@ -6,14 +6,14 @@ mod support;
 
 use std::path::{Path, PathBuf};
 
-use support::{rover, shared_dir};
+use support::{map_bw_png, number, rover, shared_dir, test_dataset_dir};
 
 fn sim_check(dataset: &Path, extra: &[&str]) -> serde_json::Value {
     let shared = |path: &str| shared_dir().join(path).display().to_string();
     let output = std::process::Command::new(rover())
         .arg("sim-check")
         .arg(dataset)
-        .args(["--map", &shared("udacity/calibration_images/map_bw.png")])
+        .args(["--map", &map_bw_png()])
         .args(["--floor", &shared("udacity-world/floor_flat.png"), "--json"])
         .args(extra)
         .output()
@@ -22,13 +22,9 @@ fn sim_check(dataset: &Path, extra: &[&str]) -> serde_json::Value {
     serde_json::from_slice(&output.stdout).expect("one JSON object")
 }
 
-fn number(value: &serde_json::Value, key: &str) -> f64 {
-    value[key].as_f64().unwrap_or_else(|| panic!("{key} in {value}"))
-}
-
 #[test]
 fn the_simulated_world_agrees_with_the_283_real_frames() {
-    let report = sim_check(&shared_dir().join("udacity/test_dataset"), &[]);
+    let report = sim_check(&PathBuf::from(test_dataset_dir()), &[]);
     let summary = &report["summary"];
     eprintln!("{summary}");
     assert_eq!(summary["frames"], 283);
@@ -43,7 +39,7 @@ fn the_simulated_world_agrees_with_the_283_real_frames() {
 
 #[test]
 fn each_kind_of_surface_has_the_colour_the_real_camera_sees_there() {
-    let report = sim_check(&shared_dir().join("udacity/test_dataset"), &[]);
+    let report = sim_check(&PathBuf::from(test_dataset_dir()), &[]);
     let bands = report["bands"].as_array().expect("bands");
     let band = |name: &str| bands.iter().find(|b| b["band"] == name).unwrap_or_else(|| panic!("band {name}"));
     let median = |b: &serde_json::Value, image: &str| -> Vec<f64> {
@@ -80,7 +76,7 @@ fn each_kind_of_surface_has_the_colour_the_real_camera_sees_there() {
 
 /// A dataset of the first frames of the real one, in a temporary folder (the images linked).
 fn small_dataset(frames: usize) -> PathBuf {
-    let source = shared_dir().join("udacity/test_dataset");
+    let source = PathBuf::from(test_dataset_dir());
     let dir = std::env::temp_dir().join(format!("rover-sim-check-{}", std::process::id()));
     std::fs::create_dir_all(dir.join("IMG")).unwrap();
     let log = std::fs::read_to_string(source.join("robot_log.csv")).unwrap();

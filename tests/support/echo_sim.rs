@@ -2,6 +2,7 @@
 //! dialect and, with the echo node answering, checks which telemetry each reply answers.
 
 use std::collections::VecDeque;
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 use rover_msgs::unity::ReportedState;
@@ -11,7 +12,7 @@ use rover_sim::wire::telemetry::TelemetryValues;
 
 use rover::dataset::{RecordedFrame, read_log};
 
-use super::shared_dir;
+use super::test_dataset_dir;
 
 /// Positions cycle through 1..=997 so that the echo node's throttle (x / 1000) names the telemetry.
 const POSITION_CYCLE: u64 = 997;
@@ -23,7 +24,7 @@ pub struct LoadedFrame {
 }
 
 pub fn recorded_frames() -> Vec<LoadedFrame> {
-    let frames = read_log(&shared_dir().join("udacity/test_dataset")).expect("the recorded dataset");
+    let frames = read_log(Path::new(&test_dataset_dir())).expect("the recorded dataset");
     frames.into_iter().map(|frame| LoadedFrame { jpeg: frame.jpeg().expect("a recorded JPEG"), frame }).collect()
 }
 

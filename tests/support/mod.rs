@@ -28,6 +28,21 @@ pub fn shared_dir() -> PathBuf {
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared"))
 }
 
+/// `map_bw.png`, the ground truth of the Udacity world.
+pub fn map_bw_png() -> String {
+    shared_dir().join("udacity/calibration_images/map_bw.png").display().to_string()
+}
+
+/// The 283 recorded Udacity frames (`robot_log.csv` and `IMG/`).
+pub fn test_dataset_dir() -> String {
+    shared_dir().join("udacity/test_dataset").display().to_string()
+}
+
+/// The number at `key` of a JSON object, or a panic naming the key and the object.
+pub fn number(value: &serde_json::Value, key: &str) -> f64 {
+    value[key].as_f64().unwrap_or_else(|| panic!("no number {key} in {value}"))
+}
+
 /// A DDS domain id (and a TCP port derived from it) reserved for one test.
 pub struct Domain {
     /// `ROS_DOMAIN_ID` of the test's processes.
