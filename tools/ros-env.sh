@@ -5,8 +5,11 @@ export VIRTUAL_ENV="$_rover_repo/.venv"
 export PATH="$VIRTUAL_ENV/bin:$PATH"
 _rover_install="$_rover_repo/target/ros_ws/install"
 export AMENT_PREFIX_PATH="$_rover_install/rover_msgs:$_rover_install/tf2_msgs:$VIRTUAL_ENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
-export PYTHONPATH="$_rover_install/rover_msgs/lib/python3.11/site-packages:$_rover_install/tf2_msgs/lib/python3.11/site-packages${PYTHONPATH:+:$PYTHONPATH}"
+# The Python of .venv (tools/setup-ros takes python3.11, or python3 without it) names the folders.
+_rover_python=$(cd "$VIRTUAL_ENV/lib" 2>/dev/null && ls -d python3.* 2>/dev/null | head -n 1)
+_rover_python=${_rover_python:-python3.11}
+export PYTHONPATH="$_rover_install/rover_msgs/lib/$_rover_python/site-packages:$_rover_install/tf2_msgs/lib/$_rover_python/site-packages${PYTHONPATH:+:$PYTHONPATH}"
 export LD_LIBRARY_PATH="$_rover_install/rover_msgs/lib:$_rover_install/tf2_msgs/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
 export ROS_DISTRO=kilted
-unset _rover_repo _rover_install
+unset _rover_repo _rover_install _rover_python
