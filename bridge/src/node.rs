@@ -66,7 +66,7 @@ rover_node::node_params! {
         replace_connected_simulator: bool = false,
         /// Simulated time per telemetry frame, s: /clock advances by it each frame, as the
         /// simulator sends no time (the headless simulator steps 0.04 s).
-        frame_period_s: f64 [0.001, 1.0] = 0.04,
+        frame_period_s: f64 [0.001, 1.0] = rover_msgs::unity::FRAME_PERIOD_S,
     }
     read_at_start: [
         host,

@@ -1,6 +1,10 @@
 //! What the Unity simulator reports of the rover, in its own units and angle ranges: the values
 //! that its telemetry event, the recorded `robot_log.csv` and the headless simulator share.
 
+/// Simulated time from one telemetry frame to the next: the headless simulator's step, and what
+/// the nodes take a frame to last unless told otherwise, seconds.
+pub const FRAME_PERIOD_S: f64 = 0.04;
+
 /// The rover's controls and pose as Unity reports them each frame (unity-sim-spec 2).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ReportedState {

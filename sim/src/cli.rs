@@ -3,10 +3,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
+use rover_msgs::unity::FRAME_PERIOD_S;
 
 use crate::look::Look;
 use crate::procgen::procedural_world;
-use crate::sim::{DEFAULT_STEP_S, SimConfig, SimReport, Simulator};
+use crate::sim::{SimConfig, SimReport, Simulator};
 use crate::unity_world::unity_world;
 use crate::wire::client::{ClientConfig, run_client};
 use crate::world::World;
@@ -76,7 +77,7 @@ pub struct SimArgs {
     #[arg(long, default_value_t = 4567)]
     pub port: u16,
     /// Simulated time per command, seconds.
-    #[arg(long, default_value_t = DEFAULT_STEP_S, value_name = "SECONDS")]
+    #[arg(long, default_value_t = FRAME_PERIOD_S, value_name = "SECONDS")]
     pub step_seconds: f64,
     /// Pace the simulation to the wall clock (default: as fast as the graph answers).
     #[arg(long)]

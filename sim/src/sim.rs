@@ -4,6 +4,7 @@
 use std::time::{Duration, Instant};
 
 use rover_imaging::{RgbImage, UNITY_JPEG_QUALITY};
+use rover_msgs::unity::FRAME_PERIOD_S;
 use serde::Serialize;
 
 use crate::camera::{BodyPose, CameraModel};
@@ -16,8 +17,6 @@ use crate::world::{Sample, World};
 
 /// How often a long run logs its progress.
 const PROGRESS_PERIOD: Duration = Duration::from_secs(5);
-/// Simulated time per command by default, seconds (25 commands a simulated second).
-pub const DEFAULT_STEP_S: f64 = 0.04;
 
 /// Settings of a run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,7 +33,7 @@ pub struct SimConfig {
 
 impl Default for SimConfig {
     fn default() -> Self {
-        SimConfig { step_s: DEFAULT_STEP_S, realtime: false, max_sim_seconds: None, grid: false }
+        SimConfig { step_s: FRAME_PERIOD_S, realtime: false, max_sim_seconds: None, grid: false }
     }
 }
 

@@ -100,7 +100,7 @@ rover_node::node_params! {
         /// Speed assumed when estimating the way home, as a fraction of the cruising speed.
         return_speed_fraction: f64 [0.1, 1.0] = 0.6,
         /// Simulated time per frame, seconds (converts the times above to frames).
-        frame_period_s: f64 [0.001, 1.0] = 0.04,
+        frame_period_s: f64 [0.001, 1.0] = rover_msgs::unity::FRAME_PERIOD_S,
         /// Folder of the node's snapshot (`decision.snapshot`: what the exploration learnt, the
         /// rocks given up on, the stage of the mission, its time), read at start so that a
         /// restarted node carries on, and written while it runs; empty: none. The launchers give

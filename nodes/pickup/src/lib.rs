@@ -18,7 +18,7 @@ rover_node::node_params! {
         /// Ask again when the arm has not started this long after a request, seconds.
         retry_s: f64 [0.1, 100.0] = 2.0,
         /// Simulated time per frame, seconds.
-        frame_period_s: f64 [0.001, 1.0] = 0.04,
+        frame_period_s: f64 [0.001, 1.0] = rover_msgs::unity::FRAME_PERIOD_S,
     }
 }
 
