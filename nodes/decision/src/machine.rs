@@ -562,52 +562,58 @@ impl Machine {
                 tracing::info!("no frontier reachable: the cells where the rover got stuck are free again");
                 Drive::stop(p.brake)
             }
-            None if obs.samples_remaining > 0 && self.explorer.forget_explored() => {
-                tracing::info!(
-                    "no frontier left, {} samples not found: trying given-up frontiers again",
-                    obs.samples_remaining
-                );
-                Drive::stop(p.brake)
-            }
-            None if obs.samples_remaining > 0 && self.explorer.look_past_obstacles() => {
-                tracing::info!(
-                    "no frontier left, {} samples not found: planning past obstacle cells",
-                    obs.samples_remaining
-                );
-                Drive::stop(p.brake)
-            }
-            None if obs.samples_remaining > 0
-                && self.inspections_forgotten < INSPECTION_RESETS
-                && self.explorer.forget_inspected() =>
-            {
-                self.inspections_forgotten += 1;
-                tracing::info!(
-                    "no frontier left, {} samples not found: looking again at the walls seen before",
-                    obs.samples_remaining
-                );
-                Drive::stop(p.brake)
-            }
-            None => match self.sample_to_chase(obs, f64::INFINITY) {
-                Some(chase) => {
-                    self.enter(State::Approach(chase.clone()), "map explored, sample left");
-                    self.approach(obs, chase)
+            None => match self.widen_search(obs.samples_remaining) {
+                Some(step) => {
+                    tracing::info!("no frontier left, {} samples not found: {step}", obs.samples_remaining);
+                    Drive::stop(p.brake)
                 }
-                None => {
-                    let (free_cells, obstacle_cells, unknown_cells) = self.received_map.counts();
-                    tracing::info!(
-                        free_cells,
-                        obstacle_cells,
-                        unknown_cells,
-                        map_version = self.planning.version(),
-                        at = ?(obs.position.x_m, obs.position.y_m),
-                        rocks = ?self.samples.located(),
-                        given_up = ?self.samples.ignored(),
-                        "no frontier left"
-                    );
-                    self.enter(State::ReturnHome(None), "no frontier left");
-                    self.return_home(obs, None)
-                }
+                None => self.finish_exploring(obs),
             },
+        }
+    }
+
+    /// With no frontier left and `samples_remaining` samples not found, widens the search by one
+    /// step: the frontiers given up, then planning past obstacle cells, then the walls seen before
+    /// (a few times); what it did, or `None` when nothing is left to widen.
+    fn widen_search(&mut self, samples_remaining: u8) -> Option<&'static str> {
+        if samples_remaining == 0 {
+            return None;
+        }
+        if self.explorer.forget_explored() {
+            return Some("trying given-up frontiers again");
+        }
+        if self.explorer.look_past_obstacles() {
+            return Some("planning past obstacle cells");
+        }
+        if self.inspections_forgotten < INSPECTION_RESETS && self.explorer.forget_inspected() {
+            self.inspections_forgotten += 1;
+            return Some("looking again at the walls seen before");
+        }
+        None
+    }
+
+    /// The end of exploring: a sample left on the map at any cost, else home.
+    fn finish_exploring(&mut self, obs: &Observation) -> Drive {
+        match self.sample_to_chase(obs, f64::INFINITY) {
+            Some(chase) => {
+                self.enter(State::Approach(chase.clone()), "map explored, sample left");
+                self.approach(obs, chase)
+            }
+            None => {
+                let (free_cells, obstacle_cells, unknown_cells) = self.received_map.counts();
+                tracing::info!(
+                    free_cells,
+                    obstacle_cells,
+                    unknown_cells,
+                    map_version = self.planning.version(),
+                    at = ?(obs.position.x_m, obs.position.y_m),
+                    rocks = ?self.samples.located(),
+                    given_up = ?self.samples.ignored(),
+                    "no frontier left"
+                );
+                self.enter(State::ReturnHome(None), "no frontier left");
+                self.return_home(obs, None)
+            }
         }
     }
 
