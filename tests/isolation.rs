@@ -216,9 +216,16 @@ fn graphs_in_two_namespaces_and_two_domains_do_not_cross_talk() {
         two.bridges()
     );
 
+    let running = Counters::read(&one, &two);
     b.graph.kill("decision");
     c.graph.kill("decision");
-    std::thread::sleep(Duration::from_secs(1));
+    // The bridges of B and C brake once no command came for their silence limit: from then on no
+    // fresh command of the killed nodes is still on its way.
+    let braking = eventually(Duration::from_secs(15), || {
+        let now = Counters::read(&one, &two);
+        now.b_braking > running.b_braking && now.c_braking > running.c_braking
+    });
+    assert!(braking, "the bridges of B and C brake after their decision nodes are killed");
     let before = Counters::read(&one, &two);
     let settled = eventually(Duration::from_secs(15), || {
         let now = Counters::read(&one, &two);
