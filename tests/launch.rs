@@ -1,8 +1,9 @@
 //! The launchers of `launch_scripts/`: `rover-graph` (no ROS needed) and `rover.launch.py` (run by
 //! the real `ros2 launch`, from the wheels of `../shared/ros2-python`), each starting the real graph
 //! with the headless simulator, checked from a DDS subscriber in the test, and stopped with SIGINT,
-//! after which none of their processes is left. Both start a killed node again; the mapping node
-//! then carries on from its snapshot.
+//! after which none of their processes is left. Both start a killed node again; with `rover-graph`
+//! the mapping node then carries on from its snapshot (under `ros2 launch` the test accepts a start
+//! without one).
 
 mod support;
 

@@ -14,7 +14,8 @@ use std::time::{Duration, Instant};
 
 use support::{Domain, STOP_TIMEOUT, eventually, ros2_cli, rover, start_process};
 
-/// Every topic of the graph with its type, as `ros2 topic list -t` prints it.
+/// Every topic of the graph but `/clock` (checked on its own) with its type, as
+/// `ros2 topic list -t` prints it.
 const TOPICS: [&str; 20] = [
     "/camera/image_raw/compressed [sensor_msgs/msg/CompressedImage]",
     "/camera/image_raw [sensor_msgs/msg/Image]",

@@ -19,15 +19,19 @@ const POSITION_CYCLE: u64 = 997;
 
 /// A recorded frame with its JPEG loaded.
 pub struct LoadedFrame {
+    /// The row of `robot_log.csv`.
     pub frame: RecordedFrame,
+    /// The camera image.
     pub jpeg: Vec<u8>,
 }
 
+/// The 283 recorded frames with their images.
 pub fn recorded_frames() -> Vec<LoadedFrame> {
     let frames = read_log(Path::new(&test_dataset_dir())).expect("the recorded dataset");
     frames.into_iter().map(|frame| LoadedFrame { jpeg: frame.jpeg().expect("a recorded JPEG"), frame }).collect()
 }
 
+/// The telemetry JSON of `loaded` as the Unity client writes it, with the rover at `x_m`.
 pub fn telemetry_json(loaded: &LoadedFrame, x_m: f64) -> String {
     let frame = &loaded.frame;
     TelemetryValues {
@@ -43,26 +47,40 @@ pub fn telemetry_json(loaded: &LoadedFrame, x_m: f64) -> String {
 /// One reply as the fake simulator saw it.
 #[derive(Debug, Clone)]
 pub struct SeenReply {
+    /// The reply's throttle.
     pub throttle: f64,
+    /// The reply's brake.
     pub brake: f64,
+    /// From the telemetry it answers (or the oldest one outstanding) to the reply.
     pub latency: Duration,
+    /// When it came.
     pub at: Instant,
 }
 
 /// A fake simulator that sends recorded frames and checks which telemetry each reply answers.
 pub struct EchoCheckingSimulator {
+    /// The recorded frames, sent in turn.
     pub frames: Vec<LoadedFrame>,
+    /// Telemetry sent so far.
     pub sent: u64,
+    /// Telemetry not answered yet: its number and when it left.
     pub outstanding: VecDeque<(u64, Instant)>,
+    /// Every drive reply.
     pub replies: Vec<SeenReply>,
+    /// The telemetry each echoed reply answered, with the reply's brake.
     pub fresh_matches: Vec<(u64, f64)>,
+    /// Replies that echo no outstanding telemetry.
     pub unmatched: Vec<SeenReply>,
+    /// Events other than drive replies.
     pub other_events: u64,
+    /// The run ends after this many replies.
     pub limit: usize,
+    /// Called with the number of replies after each one.
     pub on_reply: Box<dyn FnMut(usize) + Send>,
 }
 
 impl EchoCheckingSimulator {
+    /// A simulator that ends after `limit` replies.
     pub fn new(limit: usize) -> Self {
         EchoCheckingSimulator {
             frames: recorded_frames(),

@@ -237,8 +237,11 @@ fn ros2_cli_or_skip() -> bool {
 
 /// Percentiles of durations, milliseconds (NaN when there are none).
 pub struct Percentiles {
+    /// Median, ms.
     pub p50_ms: f64,
+    /// 99th percentile, ms.
     pub p99_ms: f64,
+    /// Largest, ms.
     pub max_ms: f64,
 }
 
