@@ -16,21 +16,10 @@ use rover_sim::wire::client::{Connection, unity_url};
 use rover_sim::wire::packet::Inbound;
 use support::echo_sim::{EchoCheckingSimulator, SeenReply, recorded_frames, run_fake_unity, telemetry_json};
 use support::{
-    Domain, Latest, Process, STOP_TIMEOUT, diagnostic_value, echo_node, eventually, rover, start_process, test_runtime,
-    wait_for_port,
+    Domain, Latest, Process, STOP_TIMEOUT, diagnostic_value, echo_node, eventually, rover, start_bridge, start_process,
+    test_runtime, wait_for_port,
 };
 use tokio_tungstenite::tungstenite::Message;
-
-fn start_bridge(domain: &Domain, extra: &[&str]) -> Process {
-    let port = format!("port:={}", domain.port());
-    let mut args = vec!["bridge", "--ros-args", "-p", &port, "-p", "diagnostics_period_ms:=100.0"];
-    for param in extra {
-        args.extend(["-p", param]);
-    }
-    let bridge = start_process(&rover(), &args, domain, "bridge");
-    wait_for_port(domain.port(), Duration::from_secs(20));
-    bridge
-}
 
 #[tokio::test(flavor = "multi_thread")]
 async fn a_thousand_frames_each_get_exactly_one_reply_with_the_command_for_that_frame() {

@@ -17,7 +17,7 @@ use rover::nodes::Node;
 use rover_msgs::msg::MapStats;
 use rover_node::topics;
 use rover_sim::sim::SimConfig;
-use support::{Domain, Latest, rover, test_runtime};
+use support::{Domain, Latest, graph_config, test_runtime};
 
 /// The procedural world of the mission.
 const WORLD_SEED: u64 = 0;
@@ -69,15 +69,8 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
     let (mut observer, _) = runtime.node::<rover_node::NoParams>("chaos_observer").expect("observer node");
     let map_stats = Latest::subscribe(&mut observer, &topics::MAP_STATS);
     let log_dir = std::env::temp_dir().join(format!("rover-test-chaos-{}", std::process::id()));
-    let config = GraphConfig {
-        rover: rover(),
-        domain_id: Some(domain.id),
-        port: domain.port(),
-        ros_args: Vec::new(),
-        log_dir: log_dir.clone(),
-        respawn: true,
-        remote: None,
-    };
+    let config = GraphConfig { respawn: true, ..graph_config(&domain, log_dir.clone()) };
+    let logs = config.clone();
     let world = rover_sim::procgen::procedural_world(WORLD_SEED);
     let samples = world.samples.len();
     let sim_config = SimConfig { max_sim_seconds: Some(1200.0), ..SimConfig::default() };
@@ -100,7 +93,7 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
     write_mission_png(&picture, &outcome.mission_map, &result).expect("write the mission's picture");
     println!("the mission's picture: {}", picture.display());
     println!("restarts: {restarts:?}");
-    let log = |name: &str| std::fs::read_to_string(log_dir.join(format!("{name}.log"))).unwrap_or_default();
+    let log = |name: &str| std::fs::read_to_string(logs.log_file(name)).unwrap_or_default();
     let measured: Vec<&str> = outcome.cpu.keys().map(String::as_str).collect();
     let mut expected: Vec<&str> = Node::ALL.iter().map(|node| node.name()).chain([SIMULATOR_PROCESS]).collect();
     expected.sort_unstable();

@@ -18,7 +18,7 @@ use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{DriveCommand, Telemetry};
 use rover_node::ros_args::Remap;
 use rover_node::{RosArgs, RosNode, Runtime, Shutdown, topics};
-use support::{Domain, Latest, Process, STOP_TIMEOUT, eventually, rover, start_process};
+use support::{Domain, Latest, Process, STOP_TIMEOUT, eventually, graph_config, rover, start_process};
 
 /// What a test node receives in one namespace of one domain.
 struct Observer {
@@ -97,15 +97,7 @@ impl SimulatedGraph {
             .chain([format!("__ns:={namespace}"), "-p".into(), "bridge:diagnostics_period_ms:=200.0".into()])
             .collect();
         let log_dir = std::env::temp_dir().join(format!("rover-isolation-{label}-{}", std::process::id()));
-        let config = GraphConfig {
-            rover: rover(),
-            domain_id: Some(domain.id),
-            port,
-            ros_args,
-            log_dir,
-            respawn: false,
-            remote: None,
-        };
+        let config = GraphConfig { port, ros_args, ..graph_config(domain, log_dir) };
         let graph = Graph::start(config).unwrap_or_else(|e| panic!("start graph {label}: {e:#}"));
         let port = port.to_string();
         let seed = seed.to_string();

@@ -122,15 +122,9 @@ fn run_probe_against_graph(mode: Mode) {
 
 fn start_graph(mode: Mode, domain: &Domain) -> Graph {
     let ros_args = ["-p", &format!("bridge:port:={}", domain.port()), "-p", "bridge:publish_raw_image:=true"];
-    let config = GraphConfig {
-        rover: support::rover(),
-        domain_id: Some(domain.id),
-        port: domain.port(),
-        ros_args: ros_args.iter().map(|a| a.to_string()).collect(),
-        log_dir: std::env::temp_dir().join(format!("rover-interop-{mode:?}-{}", std::process::id())),
-        respawn: false,
-        remote: None,
-    };
+    let log_dir = std::env::temp_dir().join(format!("rover-interop-{mode:?}-{}", std::process::id()));
+    let ros_args = ros_args.iter().map(|a| a.to_string()).collect();
+    let config = GraphConfig { ros_args, ..support::graph_config(domain, log_dir) };
     match mode {
         Mode::MultiProcess => Graph::start(config),
         Mode::SingleProcess => Graph::start_nodes(config, &["all"]),

@@ -9,21 +9,14 @@ use std::time::Duration;
 
 use rover_sim::sim::{SimConfig, Simulator};
 use rover_sim::wire::client::{ClientConfig, run_client};
-use support::{Domain, Process, echo_node, eventually, rover, start_process, wait_for_port};
-
-fn start_bridge(domain: &Domain) -> Process {
-    let port = format!("port:={}", domain.port());
-    let bridge = start_process(&rover(), &["bridge", "--ros-args", "-p", &port], domain, "bridge");
-    wait_for_port(domain.port(), Duration::from_secs(20));
-    bridge
-}
+use support::{Domain, echo_node, eventually, start_bridge, start_process};
 
 #[tokio::test(flavor = "multi_thread")]
 async fn the_simulator_reconnects_after_the_bridge_restarts() {
     support::assert_isolated();
     let domain = Arc::new(Domain::reserve());
     let _echo = start_process(&echo_node(), &[], &domain, "echo");
-    let bridge = Arc::new(Mutex::new(Some(start_bridge(&domain))));
+    let bridge = Arc::new(Mutex::new(Some(start_bridge(&domain, &[]))));
     let config = SimConfig { max_sim_seconds: Some(40.0), ..SimConfig::default() };
     let mut simulator = Simulator::new(rover_sim::procgen::procedural_world(4), config);
     let restarter = {
@@ -34,7 +27,7 @@ async fn the_simulator_reconnects_after_the_bridge_restarts() {
                 old.kill();
             }
             std::thread::sleep(Duration::from_millis(500));
-            *bridge.lock().unwrap() = Some(start_bridge(&domain));
+            *bridge.lock().unwrap() = Some(start_bridge(&domain, &[]));
         })
     };
     let client = ClientConfig::unity("127.0.0.1", domain.port());

@@ -43,6 +43,33 @@ pub fn number(value: &serde_json::Value, key: &str) -> f64 {
     value[key].as_f64().unwrap_or_else(|| panic!("no number {key} in {value}"))
 }
 
+/// A bridge on `domain` listening on the domain's port, with parameters `extra` (`name:=value`)
+/// and /diagnostics every 100 ms; returns once the port accepts connections.
+pub fn start_bridge(domain: &Domain, extra: &[&str]) -> Process {
+    let port = format!("port:={}", domain.port());
+    let mut args = vec!["bridge", "--ros-args", "-p", &port, "-p", "diagnostics_period_ms:=100.0"];
+    for param in extra {
+        args.extend(["-p", param]);
+    }
+    let bridge = start_process(&rover(), &args, domain, "bridge");
+    wait_for_port(domain.port(), Duration::from_secs(20));
+    bridge
+}
+
+/// A graph of the test's `rover` binary on `domain` and its port, logging into `log_dir`, all on
+/// this host, without respawning.
+pub fn graph_config(domain: &Domain, log_dir: PathBuf) -> rover::graph::GraphConfig {
+    rover::graph::GraphConfig {
+        rover: rover(),
+        domain_id: Some(domain.id),
+        port: domain.port(),
+        ros_args: Vec::new(),
+        log_dir,
+        respawn: false,
+        remote: None,
+    }
+}
+
 /// A DDS domain id (and a TCP port derived from it) reserved for one test.
 pub struct Domain {
     /// `ROS_DOMAIN_ID` of the test's processes.

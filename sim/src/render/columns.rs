@@ -43,9 +43,9 @@ pub(super) struct LevelRow {
 pub(super) fn level_rows(view: &LevelView, appearance: &Appearance, rows: &mut [LevelRow]) {
     let look = &appearance.look;
     for (v, row) in rows.iter_mut().enumerate() {
-        let sky = to_rgb8(lerp3(look.sky_top_rgb, look.sky_horizon_rgb, (v as f64 / view.cy).min(1.0) as f32));
-        *row = if v as f64 > view.cy {
-            let depth = view.focal * view.camera.z.max(1e-3) / (v as f64 - view.cy);
+        let sky = to_rgb8(lerp3(look.sky_top_rgb, look.sky_horizon_rgb, (v as f64 / view.cy_px).min(1.0) as f32));
+        *row = if v as f64 > view.cy_px {
+            let depth = view.focal_px * view.camera.z.max(1e-3) / (v as f64 - view.cy_px);
             let (visible, haze) = fog_weights(depth);
             let rgb = scale3(appearance.floor_rgb(depth), visible);
             LevelRow { sky, depth, rgb, visible, haze }
@@ -471,7 +471,7 @@ fn hidden(view: &LevelView, highest: f64, t_in: f64, t_out: f64, bottom: usize) 
 
 /// How much of the floor pixel at (x, y), `depth` ahead, a grid line covers.
 fn grid_coverage(x: f64, y: f64, depth: f64, view: &LevelView) -> f32 {
-    let footprint = depth * depth / (view.focal * view.camera.z.max(0.05)) + depth / view.focal;
+    let footprint = depth * depth / (view.focal_px * view.camera.z.max(0.05)) + depth / view.focal_px;
     let coverage = |p: f64| {
         let distance = ((p - 0.5) - (p - 0.5).round()).abs();
         ((GRID_HALF_WIDTH_M + footprint * 0.5 - distance) / footprint).clamp(0.0, 1.0)

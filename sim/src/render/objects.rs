@@ -179,7 +179,7 @@ impl Painter<'_, '_> {
         if !(SAMPLE_DEPTHS_M.0..=SAMPLE_DEPTHS_M.1).contains(&depth) {
             return;
         }
-        let reach = view.focal * radius * 1.6 / depth + 1.0;
+        let reach = view.focal_px * radius * 1.6 / depth + 1.0;
         let (columns, Window { v0, v1, .. }) = (self.band.columns.clone(), self.frame.window);
         let clamp_u = |p: f64| p.clamp(columns.start as f64, columns.end as f64) as usize;
         let clamp_v = |p: f64| p.clamp(v0 as f64, v1 as f64) as usize;

@@ -57,28 +57,28 @@ pub(super) struct LevelView {
     /// Unit vector to the camera's right on the floor.
     pub(super) right: [f64; 2],
     /// Principal point in level-view pixels (the margin included): column...
-    pub(super) cx: f64,
+    pub(super) cx_px: f64,
     /// ...and row.
-    pub(super) cy: f64,
+    pub(super) cy_px: f64,
     /// Focal length, pixels.
-    pub(super) focal: f64,
+    pub(super) focal_px: f64,
 }
 
 impl LevelView {
     /// Horizontal direction of level column `u`, scaled so that the parameter is forward depth.
     pub(super) fn column_direction(&self, u: usize) -> [f64; 2] {
-        let r = (u as f64 - self.cx) / self.focal;
+        let r = (u as f64 - self.cx_px) / self.focal_px;
         [self.forward[0] + r * self.right[0], self.forward[1] + r * self.right[1]]
     }
 
     /// Vertical component of the ray of level row `v` (per metre of forward depth).
     pub(super) fn row_rise(&self, v: usize) -> f64 {
-        -(v as f64 - self.cy) / self.focal
+        -(v as f64 - self.cy_px) / self.focal_px
     }
 
     /// Row where a point at forward depth `depth` and height `z` appears.
     pub(super) fn row(&self, depth: f64, z: f64) -> f64 {
-        self.cy + self.focal * (self.camera.z - z) / depth
+        self.cy_px + self.focal_px * (self.camera.z - z) / depth
     }
 
     /// The level camera of a camera at `position` (x, y, height) with the body's yaw, for a level
@@ -90,9 +90,9 @@ impl LevelView {
             camera: position,
             forward: [cos_yaw, sin_yaw],
             right: [sin_yaw, -cos_yaw],
-            cx: cx + MARGIN_PX as f64,
-            cy: cy + MARGIN_PX as f64,
-            focal: camera.focal_px,
+            cx_px: cx + MARGIN_PX as f64,
+            cy_px: cy + MARGIN_PX as f64,
+            focal_px: camera.focal_px,
         }
     }
 
@@ -110,7 +110,7 @@ impl LevelView {
     pub(super) fn project_near(&self, p: &Point3<f64>) -> Option<(f64, f64, f64)> {
         let depth = self.depth(p);
         let lateral = (p.x - self.camera.x) * self.right[0] + (p.y - self.camera.y) * self.right[1];
-        (depth >= NEAR_M * 0.999).then(|| (self.cx + self.focal * lateral / depth, self.row(depth, p.z), depth))
+        (depth >= NEAR_M * 0.999).then(|| (self.cx_px + self.focal_px * lateral / depth, self.row(depth, p.z), depth))
     }
 }
 
@@ -119,42 +119,42 @@ pub(super) struct Rotation {
     base: Vector3<f64>,
     per_u: Vector3<f64>,
     per_v: Vector3<f64>,
-    cx: f64,
-    cy: f64,
-    focal: f64,
+    cx_px: f64,
+    cy_px: f64,
+    focal_px: f64,
 }
 
 impl Rotation {
     /// The rotation of the image of `camera` by the pitch and roll of `pose`.
     pub(super) fn new(pose: &BodyPose, camera: &CameraModel) -> Self {
-        let (cx, cy) = camera.principal_point();
-        let focal = camera.focal_px;
+        let (cx_px, cy_px) = camera.principal_point();
+        let focal_px = camera.focal_px;
         Rotation {
             base: tilt(pose, &Vector3::x()),
-            per_u: tilt(pose, &Vector3::new(0.0, -1.0 / focal, 0.0)),
-            per_v: tilt(pose, &Vector3::new(0.0, 0.0, -1.0 / focal)),
-            cx,
-            cy,
-            focal,
+            per_u: tilt(pose, &Vector3::new(0.0, -1.0 / focal_px, 0.0)),
+            per_v: tilt(pose, &Vector3::new(0.0, 0.0, -1.0 / focal_px)),
+            cx_px,
+            cy_px,
+            focal_px,
         }
     }
 
     /// True when pitch and roll move no pixel by more than a hundredth.
     pub(super) fn is_identity(&self) -> bool {
         let corner = self.level_pixel(0, 0);
-        let opposite = self.level_pixel((2.0 * self.cx) as usize, (2.0 * self.cy) as usize);
+        let opposite = self.level_pixel((2.0 * self.cx_px) as usize, (2.0 * self.cy_px) as usize);
         (corner.0 - MARGIN_PX as f64).abs() < 0.01
             && (corner.1 - MARGIN_PX as f64).abs() < 0.01
-            && (opposite.0 - 2.0 * self.cx - MARGIN_PX as f64).abs() < 0.01
-            && (opposite.1 - 2.0 * self.cy - MARGIN_PX as f64).abs() < 0.01
+            && (opposite.0 - 2.0 * self.cx_px - MARGIN_PX as f64).abs() < 0.01
+            && (opposite.1 - 2.0 * self.cy_px - MARGIN_PX as f64).abs() < 0.01
     }
 
     /// Level-view coordinates of output pixel (u, v).
     pub(super) fn level_pixel(&self, u: usize, v: usize) -> (f64, f64) {
-        let (du, dv) = (u as f64 - self.cx, v as f64 - self.cy);
+        let (du, dv) = (u as f64 - self.cx_px, v as f64 - self.cy_px);
         let ray = self.base + self.per_u * du + self.per_v * dv;
-        let scale = self.focal / ray.x;
-        (self.cx + MARGIN_PX as f64 - ray.y * scale, self.cy + MARGIN_PX as f64 - ray.z * scale)
+        let scale = self.focal_px / ray.x;
+        (self.cx_px + MARGIN_PX as f64 - ray.y * scale, self.cy_px + MARGIN_PX as f64 - ray.z * scale)
     }
 
     /// The map from output pixels to level-view coordinates, in single precision for the
@@ -162,11 +162,11 @@ impl Rotation {
     pub(super) fn pixel_map(&self) -> PixelMap {
         let f32s = |v: Vector3<f64>| v.map(|c| c as f32);
         PixelMap {
-            base: f32s(self.base - self.per_u * self.cx - self.per_v * self.cy),
+            base: f32s(self.base - self.per_u * self.cx_px - self.per_v * self.cy_px),
             per_u: f32s(self.per_u),
             per_v: f32s(self.per_v),
-            centre: ((self.cx + MARGIN_PX as f64) as f32, (self.cy + MARGIN_PX as f64) as f32),
-            focal: self.focal as f32,
+            centre: ((self.cx_px + MARGIN_PX as f64) as f32, (self.cy_px + MARGIN_PX as f64) as f32),
+            focal_px: self.focal_px as f32,
         }
     }
 }
@@ -177,7 +177,7 @@ pub(super) struct PixelMap {
     per_u: Vector3<f32>,
     per_v: Vector3<f32>,
     centre: (f32, f32),
-    focal: f32,
+    focal_px: f32,
 }
 
 impl PixelMap {
@@ -185,7 +185,7 @@ impl PixelMap {
     pub(super) fn level_pixel(&self, u: usize, v: usize) -> (f32, f32) {
         let (u, v) = (u as f32, v as f32);
         let ray = self.base + self.per_u * u + self.per_v * v;
-        let scale = self.focal / ray.x;
+        let scale = self.focal_px / ray.x;
         (self.centre.0 - ray.y * scale, self.centre.1 - ray.z * scale)
     }
 }
