@@ -21,7 +21,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use rover::cpu::{CpuMeter, ms_per_frame};
-use rover::graph::{Graph, GraphConfig};
+use rover::graph::Graph;
 use rover_bridge::stats::HOP_NAMES;
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_node::{spawn_subscriber, topics};
@@ -167,16 +167,7 @@ fn bridge_hops(diagnostics: &[DiagnosticArray]) -> Vec<String> {
 /// The whole graph, each node its own process, on `domain`.
 fn start_graph(domain: &Domain, label: &str) -> Graph {
     let log_dir = std::env::temp_dir().join(format!("rover-loop-latency-{}-{label}", std::process::id()));
-    let config = GraphConfig {
-        rover: support::rover(),
-        domain_id: Some(domain.id),
-        port: domain.port(),
-        ros_args: Vec::new(),
-        log_dir,
-        respawn: false,
-        remote: None,
-    };
-    let graph = Graph::start(config).expect("start the graph");
+    let graph = Graph::start(support::graph_config(domain, log_dir)).expect("start the graph");
     wait_for_port(domain.port(), Duration::from_secs(20));
     graph
 }
