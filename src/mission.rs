@@ -155,10 +155,11 @@ pub fn run_in_process(
             replies: Replies::default(),
         }
     };
+    let max_payload_bytes = BridgeParams::default().max_payload_bytes as usize;
     let started = Instant::now();
     let mut in_flight = VecDeque::with_capacity(LOOPS_IN_FLIGHT);
     for _ in 0..LOOPS_IN_FLIGHT {
-        in_flight.push_back(read_telemetry(&mut sim)?);
+        in_flight.push_back(read_telemetry(&mut sim, max_payload_bytes)?);
     }
     for frame in 1.. {
         if shutdown.is_requested() {
@@ -192,7 +193,7 @@ pub fn run_in_process(
             drive_as_sent(&drive, settings.decision.brake)
         };
         sim.step(command);
-        in_flight.push_back(read_telemetry(&mut sim)?);
+        in_flight.push_back(read_telemetry(&mut sim, max_payload_bytes)?);
         timeline.note(sim.report().sim_seconds, mapped_pct, sim.report().samples_collected);
         let mode = machine.status().mode;
         if frame % progress_every_frames.max(1) == 0 {
@@ -225,8 +226,8 @@ fn drive_as_sent(drive: &Drive, brake: f64) -> Command {
     parse_command("data", Some(&event)).ok().flatten().expect("the simulator reads the bridge's data event")
 }
 
-fn read_telemetry(sim: &mut Simulator) -> anyhow::Result<SimTelemetry> {
-    let max_bytes = BridgeParams::default().max_payload_bytes as usize;
+/// The simulator's next telemetry, parsed as the bridge parses it, refused beyond `max_bytes`.
+fn read_telemetry(sim: &mut Simulator, max_bytes: usize) -> anyhow::Result<SimTelemetry> {
     parse_telemetry(&sim.telemetry(), max_bytes)?.ok_or_else(|| anyhow::anyhow!("the simulator sent empty telemetry"))
 }
 
