@@ -32,20 +32,7 @@ rover_node::node_params! {
         /// Publish the classified bird's-eye view on rover/vision every this many frames (0: never).
         vision_every_frames: i64 [0, 100000] = 10,
     }
-    read_at_start: [
-        source_points_px,
-        destination_half_size_px,
-        bottom_offset_px,
-        pixels_per_metre,
-        near_edge_ahead_m,
-        navigable_rgb_min,
-        rock_rule,
-        rock_rgb,
-        rock_hsv_lower,
-        rock_hsv_upper,
-        max_range_m,
-        vision_every_frames,
-    ]
+    read_at_start: all
 }
 
 fn bytes<const N: usize>(name: &str, values: &[i64]) -> anyhow::Result<[u8; N]> {

@@ -354,8 +354,8 @@ pub fn help_table(specs: &[ParamSpec]) -> String {
 }
 
 /// Declares a node's parameters: a struct with one field per parameter and its [`NodeParams`] impl.
-/// The parameters listed after `read_at_start` are read only when the node starts (a name that is
-/// not a field does not compile).
+/// The parameters listed after `read_at_start` (or all of them, with `read_at_start: all`) are read
+/// only when the node starts (a name that is not a field does not compile).
 ///
 /// ```
 /// rover_node::node_params! {
@@ -371,6 +371,19 @@ pub fn help_table(specs: &[ParamSpec]) -> String {
 ///     read_at_start: [port, host]
 /// }
 /// ```
+///
+/// A name in `read_at_start` that is not a parameter does not compile:
+///
+/// ```compile_fail
+/// rover_node::node_params! {
+///     /// Parameters with a misspelt start-only one.
+///     pub struct MisspeltParams {
+///         /// TCP port to listen on.
+///         port: i64 [1, 65535] = 4567,
+///     }
+///     read_at_start: [prot]
+/// }
+/// ```
 #[macro_export]
 macro_rules! node_params {
     (
@@ -381,7 +394,7 @@ macro_rules! node_params {
                 $field:ident : $ty:ty $([$lo:literal, $hi:literal])? = $default:expr
             ),* $(,)?
         }
-        $(read_at_start: [$($start:ident),* $(,)?])?
+        $(read_at_start: $start:tt)?
     ) => {
         $(#[$meta])*
         #[derive(Debug, Clone, PartialEq)]
@@ -392,7 +405,7 @@ macro_rules! node_params {
         impl $crate::params::NodeParams for $name {
             #[allow(unused_variables, reason = "a struct without fields has no parameter to look up")]
             fn specs() -> Vec<$crate::params::ParamSpec> {
-                let read_at_start: &[&str] = &[$($(stringify!($start)),*)?];
+                let read_at_start: &[&str] = $crate::node_params!(@names [$($field),*] $($start)?);
                 vec![$(
                     $crate::params::ParamSpec {
                         name: stringify!($field),
@@ -421,8 +434,15 @@ macro_rules! node_params {
             }
         }
 
+        $crate::node_params!(@fields_exist $name $($start)?);
+    };
+    (@names [$($field:ident),*]) => { &[] };
+    (@names [$($field:ident),*] all) => { &[$(stringify!($field)),*] };
+    (@names [$($field:ident),*] [$($start:ident),* $(,)?]) => { &[$(stringify!($start)),*] };
+    (@fields_exist $name:ident $(all)?) => {};
+    (@fields_exist $name:ident [$($start:ident),* $(,)?]) => {
         const _: fn(&$name) = |_params| {
-            $($(let _ = &_params.$start;)*)?
+            $(let _ = &_params.$start;)*
         };
     };
     (@range $lo:literal, $hi:literal) => { Some(($lo as f64, $hi as f64)) };
