@@ -47,11 +47,17 @@ pub struct Thresholds {
 
 impl Default for Thresholds {
     fn default() -> Self {
-        Thresholds { navigable: [160, 160, 160], rock: RockRule::Rgb { min_red: 110, min_green: 110, max_blue: 50 } }
+        let [min_red, min_green, max_blue] = Thresholds::ROCK_RGB;
+        Thresholds { navigable: Thresholds::NAVIGABLE_RGB_MIN, rock: RockRule::Rgb { min_red, min_green, max_blue } }
     }
 }
 
 impl Thresholds {
+    /// The seed reports' navigable rule: red, green and blue all above these.
+    pub const NAVIGABLE_RGB_MIN: [u8; 3] = [160, 160, 160];
+    /// The starter notebooks' rock rule: red above, green above, blue below these.
+    pub const ROCK_RGB: [u8; 3] = [110, 110, 50];
+
     /// True if the pixel is navigable ground.
     #[inline]
     pub fn is_navigable(&self, rgb: [u8; 3]) -> bool {

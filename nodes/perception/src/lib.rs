@@ -14,7 +14,6 @@ pub mod scan;
 pub mod warp;
 
 use rover_imaging::{ImageError, RgbImage};
-use rover_msgs::body::CameraMount;
 
 use crate::classify::{Class, ColourBits, Thresholds};
 use crate::homography::Matrix3;
@@ -36,9 +35,13 @@ pub struct Calibration {
     /// Image height, pixels.
     pub height: usize,
     /// Distance from the rover's reported position to the cell's near edge, metres
-    /// (the camera's offset ahead, [`CameraMount::forward_m`], + 0.3992 m, unity-sim-spec 4.2).
+    /// (the camera's offset ahead, [`rover_msgs::body::CameraMount::forward_m`], + 0.3992 m, unity-sim-spec 4.2).
     pub near_edge_ahead_m: f64,
 }
+
+/// [`Calibration::near_edge_ahead_m`] in Unity: 0.4287 m ([`rover_msgs::body::CameraMount::forward_m`]) + 0.3992 m,
+/// rounded to the 0.1 mm of its parts.
+pub const UNITY_NEAR_EDGE_AHEAD_M: f64 = 0.8279;
 
 impl Default for Calibration {
     fn default() -> Self {
@@ -49,7 +52,7 @@ impl Default for Calibration {
             pixels_per_metre: 10.0,
             width: 320,
             height: 160,
-            near_edge_ahead_m: CameraMount::UNITY.forward_m + 0.3992,
+            near_edge_ahead_m: UNITY_NEAR_EDGE_AHEAD_M,
         }
     }
 }
@@ -194,7 +197,14 @@ impl Perception {
 
 #[cfg(test)]
 mod tests {
+    use rover_msgs::body::CameraMount;
+
     use super::*;
+
+    #[test]
+    fn the_near_edge_is_the_camera_offset_plus_the_camera_to_cell_distance() {
+        assert!((UNITY_NEAR_EDGE_AHEAD_M - (CameraMount::UNITY.forward_m + 0.3992)).abs() < 1e-12);
+    }
 
     /// The class of every entry from its interpolated colour alone.
     fn interpolated_classes(perception: &Perception, thresholds: &Thresholds) -> Vec<Class> {

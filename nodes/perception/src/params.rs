@@ -8,21 +8,21 @@ rover_node::node_params! {
     /// Parameters of the perception node.
     pub struct PerceptionParams {
         /// Calibration corners in the camera image: near-left x, y, near-right x, y, far-right x, y, far-left x, y (pixels).
-        source_points_px: Vec<f64> = vec![14.0, 140.0, 301.0, 140.0, 200.0, 96.0, 118.0, 96.0],
+        source_points_px: Vec<f64> = Calibration::default().source_px.as_flattened().iter().map(|&p| f64::from(p)).collect::<Vec<f64>>(),
         /// Half the side of the calibration cell in the warped image, pixels.
-        destination_half_size_px: f64 [1.0, 50.0] = 5.0,
+        destination_half_size_px: f64 [1.0, 50.0] = f64::from(Calibration::default().destination_half_size_px),
         /// Warped rows between the bottom of the image and the calibration cell.
-        bottom_offset_px: f64 [0.0, 100.0] = 6.0,
+        bottom_offset_px: f64 [0.0, 100.0] = f64::from(Calibration::default().bottom_offset_px),
         /// Warped pixels per metre.
-        pixels_per_metre: f64 [1.0, 100.0] = 10.0,
+        pixels_per_metre: f64 [1.0, 100.0] = f64::from(Calibration::default().pixels_per_metre),
         /// Distance from the rover's position to the calibration cell's near edge, metres.
-        near_edge_ahead_m: f64 [0.0, 5.0] = 0.8279,
+        near_edge_ahead_m: f64 [0.0, 5.0] = Calibration::default().near_edge_ahead_m,
         /// Navigable when red, green and blue all exceed these values.
-        navigable_rgb_min: Vec<i64> = vec![160i64, 160, 160],
+        navigable_rgb_min: Vec<i64> = Thresholds::NAVIGABLE_RGB_MIN.map(i64::from).to_vec(),
         /// Rock rule: "rgb" (red > r, green > g, blue < b) or "hsv" (OpenCV HSV within bounds).
         rock_rule: String = "rgb",
         /// RGB rock rule: red above, green above, blue below.
-        rock_rgb: Vec<i64> = vec![110i64, 110, 50],
+        rock_rgb: Vec<i64> = Thresholds::ROCK_RGB.map(i64::from).to_vec(),
         /// HSV rock rule, lower bounds (H 0..180, S, V).
         rock_hsv_lower: Vec<i64> = vec![0i64, 120, 120],
         /// HSV rock rule, upper bounds.
