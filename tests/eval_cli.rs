@@ -6,32 +6,21 @@ mod support;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use nix::sys::signal::Signal;
-use rover::graph::send_signal;
-
 #[test]
 fn an_in_process_eval_stops_on_sigint_naming_the_seed() {
-    let mut eval = Command::new(support::rover())
-        .args(["eval", "--in-process", "--procedural", "--seeds", "3"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start rover eval");
-    std::thread::sleep(Duration::from_secs(3));
-    assert!(eval.try_wait().expect("poll").is_none(), "the mission is still running after 3 s");
+    let mut command = Command::new(support::rover());
+    command.args(["eval", "--in-process", "--procedural", "--seeds", "3"]).stdin(Stdio::null()).stdout(Stdio::null());
+    let log = std::env::temp_dir().join(format!("rover-test-eval-sigint-{}.log", std::process::id()));
+    let mut eval = support::Process::spawn("eval", command, log).expect("start rover eval");
+    let under_way = support::eventually(Duration::from_secs(60), || eval.log_text().contains("seed 3:"));
+    assert!(under_way, "no progress line of the mission within 60 s:\n{}", eval.log_text());
     let interrupted = Instant::now();
-    send_signal(eval.id(), Signal::SIGINT);
-    let stopped = support::eventually(Duration::from_secs(10), || eval.try_wait().ok().flatten().is_some());
-    if !stopped {
-        let _ = eval.kill();
-    }
-    let output = eval.wait_with_output().expect("rover eval's output");
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(stopped, "rover eval --in-process ignored SIGINT for 10 s:\n{stderr}");
+    let status = eval.interrupt(Duration::from_secs(10));
+    let stderr = eval.log_text();
+    assert!(status.is_some(), "rover eval --in-process ignored SIGINT for 10 s:\n{stderr}");
     eprintln!("stopped {:.2} s after SIGINT", interrupted.elapsed().as_secs_f64());
-    assert!(!output.status.success(), "an interrupted run is no success");
-    assert!(stderr.contains("seed 3") && stderr.contains("interrupted at"), "{stderr}");
+    assert!(!status.is_some_and(|s| s.success()), "an interrupted run is no success");
+    assert!(stderr.contains("seed 3: interrupted at"), "{stderr}");
 }
 
 #[test]
