@@ -502,11 +502,13 @@ impl Machine {
             >= self.params.frames(self.params.stall_s)
     }
 
-    /// Makes a cell at the stuck rover's front an obstacle for planning for a while, so that the
-    /// next plan leads around what the map did not show.
+    /// Makes a cell at the stuck rover's front, or the next one of its plan, an obstacle for
+    /// planning for a while, so that the next plan leads around what the map did not show.
     fn mark_stuck_cell(&mut self, obs: &Observation) {
-        if let Some(cell) = self.stuck_marks.note_stuck(&obs.position, obs.frame, self.planning.grid(), &self.params) {
-            tracing::debug!(cell = ?cell_centre_m(cell), "stuck: a cell at the front is an obstacle for a while");
+        let path = self.path().to_vec();
+        let (at, grid) = ((&obs.position, obs.frame), self.planning.grid());
+        if let Some(cell) = self.stuck_marks.note_stuck(at, grid, &path, &self.params) {
+            tracing::debug!(cell = ?cell_centre_m(cell), "stuck: a cell at the front or on the plan is an obstacle for a while");
             self.apply_stuck_marks();
         }
     }
@@ -1133,7 +1135,7 @@ mod tests {
         machine.step(&observation(1, 100.5, 100.5));
         for y in 98..103 {
             let facing_the_corridor_wall = Position { x_m: 119.5, y_m: y as f64 + 0.5, yaw_rad: 0.0 };
-            machine.stuck_marks.note_stuck(&facing_the_corridor_wall, 2, machine.planning.grid(), &params);
+            machine.stuck_marks.note_stuck((&facing_the_corridor_wall, 2), machine.planning.grid(), &[], &params);
             machine.apply_stuck_marks();
         }
         let across = cell_of_point(120.5, 100.5).unwrap();

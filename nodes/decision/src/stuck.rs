@@ -2,7 +2,7 @@
 //! got stuck, which planning takes as obstacles for a while (the map says free what the rover cannot
 //! drive through).
 
-use rover_msgs::map_grid::cell_of_point;
+use rover_msgs::map_grid::{cell_centre_m, cell_of_point};
 
 use crate::grid::{Cell, Grid};
 use crate::params::DecisionParams;
@@ -18,6 +18,10 @@ const STUCK_MARK_AHEAD_M: f64 = 0.9;
 /// that is not (a mark on a blocked cell would change no plan, and the next one would lead the
 /// rover into the same spot again).
 const STUCK_MARK_LATERAL_M: [f64; 5] = [0.0, 1.0, -1.0, 2.0, -2.0];
+/// When every cell of the front is blocked already, the mark goes on the next cell of the plan's
+/// path within this distance of the rover, metres: the plan leads on through cells that the rover
+/// did not get through (a path that hugs a boulder whose overhang the camera saw as floor).
+const PATH_MARK_REACH_M: f64 = 2.0;
 
 /// Watches the rover's progress: how long it has stayed within some distance of one spot.
 #[derive(Debug, Clone, Copy, Default)]
@@ -70,6 +74,19 @@ impl DrivingWatch {
     }
 }
 
+/// The cells of `path` after the one nearest the rover `at`, up to [`PATH_MARK_REACH_M`] from it,
+/// the rover's own cell left out.
+fn next_path_cells<'a>(at: &'a Position, path: &'a [usize]) -> impl Iterator<Item = usize> + 'a {
+    let distance_m = move |cell: usize| at.distance_to(cell_centre_m(cell));
+    let nearest = (0..path.len()).min_by(|&a, &b| distance_m(path[a]).total_cmp(&distance_m(path[b])));
+    let own = cell_of_point(at.x_m, at.y_m);
+    path[nearest.map_or(path.len(), |i| i + 1)..]
+        .iter()
+        .copied()
+        .take_while(move |&cell| distance_m(cell) <= PATH_MARK_REACH_M)
+        .filter(move |&cell| Some(cell) != own)
+}
+
 /// `map` with `cells` blocked.
 fn blocked(map: &Grid, cells: impl Iterator<Item = usize>) -> Grid {
     let mut grid = map.clone();
@@ -91,19 +108,25 @@ pub struct StuckMarks {
 }
 
 impl StuckMarks {
-    /// Notes that the rover `at` got stuck at `frame`: the first cell along its front
-    /// ([`STUCK_MARK_LATERAL_M`]) that `planning` (the map planned on, these marks included) does
-    /// not block is marked until [`STUCK_MARK_S`] later, and returned (none when all are blocked
-    /// or off the map).
-    pub fn note_stuck(&mut self, at: &Position, frame: u64, planning: &Grid, params: &DecisionParams) -> Option<usize> {
-        let cell = STUCK_MARK_LATERAL_M
-            .iter()
-            .filter_map(|&lateral_m| {
-                let bearing_rad = lateral_m.atan2(STUCK_MARK_AHEAD_M);
-                let ahead = at.point_at(bearing_rad, STUCK_MARK_AHEAD_M.hypot(lateral_m));
-                cell_of_point(ahead.0, ahead.1)
-            })
-            .find(|&cell| planning.cell(cell) != Cell::Blocked)?;
+    /// Notes that the rover `at` got stuck at `frame`, following the plan's `path`: the first
+    /// cell along its front ([`STUCK_MARK_LATERAL_M`]) that `planning` (the map planned on, these
+    /// marks included) does not block, else the next such cell of `path` near the rover
+    /// ([`PATH_MARK_REACH_M`]), is marked until [`STUCK_MARK_S`] later, and returned (none when
+    /// all are blocked or off the map).
+    pub fn note_stuck(
+        &mut self,
+        (at, frame): (&Position, u64),
+        planning: &Grid,
+        path: &[usize],
+        params: &DecisionParams,
+    ) -> Option<usize> {
+        let unblocked = |cell: &usize| planning.cell(*cell) != Cell::Blocked;
+        let front = STUCK_MARK_LATERAL_M.iter().filter_map(|&lateral_m| {
+            let bearing_rad = lateral_m.atan2(STUCK_MARK_AHEAD_M);
+            let ahead = at.point_at(bearing_rad, STUCK_MARK_AHEAD_M.hypot(lateral_m));
+            cell_of_point(ahead.0, ahead.1)
+        });
+        let cell = front.chain(next_path_cells(at, path)).find(unblocked)?;
         self.marks.push((cell, frame + params.frames(STUCK_MARK_S)));
         Some(cell)
     }
@@ -135,7 +158,7 @@ impl StuckMarks {
 
 #[cfg(test)]
 mod tests {
-    use rover_msgs::map_grid::cell_centre_m;
+    use rover_msgs::map_grid::cell_at;
 
     use super::*;
     use crate::test_maps::{at, half_explored};
@@ -166,7 +189,7 @@ mod tests {
         let params = DecisionParams::default();
         let mut marks = StuckMarks::default();
         let map = half_explored();
-        let cell = marks.note_stuck(&at(30.5, 51.5), 10, &map, &params).expect("on the map");
+        let cell = marks.note_stuck((&at(30.5, 51.5), 10), &map, &[], &params).expect("on the map");
         assert_eq!(cell, cell_of_point(31.4, 51.5).unwrap(), "the cell ahead");
         assert_eq!((map.cell(cell), marks.applied_to(&map).cell(cell)), (Cell::Free, Cell::Blocked));
         let until = 10 + params.frames(STUCK_MARK_S);
@@ -177,7 +200,7 @@ mod tests {
         marks.expire(until);
         assert_eq!(marks.applied_to(&map).cell(cell), Cell::Free, "expired");
         assert!(!marks.forget(), "nothing left to forget");
-        assert_eq!(marks.note_stuck(&at(-5.0, 51.5), 20, &map, &params), None, "off the map");
+        assert_eq!(marks.note_stuck((&at(-5.0, 51.5), 20), &map, &[], &params), None, "off the map");
     }
 
     #[test]
@@ -187,7 +210,7 @@ mod tests {
         let rover = at(30.5, 51.5);
         let mut cells = Vec::new();
         let mut planning = half_explored();
-        while let Some(cell) = marks.note_stuck(&rover, 10, &planning, &params) {
+        while let Some(cell) = marks.note_stuck((&rover, 10), &planning, &[], &params) {
             cells.push(cell_centre_m(cell));
             planning = marks.applied_to(&half_explored());
         }
@@ -196,6 +219,28 @@ mod tests {
             [(31.5, 51.5), (31.5, 52.5), (31.5, 50.5), (31.5, 53.5)],
             "ahead, then left and right of it, one cell each time the rover gets stuck there, up to the \
              corridor's walls"
+        );
+    }
+
+    #[test]
+    fn getting_stuck_where_the_whole_front_is_blocked_marks_the_next_cells_of_the_plan() {
+        let params = DecisionParams::default();
+        let mut marks = StuckMarks::default();
+        let rover = at(30.5, 51.5);
+        let mut planning = half_explored();
+        while marks.note_stuck((&rover, 10), &planning, &[], &params).is_some() {
+            planning = marks.applied_to(&half_explored());
+        }
+        let back_along_the_corridor: Vec<usize> = (26..=31).rev().map(|x| cell_at(x, 51)).collect();
+        let mut cells = Vec::new();
+        while let Some(cell) = marks.note_stuck((&rover, 10), &planning, &back_along_the_corridor, &params) {
+            cells.push(cell_centre_m(cell));
+            planning = marks.applied_to(&half_explored());
+        }
+        assert_eq!(
+            cells,
+            [(29.5, 51.5), (28.5, 51.5)],
+            "the plan's cells after the rover's own, as far as 2 m from it, one each time it gets stuck"
         );
     }
 }
