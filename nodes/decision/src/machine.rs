@@ -30,6 +30,9 @@ const WALLED_IN_RECOVERIES: u32 = 3;
 /// missing, the explorer forgets the walls it has seen up close and looks again, up to this many
 /// times, before the rover goes home.
 const INSPECTION_RESETS: u32 = 2;
+/// Exploring forgets the stuck marks that cut off every frontier only once the rover is this far
+/// from where it last did so, metres: nearer, it got stuck there again, and the marks hold.
+const MARKS_HOLD_NEAR_M: f64 = 3.0;
 /// A sample whose route turns out to cost more than its approach is worth is left alone for this
 /// long, seconds, while the rover explores on (the map may yet show a shorter way).
 const OUT_OF_THE_WAY_S: f64 = 10.0;
@@ -189,6 +192,8 @@ pub struct Machine {
     stuck_watch: DrivingWatch,
     stall_watch: ProgressWatch,
     stuck_marks: StuckMarks,
+    /// Where the rover was when exploring last forgot the stuck marks.
+    marks_forgotten_at: Option<(f64, f64)>,
     last_drive: Drive,
     frame: u64,
     /// The frame [`Machine::prepare_next_frame`] last ran after and where the rover was then, to
@@ -231,6 +236,7 @@ impl Machine {
             stuck_watch: DrivingWatch::default(),
             stall_watch: ProgressWatch::default(),
             stuck_marks: StuckMarks::default(),
+            marks_forgotten_at: None,
             last_drive: Drive::stop(0.0),
             frame: 0,
             prepared_at: None,
@@ -312,6 +318,20 @@ impl Machine {
         }
         self.apply_stuck_marks();
         true
+    }
+
+    /// Forgets the stuck marks that cut off every frontier ([`Machine::forget_stuck_marks`]),
+    /// unless the rover `at` is still near where it last did so ([`MARKS_HOLD_NEAR_M`]); returns
+    /// whether it forgot any.
+    fn forget_stuck_marks_to_explore(&mut self, at: &Position) -> bool {
+        if self.marks_forgotten_at.is_some_and(|spot| at.distance_to(spot) < MARKS_HOLD_NEAR_M) {
+            return false;
+        }
+        let forgot = self.forget_stuck_marks();
+        if forgot {
+            self.marks_forgotten_at = Some((at.x_m, at.y_m));
+        }
+        forgot
     }
 
     /// Takes the located rocks, world positions.
@@ -560,7 +580,7 @@ impl Machine {
                 self.start_recovery(obs, "walled in by the map (a restart next to a rock?): backing out");
                 Drive::stop(p.brake)
             }
-            None if self.forget_stuck_marks() => {
+            None if self.forget_stuck_marks_to_explore(&obs.position) => {
                 tracing::info!("no frontier reachable: the cells where the rover got stuck are free again");
                 Drive::stop(p.brake)
             }
@@ -1126,6 +1146,21 @@ mod tests {
         machine.frame += 1;
         machine.set_map(corridor());
         assert_eq!(machine.planning.grid().cell(ahead), Cell::Free, "until the mark expires");
+    }
+
+    #[test]
+    fn exploring_keeps_the_stuck_marks_where_forgetting_them_got_the_rover_stuck_again() {
+        let mut machine = machine_on(corridor());
+        let ahead = cell_of_point(101.4, 100.5).unwrap();
+        let stuck_here = observation(10, 100.5, 100.5);
+        machine.mark_stuck_cell(&stuck_here);
+        assert!(machine.forget_stuck_marks_to_explore(&stuck_here.position), "forgotten the first time");
+        assert_eq!(machine.planning.grid().cell(ahead), Cell::Free);
+        machine.mark_stuck_cell(&observation(20, 101.0, 100.5));
+        assert!(!machine.forget_stuck_marks_to_explore(&observation(21, 101.0, 100.5).position));
+        assert_eq!(machine.planning.grid().cell(ahead), Cell::Blocked, "stuck again there: the mark holds");
+        assert!(machine.forget_stuck_marks_to_explore(&observation(90, 104.5, 100.5).position), "away from there");
+        assert_eq!(machine.planning.grid().cell(ahead), Cell::Free);
     }
 
     #[test]
