@@ -20,7 +20,7 @@ const STUCK_MARK_AHEAD_M: f64 = 0.9;
 const STUCK_MARK_LATERAL_M: [f64; 5] = [0.0, 1.0, -1.0, 2.0, -2.0];
 /// When every cell of the front is blocked already, the mark goes on the next cell of the plan's
 /// path within this distance of the rover, metres: the plan leads on through cells that the rover
-/// did not get through (a path that hugs a boulder whose overhang the camera saw as floor).
+/// did not get through (a path that hugs a boulder closer than the rover follows it).
 const PATH_MARK_REACH_M: f64 = 2.0;
 
 /// Watches the rover's progress: how long it has stayed within some distance of one spot.
