@@ -3,13 +3,13 @@
 
 mod support;
 
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 #[test]
 fn an_in_process_eval_stops_on_sigint_naming_the_seed() {
     let mut command = Command::new(support::rover());
-    command.args(["eval", "--in-process", "--procedural", "--seeds", "3"]).stdin(Stdio::null()).stdout(Stdio::null());
+    command.args(["eval", "--in-process", "--procedural", "--seeds", "3"]);
     let log = std::env::temp_dir().join(format!("rover-test-eval-sigint-{}.log", std::process::id()));
     let mut eval = support::Process::spawn("eval", command, log).expect("start rover eval");
     let under_way = support::eventually(Duration::from_secs(60), || eval.log_text().contains("seed 3:"));

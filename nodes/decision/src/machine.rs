@@ -528,7 +528,10 @@ impl Machine {
         let path = self.path().to_vec();
         let (at, grid) = ((&obs.position, obs.frame), self.planning.grid());
         if let Some(cell) = self.stuck_marks.note_stuck(at, grid, &path, &self.params) {
-            tracing::debug!(cell = ?cell_centre_m(cell), "stuck: a cell at the front or on the plan is an obstacle for a while");
+            tracing::debug!(
+                cell = ?cell_centre_m(cell),
+                "stuck: a cell at the front or on the plan is an obstacle for a while"
+            );
             self.apply_stuck_marks();
         }
     }

@@ -34,13 +34,13 @@ pub struct Calibration {
     pub width: usize,
     /// Image height, pixels.
     pub height: usize,
-    /// Distance from the rover's reported position to the cell's near edge, metres
-    /// (the camera's offset ahead, [`rover_msgs::body::CameraMount::forward_m`], + 0.3992 m, unity-sim-spec 4.2).
+    /// Distance from the rover's reported position to the cell's near edge, metres (the camera's
+    /// offset ahead, [`rover_msgs::body::CameraMount::forward_m`], + 0.3992 m, unity-sim-spec 4.2).
     pub near_edge_ahead_m: f64,
 }
 
-/// [`Calibration::near_edge_ahead_m`] in Unity: 0.4287 m ([`rover_msgs::body::CameraMount::forward_m`]) + 0.3992 m,
-/// rounded to the 0.1 mm of its parts.
+/// [`Calibration::near_edge_ahead_m`] in Unity: 0.4287 m
+/// ([`rover_msgs::body::CameraMount::forward_m`]) + 0.3992 m, rounded to the 0.1 mm of its parts.
 pub const UNITY_NEAR_EDGE_AHEAD_M: f64 = 0.8279;
 
 impl Default for Calibration {

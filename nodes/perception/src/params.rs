@@ -8,7 +8,7 @@ rover_node::node_params! {
     /// Parameters of the perception node.
     pub struct PerceptionParams {
         /// Calibration corners in the camera image: near-left x, y, near-right x, y, far-right x, y, far-left x, y (pixels).
-        source_points_px: Vec<f64> = Calibration::default().source_px.as_flattened().iter().map(|&p| f64::from(p)).collect::<Vec<f64>>(),
+        source_points_px: Vec<f64> = default_source_points_px(),
         /// Half the side of the calibration cell in the warped image, pixels.
         destination_half_size_px: f64 [1.0, 50.0] = f64::from(Calibration::default().destination_half_size_px),
         /// Warped rows between the bottom of the image and the calibration cell.
@@ -33,6 +33,11 @@ rover_node::node_params! {
         vision_every_frames: i64 [0, 100000] = 10,
     }
     read_at_start: all
+}
+
+/// The default calibration's corners, flattened as `source_points_px` lists them.
+fn default_source_points_px() -> Vec<f64> {
+    Calibration::default().source_px.as_flattened().iter().map(|&p| f64::from(p)).collect()
 }
 
 fn bytes<const N: usize>(name: &str, values: &[i64]) -> anyhow::Result<[u8; N]> {
