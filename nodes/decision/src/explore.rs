@@ -74,7 +74,14 @@ impl Target {
     ) -> Target {
         let (cost, centre) = (costs.distance(cell), cell_centre_m(cell));
         let bearing_deg = at.bearing_to(centre).to_degrees();
-        tracing::debug!(frame, at = ?(at.x_m, at.y_m), target = ?centre, cost, bearing_deg = bearing_deg.round(), "new frontier target");
+        tracing::debug!(
+            frame,
+            at = ?(at.x_m, at.y_m),
+            target = ?centre,
+            cost,
+            bearing_deg = bearing_deg.round(),
+            "new frontier target"
+        );
         Target {
             cell,
             chosen_frame: frame,

@@ -572,7 +572,12 @@ impl Machine {
             Some(waypoint) => {
                 self.walled_in_recoveries = 0;
                 let bearing = obs.position.bearing_to(waypoint);
-                tracing::trace!(bearing_deg = bearing.to_degrees(), free_ahead = obs.free.toward(0.0), best = ?obs.free.best_toward(bearing as f32, p.clearance_m as f32), "explore");
+                tracing::trace!(
+                    bearing_deg = bearing.to_degrees(),
+                    free_ahead = obs.free.toward(0.0),
+                    best = ?obs.free.best_toward(bearing as f32, p.clearance_m as f32),
+                    "explore"
+                );
                 self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, p)
             }
             None if self.planning.version() == 0 => {
