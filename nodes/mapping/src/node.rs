@@ -77,6 +77,16 @@ impl Snapshots {
         }
     }
 
+    /// Writes the snapshot now if the collected count or home changed since the last one. Called
+    /// before each publication: a count goes out on `rover/map_stats` only once it is on disk, so
+    /// a node started again after a kill never publishes a smaller one.
+    fn write_if_mission_changed(&mut self, mapping: &MappingCore) {
+        let (_, collected, home_known) = Self::held(mapping);
+        if (collected, home_known) != (self.written.1, self.written.2) {
+            self.write(mapping);
+        }
+    }
+
     /// Writes the snapshot if the map changed since the last one.
     fn write(&mut self, mapping: &MappingCore) {
         let now = Self::held(mapping);
@@ -137,7 +147,7 @@ impl Outputs {
 }
 
 /// Runs the mapping node until shutdown, then maps the scans still arriving (see [`DRAIN_QUIET`]
-/// and [`DRAIN_LIMIT`]), publishes the map a last time and writes its snapshot.
+/// and [`DRAIN_LIMIT`]), writes its snapshot and publishes the map a last time.
 pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let (mut node, params) = runtime.node::<MappingParams>("mapping")?;
     let span = node.span();
@@ -168,13 +178,17 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             Some(scan) = scans.next() => {
                 mapping.add_scan(&scan);
                 if mapping.publication_due() {
+                    snapshots.write_if_mission_changed(&mapping);
                     // Stamped as the scan, so that the decision node knows which frame the map includes.
                     outputs.publish(&mut mapping, Header::at(frame_ids::MAP, scan.header.stamp.clone()));
                     snapshots.write_if_due(&mapping, Duration::from_secs_f64(mapping.params().snapshot_every_ms / 1000.0));
                 }
             }
             Some(samples) = truth.next() => mapping.set_samples_truth(&samples),
-            () = tokio::time::sleep_until(flush_at.into()), if mapping.has_unpublished_scans() => outputs.publish(&mut mapping, node.header(frame_ids::MAP)),
+            () = tokio::time::sleep_until(flush_at.into()), if mapping.has_unpublished_scans() => {
+                snapshots.write_if_mission_changed(&mapping);
+                outputs.publish(&mut mapping, node.header(frame_ids::MAP));
+            }
             Ok(()) = changes.changed() => mapping.set_params(changes.borrow_and_update().clone()),
         }
     }
@@ -189,8 +203,8 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             () = tokio::time::sleep_until(quiet_until.min(stopped_at + DRAIN_LIMIT).into()) => break,
         }
     }
-    outputs.publish(&mut mapping, node.header(frame_ids::MAP));
     snapshots.write(&mapping);
+    outputs.publish(&mut mapping, node.header(frame_ids::MAP));
     tracing::info!(
         "mapping: {} frames mapped, {} skipped while tilted, rejected {}",
         mapping.frames_mapped(),
