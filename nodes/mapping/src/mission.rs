@@ -262,14 +262,14 @@ pub struct MapPublication {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod test_scans {
     use rover_msgs::builtin_interfaces::Time;
 
     use super::*;
 
     /// A scan of frame `frame` stamped `sec`, taken at (x, y) facing +x with 6 samples on the
     /// ground, that sees rock on a 2 m square from 0.5 m ahead of the rover.
-    fn rock_scan(frame: u64, sec: i32, position: (f64, f64)) -> TerrainScan {
+    pub(crate) fn rock_scan(frame: u64, sec: i32, position: (f64, f64)) -> TerrainScan {
         let (rows, cols) = (4, 4);
         TerrainScan {
             header: Header { stamp: Time { sec, nanosec: 0 }, frame_id: String::new() },
@@ -285,9 +285,20 @@ mod tests {
     }
 
     /// Telemetry of frame `frame` at (x, y) facing +x with `samples_remaining` on the ground.
-    fn telemetry(frame: u64, (x_m, y_m): (f64, f64), samples_remaining: u8) -> Telemetry {
+    pub(crate) fn telemetry(frame: u64, (x_m, y_m): (f64, f64), samples_remaining: u8) -> Telemetry {
         Telemetry { frame, x_m, y_m, samples_remaining, ..Telemetry::default() }
     }
+
+    /// `scan` with `samples_remaining` samples on the ground.
+    pub(crate) fn with_samples(scan: TerrainScan, samples_remaining: u8) -> TerrainScan {
+        TerrainScan { telemetry: Telemetry { samples_remaining, ..scan.telemetry }, ..scan }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::test_scans::{rock_scan, with_samples};
+    use super::*;
 
     fn core() -> MappingCore {
         MappingCore::new(MappingParams::default(), None)
@@ -332,11 +343,6 @@ mod tests {
         assert_eq!(published_after(3..=3 * every), [every, 2 * every, 3 * every], "the first two missed");
         let renumbered = published_after(5 * every + 1..=7 * every + 1);
         assert_eq!(renumbered, [6 * every, 7 * every], "frames go on where a count of scans would drift");
-    }
-
-    /// `scan` with `samples_remaining` samples on the ground.
-    fn with_samples(scan: TerrainScan, samples_remaining: u8) -> TerrainScan {
-        TerrainScan { telemetry: Telemetry { samples_remaining, ..scan.telemetry }, ..scan }
     }
 
     #[test]

@@ -216,3 +216,36 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     .await;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mission::test_scans::{rock_scan, with_samples};
+
+    #[test]
+    fn a_new_collected_count_is_on_disk_before_it_is_published() {
+        let dir = std::env::temp_dir().join(format!("rover-mapping-snapshots-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let state_dir = dir.to_str().expect("a UTF-8 temporary folder");
+        let mut mapping = MappingCore::new(MappingParams::default(), None);
+        let mut snapshots = Snapshots::new(state_dir);
+        mapping.add_scan(&rock_scan(1, 1, (100.0, 100.0)));
+        mapping.add_scan(&with_samples(rock_scan(2, 2, (100.0, 100.0)), 5));
+        assert_eq!(mapping.samples_collected(), 1);
+        let written = mapping.memory();
+        snapshots.write_if_mission_changed(&mapping);
+        let restored = || {
+            let mut restarted = MappingCore::new(MappingParams::default(), None);
+            Snapshots::new(state_dir).restore(&mut restarted);
+            restarted
+        };
+        let restarted = restored();
+        assert_eq!(restarted.samples_collected(), 1, "the new count is on disk");
+        assert!(restarted.memory() == written, "the snapshot holds the memory of the count's scan");
+        mapping.add_scan(&with_samples(rock_scan(3, 3, (100.0, 100.0)), 5));
+        snapshots.write_if_mission_changed(&mapping);
+        assert!(mapping.memory() != written, "the scan added to the map");
+        assert!(restored().memory() == written, "a scan that changes only the map waits for the periodic write");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
