@@ -77,12 +77,12 @@ impl Snapshots {
         }
     }
 
-    /// Writes the snapshot now if the collected count or home changed since the last one. Called
-    /// before each publication: a count goes out on `rover/map_stats` only once it is on disk, so
-    /// a node started again after a kill never publishes a smaller one.
+    /// Writes the snapshot now if the collected count or home changed since the last one (see
+    /// [`Outputs::publish`]).
     fn write_if_mission_changed(&mut self, mapping: &MappingCore) {
-        let (_, collected, home_known) = Self::held(mapping);
-        if (collected, home_known) != (self.written.1, self.written.2) {
+        let ((_, collected, home_known), (_, written_collected, written_home_known)) =
+            (Self::held(mapping), self.written);
+        if (collected, home_known) != (written_collected, written_home_known) {
             self.write(mapping);
         }
     }
@@ -111,8 +111,11 @@ struct Outputs {
 }
 
 impl Outputs {
-    /// Publishes the map, its image, statistics and rocks, stamped with `header`.
-    fn publish(&mut self, mapping: &mut MappingCore, header: Header) {
+    /// Publishes the map, its image, statistics and rocks, stamped with `header`. A new collected
+    /// count or home goes into `snapshots` first: a count goes out on `rover/map_stats` only once
+    /// it is on disk, so a node started again after a kill never publishes a smaller one.
+    fn publish(&mut self, mapping: &mut MappingCore, snapshots: &mut Snapshots, header: Header) {
+        snapshots.write_if_mission_changed(mapping);
         mapping.mark_published();
         self.published_at = Instant::now();
         let MapPublication { occupancy, stats, rocks } = mapping.publication(header.clone());
@@ -169,7 +172,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let mut truth = std::pin::pin!(node.messages(&topics::SAMPLE_TRUTH)?);
     let mut changes = params.watch();
     let shutdown = runtime.shutdown();
-    outputs.publish(&mut mapping, node.header(frame_ids::MAP));
+    outputs.publish(&mut mapping, &mut snapshots, node.header(frame_ids::MAP));
     async {
     loop {
         let flush_at = outputs.published_at + Duration::from_secs_f64(mapping.params().publish_max_delay_ms / 1000.0);
@@ -178,16 +181,15 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             Some(scan) = scans.next() => {
                 mapping.add_scan(&scan);
                 if mapping.publication_due() {
-                    snapshots.write_if_mission_changed(&mapping);
                     // Stamped as the scan, so that the decision node knows which frame the map includes.
-                    outputs.publish(&mut mapping, Header::at(frame_ids::MAP, scan.header.stamp.clone()));
+                    let header = Header::at(frame_ids::MAP, scan.header.stamp.clone());
+                    outputs.publish(&mut mapping, &mut snapshots, header);
                     snapshots.write_if_due(&mapping, Duration::from_secs_f64(mapping.params().snapshot_every_ms / 1000.0));
                 }
             }
             Some(samples) = truth.next() => mapping.set_samples_truth(&samples),
             () = tokio::time::sleep_until(flush_at.into()), if mapping.has_unpublished_scans() => {
-                snapshots.write_if_mission_changed(&mapping);
-                outputs.publish(&mut mapping, node.header(frame_ids::MAP));
+                outputs.publish(&mut mapping, &mut snapshots, node.header(frame_ids::MAP));
             }
             Ok(()) = changes.changed() => mapping.set_params(changes.borrow_and_update().clone()),
         }
@@ -204,7 +206,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
         }
     }
     snapshots.write(&mapping);
-    outputs.publish(&mut mapping, node.header(frame_ids::MAP));
+    outputs.publish(&mut mapping, &mut snapshots, node.header(frame_ids::MAP));
     tracing::info!(
         "mapping: {} frames mapped, {} skipped while tilted, rejected {}",
         mapping.frames_mapped(),
