@@ -1,7 +1,8 @@
 //! Drawing a band of columns of the level view: each column is a vertical plane, marched through
 //! the 1 m cells front to back. Flat cells are drawn row by row at once; other cells are sampled
 //! along the ray on the 0.25 m height field, and each sample fills the rows between it and the
-//! last one drawn. Bands of columns are independent, so threads can draw them side by side.
+//! last one drawn. The terrain of a column between two drawn ones is blended from theirs. Bands
+//! of columns are independent, so threads can draw them side by side.
 
 use std::ops::Range;
 
@@ -21,6 +22,9 @@ const MAX_DEPTH_M: f64 = 290.0;
 const MARCH_STEP_FRACTION: f64 = 0.04;
 /// ...and at least this often, metres.
 const MARCH_STEP_MIN_M: f64 = 0.03;
+/// Two neighbouring pixels whose forward depths differ by more than this fraction of the nearer
+/// lie on two sides of an outline: the pixel between them shows the nearer, not their mean.
+const BLEND_DEPTH_FRACTION: f32 = 0.1;
 /// Colour of the calibration grid lines.
 const GRID_RGB: [f32; 3] = [38.0, 36.0, 34.0];
 /// Half width of a grid line, metres.
@@ -65,6 +69,8 @@ pub(super) struct Frame<'a> {
     pub(super) appearance: &'a Appearance,
     pub(super) rows: &'a [LevelRow],
     pub(super) options: RenderOptions,
+    /// Whether every other column's terrain is blended from its neighbours' ([`Painter::draw`]).
+    pub(super) blend_columns: bool,
     pub(super) level_height: usize,
 }
 
@@ -280,11 +286,18 @@ impl Span {
 }
 
 impl Painter<'_, '_> {
-    /// Draws the band: terrain and sky, then the boulders and the samples over them.
+    /// Draws the band: terrain and sky, then the boulders and the samples over them. When the
+    /// frame blends columns, the terrain of every other column of the band is drawn and that of
+    /// each column between two drawn ones is blended from theirs.
     pub(super) fn draw(&mut self) {
         let frame = self.frame;
-        for u in self.band.columns.clone() {
+        let columns = self.band.columns.clone();
+        let blended = |u: &usize| frame.blend_columns && is_between(&columns, *u);
+        for u in columns.clone().filter(|u| !blended(u)) {
             self.draw_column(frame.world.terrain(), u);
+        }
+        for u in columns.clone().filter(blended) {
+            self.blend_neighbours(u);
         }
         for piece in &frame.pieces {
             self.draw_piece(piece);
@@ -311,6 +324,30 @@ impl Painter<'_, '_> {
         self.band.depth[index] = hit.depth_m;
         if let Some(slot) = self.band.hits.get_mut(index) {
             *slot = hit;
+        }
+    }
+
+    /// Fills level column `u` from columns `u - 1` and `u + 1`, already drawn: each pixel with the
+    /// mean of theirs where their forward depths agree within [`BLEND_DEPTH_FRACTION`], else (an
+    /// outline, or the sky in both) with the nearer one's.
+    fn blend_neighbours(&mut self, u: usize) {
+        let Window { v0, v1, .. } = self.frame.window;
+        let (left, here, right) = (self.index(u - 1, v0), self.index(u, v0), self.index(u + 1, v0));
+        for row in 0..v1 - v0 {
+            let (depth_left, depth_right) = (self.band.depth[left + row], self.band.depth[right + row]);
+            let nearer = if depth_left <= depth_right { left } else { right };
+            let (near_m, far_m) = (depth_left.min(depth_right), depth_left.max(depth_right));
+            let (rgb, depth_m) = if far_m - near_m <= BLEND_DEPTH_FRACTION * near_m {
+                let (rgb_left, rgb_right) = (self.band.rgb[left + row], self.band.rgb[right + row]);
+                (std::array::from_fn(|c| rgb_left[c].midpoint(rgb_right[c])), near_m.midpoint(far_m))
+            } else {
+                (self.band.rgb[nearer + row], near_m)
+            };
+            self.band.rgb[here + row] = rgb;
+            self.band.depth[here + row] = depth_m;
+            if let Some(hits) = self.band.hits.get_mut(left + row..=right + row) {
+                hits[here - left] = Hit { depth_m, ..hits[nearer - left] };
+            }
         }
     }
 
@@ -459,6 +496,12 @@ impl Painter<'_, '_> {
         }
         first.min(bottom)
     }
+}
+
+/// True if column `u` of a band of `columns` lies between two other columns of it, every other
+/// one from the band's first (the band's last is never between).
+fn is_between(columns: &Range<usize>, u: usize) -> bool {
+    (u - columns.start) % 2 == 1 && u + 1 < columns.end
 }
 
 /// True if nothing of a cell whose terrain reaches `highest` metres, crossed between forward depths

@@ -2,8 +2,9 @@
 //! shaded like the Unity frames (unity-sim-spec 4.3), from the rover's camera.
 //!
 //! Each frame is first drawn for a level camera (yaw only) at the true camera position, in bands
-//! of columns that threads draw side by side ([`columns`]): the terrain column by column, then
-//! the boulders and samples over it ([`objects`]). Body pitch and roll are a pure rotation about
+//! of columns that threads draw side by side ([`columns`]): the terrain of every other column,
+//! the columns between blended from their neighbours (edge by edge: an outline is not blurred),
+//! then the boulders and samples over all columns ([`objects`]). Body pitch and roll are a pure rotation about
 //! the camera centre, applied afterwards as an exact image-space resampling of the level view
 //! ([`view`]). How things look is baked once per world ([`appearance`]).
 
@@ -80,6 +81,9 @@ pub struct Renderer {
     appearance: Appearance,
     rows: Vec<LevelRow>,
     threads: usize,
+    /// Blend the terrain of every other column from its neighbours' (see [`Frame::blend_columns`]);
+    /// never with the calibration grid, whose lines are a pixel wide.
+    blend_columns: bool,
     level_width: usize,
     level_height: usize,
     level_rgb: Vec<[u8; 3]>,
@@ -106,6 +110,7 @@ impl Renderer {
             appearance: Appearance::new(world),
             rows: vec![LevelRow::default(); level_height],
             threads,
+            blend_columns: !options.grid,
             level_width,
             level_height,
             level_rgb: vec![[0; 3]; level_pixels],
@@ -153,6 +158,7 @@ impl Renderer {
             appearance: &self.appearance,
             rows: &self.rows,
             options: self.options,
+            blend_columns: self.blend_columns,
             level_height: self.level_height,
         };
         draw_level(&frame, self.threads, &mut self.level_rgb, &mut self.level_depth, &mut self.level_hits);
@@ -205,22 +211,21 @@ fn truncated_index(value: f64) -> usize {
     value as i64 as usize
 }
 
-/// Bands of columns each thread of a frame draws, interleaved with the other threads' so that the
-/// work is shared evenly whatever the view holds.
-const BANDS_PER_THREAD: usize = 4;
+/// Columns of a band. The threads of a frame take bands in turn, so that the work is shared evenly
+/// whatever the view holds; the bands are the same whatever the number of threads, and so is the
+/// image (a band blends columns from its own, [`columns::Painter::draw`]).
+const BAND_COLUMNS: usize = 24;
 
-/// Draws the level view of `frame` into the level buffers, in interleaved bands of columns, one
-/// set per thread.
+/// Draws the level view of `frame` into the level buffers, in bands of columns taken in turn by
+/// the threads.
 fn draw_level(frame: &Frame, threads: usize, rgb: &mut [[u8; 3]], depth: &mut [f32], hits: &mut [Hit]) {
     let Window { u0, u1, .. } = frame.window;
     let height = frame.level_height;
-    let band_count = if threads > 1 { threads * BANDS_PER_THREAD } else { 1 };
-    let per_band = (u1 - u0).div_ceil(band_count).max(1);
     let (mut rgb, mut depth) = (&mut rgb[u0 * height..u1 * height], &mut depth[u0 * height..u1 * height]);
     let mut hits = if hits.is_empty() { hits } else { &mut hits[u0 * height..u1 * height] };
     let mut work: Vec<Vec<Band>> = (0..threads).map(|_| Vec::new()).collect();
-    for (number, first) in (u0..u1).step_by(per_band).enumerate() {
-        let columns = first..(first + per_band).min(u1);
+    for (number, first) in (u0..u1).step_by(BAND_COLUMNS).enumerate() {
+        let columns = first..(first + BAND_COLUMNS).min(u1);
         let pixels = columns.len() * height;
         let hit_pixels = pixels.min(hits.len());
         let (band_rgb, rest_rgb) = std::mem::take(&mut rgb).split_at_mut(pixels);
@@ -463,6 +468,35 @@ mod tests {
         let picked_up = second_frame((&here, &[sample]), (&here, &[]));
         assert_eq!(picked_up.data, second_frame((&elsewhere, &[]), (&here, &[])).data);
         assert_ne!(kept.data, picked_up.data, "the sample is in view");
+    }
+
+    #[test]
+    fn blended_columns_look_like_drawn_ones() {
+        let (mut byte_difference, mut bytes, mut far_off_pixels) = (0u64, 0u64, 0usize);
+        for seed in [1, 2, 3] {
+            let world = crate::procgen::procedural_world(seed);
+            for yaw_deg in [0.0, 70.0, 160.0, 250.0] {
+                let pose = at_start(&world, yaw_deg, 1.0, -1.5);
+                let frame_with = |blend_columns: bool| {
+                    let mut renderer = Renderer::new(&world, CameraModel::rover(), RenderOptions::default());
+                    renderer.blend_columns = blend_columns;
+                    let mut image = RgbImage::default();
+                    renderer.render(&world, &world.samples, &pose, &mut image);
+                    image
+                };
+                let (blended, drawn) = (frame_with(true), frame_with(false));
+                assert_ne!(blended.data, drawn.data, "seed {seed} yaw {yaw_deg}: nothing blended");
+                for (b, d) in blended.data.chunks_exact(3).zip(drawn.data.chunks_exact(3)) {
+                    let differences = [0, 1, 2].map(|c| b[c].abs_diff(d[c]));
+                    byte_difference += differences.iter().map(|&x| x as u64).sum::<u64>();
+                    bytes += 3;
+                    far_off_pixels += (differences.into_iter().max().unwrap() > 48) as usize;
+                }
+            }
+        }
+        let (mean, far_off) = (byte_difference as f64 / bytes as f64, far_off_pixels as f64 / (bytes / 3) as f64);
+        assert!(mean < 1.0, "blended frames differ by {mean:.2} levels a byte on average");
+        assert!(far_off < 0.005, "{:.2} % of the pixels differ by more than 48 levels", far_off * 100.0);
     }
 
     #[test]
