@@ -329,7 +329,9 @@ impl Painter<'_, '_> {
 
     /// Fills level column `u` from columns `u - 1` and `u + 1`, already drawn: each pixel with the
     /// mean of theirs where their forward depths agree within [`BLEND_DEPTH_FRACTION`], else (an
-    /// outline, or the sky in both) with the nearer one's.
+    /// outline, or the sky in both) with the nearer one's colour and hit. There the depth the
+    /// boulders and samples are drawn against is the farther one's, so that one between the two
+    /// shows rather than hides behind an edge that may lie half a column off.
     fn blend_neighbours(&mut self, u: usize) {
         let Window { v0, v1, .. } = self.frame.window;
         let (left, here, right) = (self.index(u - 1, v0), self.index(u, v0), self.index(u + 1, v0));
@@ -337,16 +339,17 @@ impl Painter<'_, '_> {
             let (depth_left, depth_right) = (self.band.depth[left + row], self.band.depth[right + row]);
             let nearer = if depth_left <= depth_right { left } else { right };
             let (near_m, far_m) = (depth_left.min(depth_right), depth_left.max(depth_right));
-            let (rgb, depth_m) = if far_m - near_m <= BLEND_DEPTH_FRACTION * near_m {
+            let (rgb, hit_depth_m, drawn_over_m) = if far_m - near_m <= BLEND_DEPTH_FRACTION * near_m {
                 let (rgb_left, rgb_right) = (self.band.rgb[left + row], self.band.rgb[right + row]);
-                (std::array::from_fn(|c| rgb_left[c].midpoint(rgb_right[c])), near_m.midpoint(far_m))
+                let mean_m = near_m.midpoint(far_m);
+                (std::array::from_fn(|c| rgb_left[c].midpoint(rgb_right[c])), mean_m, mean_m)
             } else {
-                (self.band.rgb[nearer + row], near_m)
+                (self.band.rgb[nearer + row], near_m, far_m)
             };
             self.band.rgb[here + row] = rgb;
-            self.band.depth[here + row] = depth_m;
+            self.band.depth[here + row] = drawn_over_m;
             if let Some(hits) = self.band.hits.get_mut(left + row..=right + row) {
-                hits[here - left] = Hit { depth_m, ..hits[nearer - left] };
+                hits[here - left] = Hit { depth_m: hit_depth_m, ..hits[nearer - left] };
             }
         }
     }

@@ -500,6 +500,51 @@ mod tests {
     }
 
     #[test]
+    fn a_sample_in_view_shows_as_well_in_blended_columns() {
+        let world = crate::procgen::procedural_world(2);
+        let options = RenderOptions { record_hits: true, ..RenderOptions::default() };
+        let mut renderers = [true, false].map(|blend_columns| {
+            let mut renderer = Renderer::new(&world, CameraModel::rover(), options);
+            renderer.blend_columns = blend_columns;
+            renderer
+        });
+        let (mut views, mut blended_pixels, mut drawn_pixels) = (0, 0, 0);
+        for sample in &world.samples {
+            for bearing_deg in (0..24).map(|k| k as f64 * 15.0) {
+                for distance_m in [2.0, 3.0, 4.5, 6.0, 8.0] {
+                    let (sin, cos) = bearing_deg.to_radians().sin_cos();
+                    let (x_m, y_m) = (sample.x_m + distance_m * cos, sample.y_m + distance_m * sin);
+                    if !world.is_drivable(x_m, y_m) {
+                        continue;
+                    }
+                    let ground_m = world.ground_height(x_m, y_m) as f64;
+                    let yaw_deg = bearing_deg + 180.0 + 10.0;
+                    let pose = BodyPose { x_m, y_m, yaw_deg, pitch_deg: 0.5, roll_deg: -0.5, ground_m };
+                    let [blended, drawn] = renderers.each_mut().map(|renderer| {
+                        renderer.render(&world, &world.samples, &pose, &mut RgbImage::default());
+                        renderer.hits().iter().filter(|hit| hit.surface == Surface::Sample).count()
+                    });
+                    if drawn > 0 {
+                        assert!(
+                            blended > 0,
+                            "the sample at ({:.1}, {:.1}) is lost from ({x_m:.1}, {y_m:.1})",
+                            sample.x_m,
+                            sample.y_m
+                        );
+                        (views, blended_pixels, drawn_pixels) =
+                            (views + 1, blended_pixels + blended, drawn_pixels + drawn);
+                    }
+                }
+            }
+        }
+        assert!(views > 100, "{views} views show a sample");
+        assert!(
+            blended_pixels * 100 >= drawn_pixels * 99,
+            "{blended_pixels} sample pixels blended, {drawn_pixels} drawn"
+        );
+    }
+
+    #[test]
     fn threads_draw_the_same_frame_as_one() {
         let world = crate::procgen::procedural_world(2);
         let pose = at_start(&world, 30.0, 3.0, -2.0);
