@@ -470,6 +470,15 @@ mod tests {
         assert_ne!(kept.data, picked_up.data, "the sample is in view");
     }
 
+    /// The frame of `world` with its samples from `pose`, drawn by a renderer that `configure` set up.
+    fn frame_of(world: &World, pose: &BodyPose, configure: impl FnOnce(&mut Renderer)) -> RgbImage {
+        let mut renderer = Renderer::new(world, CameraModel::rover(), RenderOptions::default());
+        configure(&mut renderer);
+        let mut image = RgbImage::default();
+        renderer.render(world, &world.samples, pose, &mut image);
+        image
+    }
+
     #[test]
     fn blended_columns_look_like_drawn_ones() {
         let (mut byte_difference, mut bytes, mut far_off_pixels) = (0u64, 0u64, 0usize);
@@ -477,13 +486,7 @@ mod tests {
             let world = crate::procgen::procedural_world(seed);
             for yaw_deg in [0.0, 70.0, 160.0, 250.0] {
                 let pose = at_start(&world, yaw_deg, 1.0, -1.5);
-                let frame_with = |blend_columns: bool| {
-                    let mut renderer = Renderer::new(&world, CameraModel::rover(), RenderOptions::default());
-                    renderer.blend_columns = blend_columns;
-                    let mut image = RgbImage::default();
-                    renderer.render(&world, &world.samples, &pose, &mut image);
-                    image
-                };
+                let frame_with = |blend_columns| frame_of(&world, &pose, |r| r.blend_columns = blend_columns);
                 let (blended, drawn) = (frame_with(true), frame_with(false));
                 assert_ne!(blended.data, drawn.data, "seed {seed} yaw {yaw_deg}: nothing blended");
                 for (b, d) in blended.data.chunks_exact(3).zip(drawn.data.chunks_exact(3)) {
@@ -548,13 +551,7 @@ mod tests {
     fn threads_draw_the_same_frame_as_one() {
         let world = crate::procgen::procedural_world(2);
         let pose = at_start(&world, 30.0, 3.0, -2.0);
-        let frame_with = |threads: usize| {
-            let mut renderer = Renderer::new(&world, CameraModel::rover(), RenderOptions::default());
-            renderer.threads = threads;
-            let mut image = RgbImage::default();
-            renderer.render(&world, &world.samples, &pose, &mut image);
-            image
-        };
+        let frame_with = |threads| frame_of(&world, &pose, |r| r.threads = threads);
         let one = frame_with(1);
         assert_eq!(one.data, frame_with(2).data);
         assert_eq!(one.data, frame_with(3).data);
