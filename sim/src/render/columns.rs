@@ -23,7 +23,8 @@ const MARCH_STEP_FRACTION: f64 = 0.04;
 /// ...and at least this often, metres.
 const MARCH_STEP_MIN_M: f64 = 0.03;
 /// Two neighbouring pixels whose forward depths differ by more than this fraction of the nearer
-/// lie on two sides of an outline: the pixel between them shows the nearer, not their mean.
+/// lie on two sides of an outline: the pixel between them takes the nearer one's colour, not their
+/// mean.
 const BLEND_DEPTH_FRACTION: f32 = 0.1;
 /// Colour of the calibration grid lines.
 const GRID_RGB: [f32; 3] = [38.0, 36.0, 34.0];
