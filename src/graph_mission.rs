@@ -10,12 +10,14 @@ use std::time::{Duration, Instant};
 use rover_bridge::stats::{DEADLINE_MISSES_KEY, REPLY_P50_KEY, REPLY_P99_KEY, SILENCE_BRAKES_KEY};
 use rover_decision::machine::Mode;
 use rover_mapping::score::{LocatedSamples, occupancy_scores};
+use rover_msgs::RosMessage;
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_msgs::frames::MissionFrames;
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{DecisionState, Telemetry};
 use rover_msgs::nav_msgs::OccupancyGrid;
-use rover_node::{NoParams, Runtime, spawn_subscriber, topics};
+use rover_node::topics::{self, Topic};
+use rover_node::{NoParams, RosNode, Runtime, Subscription, spawn_subscriber};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
 use rover_sim::wire::client::{ClientConfig, run_client};
 use rover_sim::world::World;
@@ -241,6 +243,16 @@ fn handler<M>(
     move |message| update(&mut evaluator.lock().expect("evaluator lock"), message)
 }
 
+/// A subscription of the evaluator on `topic` without the messages of an earlier mission: this
+/// process's DDS participant keeps each topic's last samples, and a new reader of the topic gets
+/// them (a second seed's evaluator saw the first one's final telemetry, and counted its frames on
+/// from there).
+fn mission_subscription<M: RosMessage>(node: &mut RosNode, topic: &Topic<M>) -> anyhow::Result<Subscription<M>> {
+    let subscription = node.subscription(topic)?;
+    while let Ok(Some(_)) = subscription.take() {}
+    Ok(subscription)
+}
+
 /// Sets `value` from the number under `key` in `diagnostics`, when there is one.
 fn update_from<T: std::str::FromStr>(value: &mut T, diagnostics: &DiagnosticArray, key: &str) {
     if let Some(number) = diagnostics.value(key).and_then(|text| text.parse().ok()) {
@@ -261,7 +273,7 @@ fn answers_a_frame_seen(last: Option<(u64, u64)>, frame: u64) -> bool {
 }
 
 fn subscribe_evaluator(
-    node: &mut rover_node::RosNode,
+    node: &mut RosNode,
     evaluator: &Arc<Mutex<Evaluator>>,
     done: &Arc<Notify>,
     step_s: f64,
@@ -276,23 +288,23 @@ fn subscribe_evaluator(
     };
     Ok(vec![
         spawn_subscriber(
-            node.subscription(&topics::MAP)?,
+            mission_subscription(node, &topics::MAP)?,
             span.clone(),
             handler(evaluator, |e, m: OccupancyGrid| e.on_map(&m)),
         ),
         spawn_subscriber(
-            node.subscription(&topics::ROCKS)?,
+            mission_subscription(node, &topics::ROCKS)?,
             span.clone(),
             handler(evaluator, |e, r: PoseArray| e.on_rocks(&r)),
         ),
         spawn_subscriber(
-            node.subscription(&topics::TELEMETRY)?,
+            mission_subscription(node, &topics::TELEMETRY)?,
             span.clone(),
             handler(evaluator, move |e, t: Telemetry| e.on_telemetry(&t, step_s)),
         ),
-        spawn_subscriber(node.subscription(&topics::MODE)?, span.clone(), handler(evaluator, on_mode)),
+        spawn_subscriber(mission_subscription(node, &topics::MODE)?, span.clone(), handler(evaluator, on_mode)),
         spawn_subscriber(
-            node.subscription(&topics::DIAGNOSTICS)?,
+            mission_subscription(node, &topics::DIAGNOSTICS)?,
             span,
             handler(evaluator, |e, d: DiagnosticArray| e.on_diagnostics(&d)),
         ),

@@ -1,5 +1,6 @@
-//! The `rover eval` command line: option conflicts are refused with a message, and an in-process
-//! run stops on Ctrl-C (it runs on the main runtime's thread, so nothing else would stop it).
+//! The `rover eval` command line: option conflicts are refused with a message, an in-process run
+//! stops on Ctrl-C (it runs on the main runtime's thread, so nothing else would stop it), and the
+//! second mission of a graph eval is timed from its own start.
 
 mod support;
 
@@ -32,4 +33,24 @@ fn chaos_needs_the_graph() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(!output.status.success(), "--chaos with --in-process is refused");
     assert!(stderr.contains("--chaos") && stderr.contains("--in-process"), "{stderr}");
+}
+
+#[test]
+fn each_graph_mission_is_timed_from_its_own_start() {
+    let output = Command::new(support::rover())
+        .args(["eval", "--procedural", "--seeds", "0..1", "--max-sim-seconds", "110", "--json"])
+        .output()
+        .expect("run rover eval");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    let runs: Vec<serde_json::Value> = serde_json::from_slice(&output.stdout).expect("a JSON list of runs");
+    assert_eq!(runs.len(), 2, "{stderr}");
+    for run in &runs {
+        let sim_s = run["sim_seconds"].as_f64().expect("sim_seconds");
+        let collected_at_s = run["collected_at_s"].as_array().expect("collected_at_s");
+        assert!(collected_at_s.iter().all(|t| t.as_f64().is_some_and(|t| t <= sim_s)), "{run}");
+        let mapped = run["mapped_pct_by_100_s"].as_array().expect("mapped_pct_by_100_s");
+        assert_eq!(mapped.len(), 1, "one entry, at 100 s of a 110 s mission: {run}");
+        assert!(mapped[0].as_f64().is_some_and(|pct| pct > 0.0), "the map at 100 s: {run}");
+    }
 }
