@@ -17,5 +17,6 @@ pub mod nodes;
 pub mod replay;
 pub mod replay_dds;
 pub mod sim_check;
+pub mod steadiness;
 pub mod time_by_mode;
 pub mod timeline;
