@@ -17,7 +17,7 @@ use rover_imaging::{ImageError, RgbImage};
 
 use crate::classify::{Class, ColourBits, Thresholds};
 use crate::homography::Matrix3;
-use crate::warp::{BorderedImage, WarpEntry, WarpTable};
+use crate::warp::{BorderedImage, Tap, WarpTable};
 
 /// The calibration of the warp (the Udacity starter's values by default).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -173,14 +173,14 @@ impl Perception {
     /// from its interpolated colour (the same class either way, see [`ColourBits`]).
     fn classify(&mut self) {
         let (table, source) = (&self.table, &self.source);
-        let interpolated = |entry: &WarpEntry| self.thresholds.classify(table.sample(entry, source), entry.in_view);
+        let interpolated = |tap: Tap| self.thresholds.classify(table.sample(tap, source), tap.in_view());
         if self.colour_bits.is_some() {
-            for ((class, &tap), entry) in self.classes.iter_mut().zip(&table.taps).zip(&table.entries) {
-                *class = source.decided_class(tap).unwrap_or_else(|| interpolated(entry));
+            for (class, &tap) in self.classes.iter_mut().zip(&table.taps) {
+                *class = source.decided_class(tap).unwrap_or_else(|| interpolated(tap));
             }
         } else {
-            for (class, entry) in self.classes.iter_mut().zip(&table.entries) {
-                *class = interpolated(entry);
+            for (class, &tap) in self.classes.iter_mut().zip(&table.taps) {
+                *class = interpolated(tap);
             }
         }
     }
@@ -188,8 +188,8 @@ impl Perception {
     /// The warped colour image of the last frame (the full `warpPerspective` output), for checks.
     pub fn warped_image(&self) -> RgbImage {
         let mut warped = RgbImage::new(self.calibration.width, self.calibration.height);
-        for entry in &self.table.entries {
-            warped.set_pixel(entry.x as usize, entry.y as usize, self.table.sample(entry, &self.source));
+        for (entry, &tap) in self.table.entries.iter().zip(&self.table.taps) {
+            warped.set_pixel(entry.x as usize, entry.y as usize, self.table.sample(tap, &self.source));
         }
         warped
     }

@@ -16,9 +16,6 @@ use crate::warp::WarpTable;
 /// recorded frame the tests check).
 const PARTIAL_SUMS: usize = 4;
 
-/// [`ScanGeometry::cell_of_entry`] of an entry beyond the range limit.
-pub const OUT_OF_RANGE: u32 = u32::MAX;
-
 /// Where the table entries fall in the rover-frame grid.
 #[derive(Debug, Clone)]
 pub struct ScanGeometry {
@@ -32,7 +29,10 @@ pub struct ScanGeometry {
     pub origin_x_m: f64,
     /// y of the grid's right edge, metres (left positive).
     pub origin_y_m: f64,
-    /// Grid cell of each table entry, or [`OUT_OF_RANGE`] beyond the range limit.
+    /// The first table entry within the range limit: the entries are in the order of the warped
+    /// image's rows, from the farthest, so those from this one on are all in range.
+    pub first_in_range: usize,
+    /// Grid cell of each table entry from [`ScanGeometry::first_in_range`] on.
     pub cell_of_entry: Vec<u32>,
     /// Bearing (radians, positive left) and distance (metres) of each table entry from the rover.
     pub polar_of_entry: Vec<(f32, f32)>,
@@ -45,20 +45,23 @@ impl ScanGeometry {
         let (w, h) = (calibration.width, calibration.height);
         let (near_x, right_y) = calibration.rover_position((w - 1) as f64, (h - 1) as f64);
         let rows = (((max_range_m - near_x) / resolution_m).floor() as usize + 1).min(h);
-        let mut cell_of_entry = Vec::with_capacity(table.entries.len());
-        let mut polar_of_entry = Vec::with_capacity(table.entries.len());
-        for entry in &table.entries {
-            let (x, y) = calibration.rover_position(entry.x as f64, entry.y as f64);
-            polar_of_entry.push((y.atan2(x) as f32, x.hypot(y) as f32));
-            let (row, col) = (h - 1 - entry.y as usize, w - 1 - entry.x as usize);
-            cell_of_entry.push(if row < rows { (row * w + col) as u32 } else { OUT_OF_RANGE });
-        }
+        let polar_of_entry = (table.entries.iter())
+            .map(|entry| {
+                let (x, y) = calibration.rover_position(entry.x as f64, entry.y as f64);
+                (y.atan2(x) as f32, x.hypot(y) as f32)
+            })
+            .collect();
+        let first_in_range = table.entries.partition_point(|entry| h - 1 - entry.y as usize >= rows);
+        let cell_of_entry = (table.entries[first_in_range..].iter())
+            .map(|entry| ((h - 1 - entry.y as usize) * w + w - 1 - entry.x as usize) as u32)
+            .collect();
         ScanGeometry {
             rows,
             cols: w,
             resolution_m,
             origin_x_m: near_x - resolution_m / 2.0,
             origin_y_m: right_y - resolution_m / 2.0,
+            first_in_range,
             cell_of_entry,
             polar_of_entry,
         }
@@ -68,10 +71,8 @@ impl ScanGeometry {
     pub fn fill(&self, classes: &[Class], cells: &mut Vec<u8>) {
         cells.clear();
         cells.resize(self.rows * self.cols, Class::Unknown as u8);
-        for (&class, &cell) in classes.iter().zip(&self.cell_of_entry) {
-            if cell != OUT_OF_RANGE {
-                cells[cell as usize] = class as u8;
-            }
+        for (&class, &cell) in classes[self.first_in_range..].iter().zip(&self.cell_of_entry) {
+            cells[cell as usize] = class as u8;
         }
     }
 
@@ -181,8 +182,13 @@ mod tests {
         assert!((geometry.origin_x_m - (0.3279 - 0.05)).abs() < 1e-9, "{}", geometry.origin_x_m);
         let last_row_x = geometry.origin_x_m + (geometry.rows as f64 - 0.5) * geometry.resolution_m;
         assert!(last_row_x <= 8.0 + 1e-9 && last_row_x > 7.85, "{last_row_x}");
-        let in_range = geometry.cell_of_entry.iter().filter(|&&c| c != OUT_OF_RANGE).count();
-        assert!(in_range > 5000 && in_range < perception.table().entries.len(), "{in_range}");
+        let entries = &perception.table().entries;
+        let in_range = geometry.cell_of_entry.len();
+        assert!(in_range > 5000 && in_range < entries.len(), "{in_range}");
+        assert_eq!(geometry.first_in_range + in_range, entries.len());
+        let in_range_row = |entry: &crate::warp::WarpEntry| 159 - (entry.y as usize) < geometry.rows;
+        assert!(entries[geometry.first_in_range..].iter().all(in_range_row));
+        assert!(!entries[..geometry.first_in_range].iter().any(in_range_row));
     }
 
     #[test]

@@ -32,8 +32,9 @@ pub struct WarpEntry {
     /// Index of the top-left tap among the pixels of the black-bordered source (see
     /// [`BorderedImage`]); the others are the pixel to its right and the two below them.
     pub tap: u32,
-    /// Fixed-point weights of the four taps (sum 2^15): top-left, top-right, bottom-left, bottom-right.
-    pub weights: [u16; 4],
+    /// The source position's fraction of a pixel, in 1/32 px: `fy * 32 + fx`, which picks the
+    /// four taps' weights ([`WarpEntry::weights`]).
+    pub fraction: u16,
     /// The warped pixel is inside the camera's field of view (the warped all-ones mask is 1).
     pub in_view: bool,
 }
@@ -51,27 +52,37 @@ pub struct WarpTable {
     pub stride_px: usize,
     /// The rows of the image that the entries' taps read (the others never matter).
     pub source_rows: Range<usize>,
-    /// The top-left tap of each entry, with its in-view flag: all that classifying an entry from
-    /// colour bits reads, four bytes an entry where [`WarpEntry`] takes twenty.
+    /// Each entry's taps, fraction and in-view flag in four bytes: all that classifying an entry
+    /// reads, where [`WarpEntry`] takes twelve.
     pub taps: Vec<Tap>,
 }
 
-/// A warped pixel's top-left tap among the pixels of the bordered source and whether it is in
-/// view, in one `u32` (the flag in the top bit).
+/// A warped pixel's top-left tap among the pixels of the bordered source (the low 21 bits), its
+/// fraction of a pixel (the next 10) and whether it is in view (the top bit), in one `u32`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Tap(u32);
 
 impl Tap {
+    const INDEX_BITS: u32 = 21;
+    const INDEX_MASK: u32 = (1 << Self::INDEX_BITS) - 1;
     const IN_VIEW: u32 = 1 << 31;
 
-    fn of(entry: &WarpEntry) -> Self {
-        Tap(entry.tap | if entry.in_view { Self::IN_VIEW } else { 0 })
+    /// The tap of `entry`.
+    pub fn of(entry: &WarpEntry) -> Self {
+        let in_view = if entry.in_view { Self::IN_VIEW } else { 0 };
+        Tap(entry.tap | (entry.fraction as u32) << Self::INDEX_BITS | in_view)
     }
 
     /// Index of the top-left tap in the bordered source.
     #[inline]
     pub fn index(self) -> usize {
-        (self.0 & !Self::IN_VIEW) as usize
+        (self.0 & Self::INDEX_MASK) as usize
+    }
+
+    /// The fixed-point weights of the four taps.
+    #[inline]
+    pub fn weights(self) -> [u16; 4] {
+        WEIGHTS[((self.0 & !Self::IN_VIEW) >> Self::INDEX_BITS) as usize]
     }
 
     /// The warped pixel is inside the camera's field of view.
@@ -81,17 +92,33 @@ impl Tap {
     }
 }
 
-/// The bilinear weights of OpenCV's 32x32 interpolation table for fractions (fx, fy) in 1/32 px.
-fn weights(fx: i32, fy: i32) -> [i32; 4] {
-    let one = 1 << WEIGHT_BITS;
-    let product = |a: i32, b: i32| a * b * (one / (INTER_TAB_SIZE * INTER_TAB_SIZE));
-    let (gx, gy) = (INTER_TAB_SIZE - fx, INTER_TAB_SIZE - fy);
-    let mut w = [product(gy, gx), product(gy, fx), product(fy, gx), product(fy, fx)];
-    if w[0] == one {
-        w = [one - 1, 0, 0, 1];
+impl WarpEntry {
+    /// Fixed-point weights of the four taps (sum 2^15): top-left, top-right, bottom-left, bottom-right.
+    pub fn weights(&self) -> [u16; 4] {
+        WEIGHTS[self.fraction as usize]
     }
-    w
 }
+
+/// The bilinear weights of OpenCV's 32x32 interpolation table for fractions (fx, fy) in 1/32 px.
+const fn weights(fx: i32, fy: i32) -> [i32; 4] {
+    let one = 1 << WEIGHT_BITS;
+    let scale = one / (INTER_TAB_SIZE * INTER_TAB_SIZE);
+    let (gx, gy) = (INTER_TAB_SIZE - fx, INTER_TAB_SIZE - fy);
+    let w = [gy * gx * scale, gy * fx * scale, fy * gx * scale, fy * fx * scale];
+    if w[0] == one { [one - 1, 0, 0, 1] } else { w }
+}
+
+/// [`weights`] of every fraction `fy * 32 + fx`.
+const WEIGHTS: [[u16; 4]; (INTER_TAB_SIZE * INTER_TAB_SIZE) as usize] = {
+    let mut table = [[0; 4]; (INTER_TAB_SIZE * INTER_TAB_SIZE) as usize];
+    let mut fraction = 0;
+    while fraction < table.len() {
+        let w = weights(fraction as i32 % INTER_TAB_SIZE, fraction as i32 / INTER_TAB_SIZE);
+        table[fraction] = [w[0] as u16, w[1] as u16, w[2] as u16, w[3] as u16];
+        fraction += 1;
+    }
+    table
+};
 
 /// Rounds half to even and saturates to `i32`, like OpenCV's `saturate_cast<int>(double)`.
 fn round_to_int(value: f64) -> i32 {
@@ -101,9 +128,10 @@ fn round_to_int(value: f64) -> i32 {
 impl WarpTable {
     /// Builds the table of the warp by `matrix` (source to warped) for `width` x `height` images;
     /// `None` if the matrix cannot be inverted or the images are too large for the table's
-    /// 16-bit columns and rows and 31-bit tap indices.
+    /// 16-bit columns and rows and 21-bit tap indices.
     pub fn new(matrix: &Matrix3, width: usize, height: usize) -> Option<Self> {
-        let too_large = width.max(height) > u16::MAX as usize || (width + 2) * (height + 2) > Tap::IN_VIEW as usize;
+        let too_large =
+            width.max(height) > u16::MAX as usize || (width + 2) * (height + 2) > Tap::INDEX_MASK as usize + 1;
         if too_large {
             return None;
         }
@@ -164,22 +192,24 @@ impl WarpTable {
         if sx >= w || sx + 1 < 0 || sy >= h || sy + 1 < 0 {
             return None;
         }
-        let weights = weights(sx_fixed & (INTER_TAB_SIZE - 1), sy_fixed & (INTER_TAB_SIZE - 1));
+        let (fx, fy) = (sx_fixed & (INTER_TAB_SIZE - 1), sy_fixed & (INTER_TAB_SIZE - 1));
+        let weights = weights(fx, fy);
         let positions = [(sx, sy), (sx + 1, sy), (sx, sy + 1), (sx + 1, sy + 1)];
         let inside = positions.map(|(px, py)| px >= 0 && py >= 0 && px < w && py < h);
         let coverage: i32 = (0..4).filter(|&i| inside[i]).map(|i| weights[i]).sum();
         let in_view = (coverage + (1 << (WEIGHT_BITS - 1))) >> WEIGHT_BITS >= 1;
         let tap = ((sy + 1) as usize * stride_px + (sx + 1) as usize) as u32;
-        Some(WarpEntry { x: x as u16, y: y as u16, tap, weights: weights.map(|w| w as u16), in_view })
+        let fraction = (fy * INTER_TAB_SIZE + fx) as u16;
+        Some(WarpEntry { x: x as u16, y: y as u16, tap, fraction, in_view })
     }
 
-    /// Interpolates one entry from the black-bordered source.
+    /// Interpolates the warped pixel of `tap` from the black-bordered source.
     #[inline]
-    pub fn sample(&self, entry: &WarpEntry, source: &BorderedImage) -> [u8; 3] {
-        let (at, stride) = (entry.tap as usize * 3, self.stride_px * 3);
+    pub fn sample(&self, tap: Tap, source: &BorderedImage) -> [u8; 3] {
+        let (at, stride) = (tap.index() * 3, self.stride_px * 3);
         let top: &[u8; 6] = source.data[at..at + 6].try_into().expect("six bytes");
         let bottom: &[u8; 6] = source.data[at + stride..at + stride + 6].try_into().expect("six bytes");
-        let [w0, w1, w2, w3] = entry.weights;
+        let [w0, w1, w2, w3] = tap.weights();
         let (w0, w1, w2, w3) = (w0 as u32, w1 as u32, w2 as u32, w3 as u32);
         let channel = |k: usize| {
             let sum = (1 << (WEIGHT_BITS - 1))
@@ -196,8 +226,8 @@ impl WarpTable {
 /// A plane value of [`BorderedImage`]'s decided classes: the taps do not decide the class.
 const UNDECIDED: u8 = u8::MAX;
 const OBSTACLE: u8 = Class::Obstacle as u8;
-const NAVIGABLE: u8 = Class::Navigable as u8;
-const ROCK: u8 = Class::Rock as u8;
+/// The classes by their codes, which the decided plane holds (any other value is undecided).
+const DECIDED_CLASSES: [Class; 4] = [Class::Unknown, Class::Navigable, Class::Obstacle, Class::Rock];
 
 /// An RGB image inside a one-pixel black border: the taps of OpenCV's constant border that fall
 /// outside the image read black, without any test in the loop. With [`ColourBits`], also the
@@ -285,14 +315,9 @@ impl BorderedImage {
     /// four taps decide it (see [`BorderedImage::fill`]), else `None`.
     #[inline]
     pub fn decided_class(&self, tap: Tap) -> Option<Class> {
-        match self.decided[tap.index()] {
-            UNDECIDED => None,
-            OBSTACLE if !tap.in_view() => Some(Class::Unknown),
-            OBSTACLE => Some(Class::Obstacle),
-            NAVIGABLE => Some(Class::Navigable),
-            ROCK => Some(Class::Rock),
-            _ => None,
-        }
+        let code = self.decided[tap.index()];
+        let out_of_view = code == OBSTACLE && !tap.in_view();
+        DECIDED_CLASSES.get(code as usize).map(|&class| if out_of_view { Class::Unknown } else { class })
     }
 
     /// The decided class of every block of two by two pixels whose top-left pixel lies in the
@@ -328,6 +353,27 @@ mod tests {
         }
     }
 
+    #[test]
+    fn each_tap_carries_its_entrys_index_weights_and_view() {
+        let table = WarpTable::new(&crate::Calibration::default().homography().unwrap(), 320, 160).unwrap();
+        let fractions: std::collections::HashSet<u16> = table.entries.iter().map(|e| e.fraction).collect();
+        assert!(fractions.len() > 500, "{} fractions", fractions.len());
+        assert!(table.entries.iter().any(|e| !e.in_view) && table.entries.iter().any(|e| e.in_view));
+        for (entry, &tap) in table.entries.iter().zip(&table.taps) {
+            assert_eq!(
+                (tap.index(), tap.weights(), tap.in_view()),
+                (entry.tap as usize, entry.weights(), entry.in_view)
+            );
+        }
+        let too_many_pixels = WarpTable::new(&identity_table_matrix(), 2048, 1024);
+        assert!(too_many_pixels.is_none(), "2050 x 1026 bordered pixels need more than 21 bits");
+    }
+
+    fn identity_table_matrix() -> Matrix3 {
+        let corners = [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]];
+        perspective_transform(&corners, &corners).unwrap()
+    }
+
     /// The table of the identity warp of 20 x 10 images.
     fn identity_table() -> WarpTable {
         let corners = [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]];
@@ -344,7 +390,7 @@ mod tests {
         source.fill(&white, (20, 10), 4..7, Some(&bits));
         for (entry, &tap) in table.entries.iter().zip(&table.taps) {
             let white_row = (4..7).contains(&(entry.y as usize));
-            assert_eq!(table.sample(entry, &source), if white_row { [255; 3] } else { [0; 3] }, "{entry:?}");
+            assert_eq!(table.sample(tap, &source), if white_row { [255; 3] } else { [0; 3] }, "{entry:?}");
             let decided = source.decided_class(tap);
             match entry.y {
                 4 | 5 if entry.x < 19 => assert_eq!(decided, Some(Class::Navigable), "{entry:?}"),
@@ -352,9 +398,9 @@ mod tests {
             }
         }
         source.fill(&white[..20 * 5 * 3], (20, 10), 0..10, Some(&bits));
-        for entry in &table.entries {
+        for (entry, &tap) in table.entries.iter().zip(&table.taps) {
             let expected = if entry.y < 5 { [255; 3] } else { [0; 3] };
-            assert_eq!(table.sample(entry, &source), expected, "{entry:?}: the rows of a short image read black");
+            assert_eq!(table.sample(tap, &source), expected, "{entry:?}: the rows of a short image read black");
         }
     }
 
@@ -371,9 +417,9 @@ mod tests {
         let rgb: Vec<u8> = (0..600).map(|i| (i * 7 % 256) as u8).collect();
         let mut source = BorderedImage::default();
         source.fill(&rgb, (20, 10), table.source_rows.clone(), None);
-        for entry in &table.entries {
+        for (entry, &tap) in table.entries.iter().zip(&table.taps) {
             let at = (entry.y as usize * 20 + entry.x as usize) * 3;
-            assert_eq!(table.sample(entry, &source), [rgb[at], rgb[at + 1], rgb[at + 2]]);
+            assert_eq!(table.sample(tap, &source), [rgb[at], rgb[at + 1], rgb[at + 2]]);
             assert!(entry.in_view);
         }
     }
