@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use rover_bag::BagReader;
 use rover_msgs::msg::MapStats;
@@ -20,8 +20,10 @@ use support::{Domain, Latest, Process, eventually, map_bw_png, rover, start_proc
 const MISSION_SIM_SECONDS: &str = "40";
 /// How long the mapping node waits after its last scan before it publishes.
 const PUBLISH_DELAY_MS: &str = "publish_max_delay_ms:=100.0";
-/// How long after the end of playback the final map statistics have surely arrived.
-const FINAL_STATS_WAIT: Duration = Duration::from_secs(3);
+/// How long without new map statistics, after the end of playback, means the final ones came.
+const STATS_QUIET: Duration = Duration::from_secs(1);
+/// How long after the end of playback the final map statistics may take.
+const FINAL_STATS_TIMEOUT: Duration = Duration::from_secs(30);
 /// How long the mapping node may take to subscribe to `rover/terrain`.
 const SUBSCRIBER_WAIT: Duration = Duration::from_secs(30);
 /// Time for the other participants to match the mapping node's reader once the test's writer has
@@ -176,7 +178,21 @@ fn play_and_read_map_stats(domain: &Domain, bag: &Path, play_args: &[&str]) -> M
     let status = player.wait_for_exit(Duration::from_secs(180)).expect("the player ends at the end of the bag");
     assert!(status.success(), "rover bag play failed:\n{}", player.log_text());
     eprintln!("{}", player.log_text());
-    std::thread::sleep(FINAL_STATS_WAIT);
+    final_stats(&stats)
+}
+
+/// The last map statistics, once none has come for [`STATS_QUIET`] (the mapping node publishes
+/// its last ones shortly after its last scan, later when it is behind).
+fn final_stats(stats: &Latest<MapStats>) -> MapStats {
+    let (mut count, mut changed_at) = (0, Instant::now());
+    let quiet = eventually(FINAL_STATS_TIMEOUT, || {
+        let now = stats.all().len();
+        if now != count {
+            (count, changed_at) = (now, Instant::now());
+        }
+        count > 0 && changed_at.elapsed() >= STATS_QUIET
+    });
+    assert!(quiet, "map statistics still coming, or none, {FINAL_STATS_TIMEOUT:?} after playback ({count} received)");
     stats.last().expect("map statistics from the mapping node")
 }
 
