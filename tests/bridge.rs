@@ -346,6 +346,17 @@ async fn raw_images_insets_params_file_and_clean_shutdown() {
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
     assert!(inset_seen, "map/image came back as a base64 JPEG in inset_image1");
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    client.exchange(&valid_telemetry().to_string()).await.expect("a reply");
+    let map_inset = |data: Option<serde_json::Value>| data.and_then(|d| d["inset_image1"].as_str().map(str::to_string));
+    let (_, data) = client.exchange(&valid_telemetry().to_string()).await.expect("a reply");
+    assert_eq!(map_inset(data).as_deref(), Some(""), "an inset the simulator was sent is not sent again");
+    drop(client);
+    let lost = || bridge.log_text().contains("simulator connection lost");
+    assert!(eventually(Duration::from_secs(5), lost), "the bridge frees its simulator slot when the connection drops");
+    let mut client = RawClient::connect(domain.port()).await;
+    let (_, data) = client.exchange(&valid_telemetry().to_string()).await.expect("a reply");
+    assert!(map_inset(data).is_some_and(|s| s.starts_with("/9j/")), "a new connection is sent the inset it lacks");
     let image = raw.last().expect("camera/image_raw was published");
     assert_eq!((image.width, image.height, image.encoding.as_str(), image.step), (320, 160, "rgb8", 960));
     assert_eq!(image.data.len(), 320 * 160 * 3);

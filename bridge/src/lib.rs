@@ -1,11 +1,12 @@
 //! The Socket.IO bridge between the rover simulator and the ROS 2 graph.
 //!
 //! [`telemetry`] parses the simulator's dialect, [`lockstep`] answers every frame exactly once,
-//! [`server`] speaks Socket.IO to the simulator, [`convert`] builds the ROS messages and
+//! [`server`] speaks Socket.IO to the simulator, [`insets`] says which inset images a reply carries, [`convert`] builds the ROS messages and
 //! [`clock`] counts simulated time and [`node`] wires it all to the topics.
 
 pub mod clock;
 pub mod convert;
+pub mod insets;
 pub mod lockstep;
 pub mod node;
 pub mod reply;

@@ -3,8 +3,8 @@
 //! after a longer silence. Independent of sockets and DDS: frames leave through a [`FrameSink`].
 
 use std::collections::HashMap;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use rover_msgs::geometry_msgs::Twist;
@@ -13,6 +13,7 @@ use rover_node::rejections::clipped;
 use rover_node::sync::lock;
 use tokio::sync::oneshot;
 
+use crate::insets::Insets;
 use crate::reply::{CommandSource, DriveValues, LastCommand, Reply, ReplyPolicy};
 use crate::stats::{BridgeStats, LoopHops};
 use crate::telemetry::{SimTelemetry, parse_telemetry_value};
@@ -64,15 +65,6 @@ struct FrameFacts {
     near_sample: bool,
     picking_up: bool,
     speed_mps: f64,
-}
-
-/// The two inset images of the simulator's screen, as base64 JPEG.
-#[derive(Debug, Clone, Default)]
-pub struct Insets {
-    /// World map (`inset_image1`).
-    pub map: Arc<str>,
-    /// Vision (`inset_image2`).
-    pub vision: Arc<str>,
 }
 
 /// The bridge's lock-step state, shared by all simulator connections.
@@ -290,6 +282,8 @@ impl<S: FrameSink> LockStep<S> {
 
 #[cfg(test)]
 mod tests {
+    use std::sync::Arc;
+
     use super::*;
     use crate::telemetry::tests::sample_payload;
 

@@ -23,6 +23,7 @@ use tokio::sync::mpsc::error::TrySendError;
 use tokio::sync::oneshot;
 use tower::util::MapRequestLayer;
 
+use crate::insets::InsetsSent;
 use crate::lockstep::{FrameSink, InFlight, LockStep};
 use crate::reply::{DataEvent, Reply};
 use crate::sio::{self, Packet};
@@ -76,6 +77,7 @@ pub async fn serve<S: FrameSink>(
         core,
         served: Arc::default(),
         replies: Arc::default(),
+        insets_sent: Arc::default(),
         replace_connected: config.replace_connected_simulator,
     });
     let app = axum::Router::new()
@@ -162,6 +164,7 @@ struct SimulatorLink<S> {
     core: Arc<LockStep<S>>,
     served: Arc<ServedSimulator<Arc<Socket<()>>>>,
     replies: Arc<ReplyOrder>,
+    insets_sent: Arc<InsetsSent<Sid>>,
     replace_connected: bool,
 }
 
@@ -171,6 +174,7 @@ impl<S> Clone for SimulatorLink<S> {
             core: self.core.clone(),
             served: self.served.clone(),
             replies: self.replies.clone(),
+            insets_sent: self.insets_sent.clone(),
             replace_connected: self.replace_connected,
         }
     }
@@ -257,12 +261,13 @@ impl<S: FrameSink> SimulatorLink<S> {
     fn spawn_reply(&self, in_flight: InFlight, socket: Arc<Socket<()>>) {
         let core = self.core.clone();
         let (previous_sent, sent) = self.replies.next_turn();
+        let insets_sent = self.insets_sent.clone();
         tokio::spawn(async move {
             let reply = core.reply(in_flight).await;
             if let Some(previous_sent) = previous_sent {
                 let _ = previous_sent.await;
             }
-            send_reply(&socket, &core, &reply);
+            send_reply(&socket, &core, &insets_sent, &reply);
             let _ = sent.send(());
         });
     }
@@ -289,11 +294,11 @@ fn disconnect_kind(reason: &DisconnectReason) -> &'static str {
     }
 }
 
-fn send_reply<S: FrameSink>(socket: &Socket<()>, core: &LockStep<S>, reply: &Reply) {
+fn send_reply<S: FrameSink>(socket: &Socket<()>, core: &LockStep<S>, insets_sent: &InsetsSent<Sid>, reply: &Reply) {
     let empty = serde_json::Map::new();
     let encoded = match reply {
         Reply::Data(values, _) => {
-            let insets = core.insets();
+            let insets = insets_sent.next_reply(socket.id, &core.insets());
             sio::encode_event("data", &DataEvent::new(*values, &insets.map, &insets.vision))
         }
         Reply::Pickup => sio::encode_event("pickup", &empty),
