@@ -11,21 +11,13 @@ use std::sync::{Arc, Mutex};
 
 use rover_node::sync::lock;
 
-/// The two inset images, as base64 JPEG (empty before the first).
-#[derive(Debug, Clone, Default)]
+/// The two inset images, as base64 JPEG (empty before the first, or in a reply, where the
+/// connection has the image already).
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Insets {
     /// World map (`inset_image1`).
     pub map: Arc<str>,
     /// Vision (`inset_image2`).
-    pub vision: Arc<str>,
-}
-
-/// What each inset field of one reply holds: the image, or empty when the connection has it.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct InsetFields {
-    /// `inset_image1`.
-    pub map: Arc<str>,
-    /// `inset_image2`.
     pub vision: Arc<str>,
 }
 
@@ -42,21 +34,21 @@ impl<C> Default for InsetsSent<C> {
 }
 
 impl<C: PartialEq + Copy> InsetsSent<C> {
-    /// The inset fields of the next reply on `connection` when the insets are `current`, noted as
-    /// sent: each image that this connection was not the last to be sent, else empty. Call in the
-    /// order the replies are sent.
-    pub fn next_reply(&self, connection: C, current: &Insets) -> InsetFields {
+    /// The insets of the next reply on `connection` when the insets are `current`, noted as sent:
+    /// each image that this connection was not the last to be sent, else empty. Call in the order
+    /// the replies are sent.
+    pub fn next_reply(&self, connection: C, current: &Insets) -> Insets {
         let mut last = lock(&self.last);
         let sent_here = last.as_ref().filter(|(to, _)| *to == connection).map(|(_, insets)| insets);
         let field = |now: &Arc<str>, sent: Option<&Arc<str>>| {
             if sent.is_some_and(|sent| Arc::ptr_eq(sent, now)) { Arc::from("") } else { now.clone() }
         };
-        let fields = InsetFields {
+        let reply = Insets {
             map: field(&current.map, sent_here.map(|insets| &insets.map)),
             vision: field(&current.vision, sent_here.map(|insets| &insets.vision)),
         };
         *last = Some((connection, current.clone()));
-        fields
+        reply
     }
 }
 
@@ -68,27 +60,23 @@ mod tests {
         Insets { map: map.into(), vision: vision.into() }
     }
 
-    fn fields(map: &str, vision: &str) -> InsetFields {
-        InsetFields { map: map.into(), vision: vision.into() }
-    }
-
     #[test]
     fn an_inset_goes_out_once_per_image_and_connection() {
         let sent = InsetsSent::default();
         let first = insets("map-1", "vision-1");
-        assert_eq!(sent.next_reply(1, &first), fields("map-1", "vision-1"));
-        assert_eq!(sent.next_reply(1, &first), fields("", ""), "nothing new: both empty");
+        assert_eq!(sent.next_reply(1, &first), insets("map-1", "vision-1"));
+        assert_eq!(sent.next_reply(1, &first), insets("", ""), "nothing new: both empty");
         let new_vision = Insets { vision: "vision-2".into(), ..first.clone() };
-        assert_eq!(sent.next_reply(1, &new_vision), fields("", "vision-2"));
-        assert_eq!(sent.next_reply(1, &new_vision), fields("", ""));
-        assert_eq!(sent.next_reply(2, &new_vision), fields("map-1", "vision-2"), "a new connection gets both");
-        assert_eq!(sent.next_reply(2, &new_vision), fields("", ""));
+        assert_eq!(sent.next_reply(1, &new_vision), insets("", "vision-2"));
+        assert_eq!(sent.next_reply(1, &new_vision), insets("", ""));
+        assert_eq!(sent.next_reply(2, &new_vision), insets("map-1", "vision-2"), "a new connection gets both");
+        assert_eq!(sent.next_reply(2, &new_vision), insets("", ""));
     }
 
     #[test]
     fn an_image_published_again_with_the_same_bytes_goes_out_again() {
         let sent = InsetsSent::default();
-        assert_eq!(sent.next_reply(7, &insets("map", "vision")), fields("map", "vision"));
-        assert_eq!(sent.next_reply(7, &insets("map", "vision")), fields("map", "vision"), "new images, same text");
+        assert_eq!(sent.next_reply(7, &insets("map", "vision")), insets("map", "vision"));
+        assert_eq!(sent.next_reply(7, &insets("map", "vision")), insets("map", "vision"), "new images, same text");
     }
 }
