@@ -2,10 +2,11 @@
 //!
 //! The simulator loads an inset only from a non-empty `inset_image1`/`inset_image2` and keeps
 //! showing the last one it loaded otherwise (unity-sim-spec: `data`, the insets are display only;
-//! the Unity client's `CommandServer.cs` makes a texture only from non-empty image bytes). So a reply carries an inset only when the
-//! connection has not been sent that image yet: after it changed, and in the first reply of a new
-//! connection. The other replies are some hundred bytes instead of tens of kilobytes, for the
-//! bridge to write and for the simulator to read and decode.
+//! the Unity client's `CommandServer.cs` makes a texture only from non-empty image bytes). So a
+//! reply carries an inset only when the connection has not been sent that image yet: after it
+//! changed, and in the first reply of a new connection. The other replies are about a hundred
+//! bytes instead of several kilobytes, for the bridge to write and for the simulator to read and
+//! decode.
 
 use std::sync::{Arc, Mutex};
 

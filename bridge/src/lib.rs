@@ -1,8 +1,9 @@
 //! The Socket.IO bridge between the rover simulator and the ROS 2 graph.
 //!
 //! [`telemetry`] parses the simulator's dialect, [`lockstep`] answers every frame exactly once,
-//! [`server`] speaks Socket.IO to the simulator, [`insets`] says which inset images a reply carries, [`convert`] builds the ROS messages and
-//! [`clock`] counts simulated time and [`node`] wires it all to the topics.
+//! [`server`] speaks Socket.IO to the simulator, [`insets`] says which inset images a reply
+//! carries, [`convert`] builds the ROS messages, [`clock`] counts simulated time and [`node`] wires
+//! it all to the topics.
 
 pub mod clock;
 pub mod convert;
