@@ -37,6 +37,7 @@ fn chaos_needs_the_graph() {
 
 #[test]
 fn each_graph_mission_is_timed_from_its_own_start() {
+    support::assert_isolated();
     let output = Command::new(support::rover())
         .args(["eval", "--procedural", "--seeds", "0..1", "--max-sim-seconds", "110", "--json"])
         .output()

@@ -67,8 +67,7 @@ impl Tap {
     const INDEX_MASK: u32 = (1 << Self::INDEX_BITS) - 1;
     const IN_VIEW: u32 = 1 << 31;
 
-    /// The tap of `entry`.
-    pub fn of(entry: &WarpEntry) -> Self {
+    fn of(entry: &WarpEntry) -> Self {
         let in_view = if entry.in_view { Self::IN_VIEW } else { 0 };
         Tap(entry.tap | (entry.fraction as u32) << Self::INDEX_BITS | in_view)
     }
@@ -365,19 +364,19 @@ mod tests {
                 (entry.tap as usize, entry.weights(), entry.in_view)
             );
         }
-        let too_many_pixels = WarpTable::new(&identity_table_matrix(), 2048, 1024);
+        let too_many_pixels = WarpTable::new(&identity_matrix(), 2048, 1024);
         assert!(too_many_pixels.is_none(), "2050 x 1026 bordered pixels need more than 21 bits");
     }
 
-    fn identity_table_matrix() -> Matrix3 {
+    /// The homography that leaves every point where it is.
+    fn identity_matrix() -> Matrix3 {
         let corners = [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]];
         perspective_transform(&corners, &corners).unwrap()
     }
 
     /// The table of the identity warp of 20 x 10 images.
     fn identity_table() -> WarpTable {
-        let corners = [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]];
-        WarpTable::new(&perspective_transform(&corners, &corners).unwrap(), 20, 10).unwrap()
+        WarpTable::new(&identity_matrix(), 20, 10).unwrap()
     }
 
     #[test]
@@ -406,12 +405,7 @@ mod tests {
 
     #[test]
     fn an_identity_warp_copies_the_image() {
-        let identity = perspective_transform(
-            &[[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]],
-            &[[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]],
-        )
-        .unwrap();
-        let table = WarpTable::new(&identity, 20, 10).unwrap();
+        let table = identity_table();
         assert_eq!(table.entries.len(), 200);
         assert_eq!(table.source_rows, 0..10);
         let rgb: Vec<u8> = (0..600).map(|i| (i * 7 % 256) as u8).collect();
