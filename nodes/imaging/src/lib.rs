@@ -103,6 +103,55 @@ pub fn decode_png(bytes: &[u8]) -> Result<RgbImage, ImageError> {
     Ok(image)
 }
 
+/// A greyscale image of 16-bit samples, row-major (e.g. a survey of heights).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Gray16Image {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// `width * height` samples.
+    pub data: Vec<u16>,
+}
+
+/// Largest side of a PNG read by [`decode_png_gray16`], pixels: bounds what a file can make us
+/// allocate.
+const MAX_GRAY16_SIDE: u32 = 8192;
+
+/// Reads a 16-bit greyscale PNG with its samples as they are (no scaling to 8 bits).
+pub fn decode_png_gray16(bytes: &[u8]) -> Result<Gray16Image, ImageError> {
+    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+    decoder.set_transformations(png::Transformations::IDENTITY);
+    let reader = decoder.read_info().map_err(png_error)?;
+    let info = reader.info();
+    let (color, depth, width, height) = (info.color_type, info.bit_depth, info.width, info.height);
+    let corrupt = |reason: String| ImageError::Corrupt { format: "PNG", reason };
+    if color != png::ColorType::Grayscale || depth != png::BitDepth::Sixteen {
+        return Err(corrupt(format!("it is {color:?} with {depth:?} bits, expected 16-bit greyscale")));
+    }
+    if width > MAX_GRAY16_SIDE || height > MAX_GRAY16_SIDE {
+        return Err(corrupt(format!("it is {width}x{height}, larger than {MAX_GRAY16_SIDE} pixels a side")));
+    }
+    let mut reader = reader;
+    let mut buffer = vec![0; reader.output_buffer_size().unwrap_or_default()];
+    reader.next_frame(&mut buffer).map_err(png_error)?;
+    let data = buffer.chunks_exact(2).map(|pair| u16::from_be_bytes([pair[0], pair[1]])).collect();
+    Ok(Gray16Image { width: width as usize, height: height as usize, data })
+}
+
+/// Encodes a 16-bit greyscale image as a PNG.
+pub fn encode_png_gray16(image: &Gray16Image) -> Result<Vec<u8>, ImageError> {
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, image.width as u32, image.height as u32);
+    encoder.set_color(png::ColorType::Grayscale);
+    encoder.set_depth(png::BitDepth::Sixteen);
+    let mut writer = encoder.write_header().map_err(|e| ImageError::Encode(e.to_string()))?;
+    let bytes: Vec<u8> = image.data.iter().flat_map(|v| v.to_be_bytes()).collect();
+    writer.write_image_data(&bytes).map_err(|e| ImageError::Encode(e.to_string()))?;
+    writer.finish().map_err(|e| ImageError::Encode(e.to_string()))?;
+    Ok(out)
+}
+
 /// Encodes RGB as a PNG.
 pub fn encode_png(image: &RgbImage) -> Result<Vec<u8>, ImageError> {
     let mut out = Vec::new();
@@ -129,8 +178,40 @@ mod tests {
     }
 
     #[test]
+    fn sixteen_bit_grey_keeps_its_samples_and_other_pngs_are_refused() {
+        let image = Gray16Image { width: 3, height: 2, data: vec![0, 1, 255, 256, 3870, u16::MAX] };
+        assert_eq!(decode_png_gray16(&encode_png_gray16(&image).unwrap()).unwrap(), image);
+        let rgb = encode_png(&RgbImage::new(2, 2)).unwrap();
+        let error = decode_png_gray16(&rgb).unwrap_err().to_string();
+        assert!(error.contains("expected 16-bit greyscale"), "{error}");
+    }
+
+    #[test]
     fn a_png_that_cannot_be_read_is_named_a_png() {
         let error = decode_png(b"not a PNG at all").unwrap_err();
         assert!(error.to_string().starts_with("cannot decode the PNG: "), "{error}");
+    }
+
+    /// A survey PNG, its bytes mutated: read or refused, never a panic, and what is read is
+    /// whole.
+    mod fuzz {
+        use proptest::prelude::*;
+        use rover_fuzzing::mutation::mutated_bytes;
+
+        use super::*;
+
+        fn small_survey() -> Vec<u8> {
+            let data = (0..12 * 9).map(|i| (i * 37) as u16).collect();
+            encode_png_gray16(&Gray16Image { width: 12, height: 9, data }).unwrap()
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_png_gray16_mutated_bytes(png in mutated_bytes(small_survey())) {
+                if let Ok(image) = decode_png_gray16(&png) {
+                    prop_assert_eq!(image.data.len(), image.width * image.height);
+                }
+            }
+        }
     }
 }
