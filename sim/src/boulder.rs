@@ -4,8 +4,8 @@
 
 use nalgebra::{Point3, Rotation3, Vector3};
 
+use crate::obstacle::{CLEARANCE_M, Obstacle};
 use crate::random::SplitMix64;
-use crate::world::WORLD_SIZE;
 
 /// One half-space: the points `p` with `normal . p <= offset`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -249,30 +249,6 @@ impl Boulder {
         self.pieces.iter().any(|piece| piece.contains(p))
     }
 
-    /// The cells of a `WORLD_SIZE` x `WORLD_SIZE` mask that are set and whose centre lies under the
-    /// boulder at some height up to `up_to_m` above the floor.
-    pub fn cells_under(&self, mask: &[bool], up_to_m: f64) -> Vec<usize> {
-        let size = WORLD_SIZE as i64;
-        let reach = self.reach_m().ceil() as i64;
-        let (cx, cy) = (self.centre[0].floor() as i64, self.centre[1].floor() as i64);
-        (cy - reach..=cy + reach)
-            .flat_map(|y| (cx - reach..=cx + reach).map(move |x| (x, y)))
-            .filter(|&(x, y)| (0..size).contains(&x) && (0..size).contains(&y))
-            .map(|(x, y)| (x, y, y as usize * WORLD_SIZE + x as usize))
-            .filter(|&(x, y, cell)| mask[cell] && self.covers(x as f64 + 0.5, y as f64 + 0.5, 0.0, up_to_m))
-            .map(|(_, _, cell)| cell)
-            .collect()
-    }
-
-    /// True if the boulder fills the vertical line through (x, y) somewhere between 5 cm above
-    /// `ground_m` and `up_to_m` above it (checked every 25 cm).
-    pub fn covers(&self, x_m: f64, y_m: f64, ground_m: f64, up_to_m: f64) -> bool {
-        (0..)
-            .map(|k| 0.05 + 0.25 * k as f64)
-            .take_while(|z| *z <= up_to_m)
-            .any(|z| self.contains(&Point3::new(x_m, y_m, ground_m + z)))
-    }
-
     /// Radius of a vertical cylinder around the centre that holds the whole boulder, metres.
     pub fn reach_m(&self) -> f64 {
         self.pieces
@@ -280,6 +256,22 @@ impl Boulder {
             .flat_map(|p| [[p.min.x, p.min.y], [p.max.x, p.max.y], [p.min.x, p.max.y], [p.max.x, p.min.y]])
             .map(|[x, y]| (x - self.centre[0]).hypot(y - self.centre[1]))
             .fold(0.0, f64::max)
+    }
+}
+
+impl Obstacle for Boulder {
+    /// Checked every 25 cm up from the clearance.
+    fn covers(&self, x_m: f64, y_m: f64, ground_m: f64, up_to_m: f64) -> bool {
+        (0..)
+            .map(|k| CLEARANCE_M + 0.25 * k as f64)
+            .take_while(|z| *z <= up_to_m)
+            .any(|z| self.contains(&Point3::new(x_m, y_m, ground_m + z)))
+    }
+
+    fn bounds_m(&self) -> [[f64; 2]; 2] {
+        let reach = self.reach_m();
+        let [x, y] = self.centre;
+        [[x - reach, y - reach], [x + reach, y + reach]]
     }
 }
 

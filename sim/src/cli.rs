@@ -8,7 +8,7 @@ use rover_msgs::unity::FRAME_PERIOD_S;
 use crate::look::Look;
 use crate::procgen::procedural_world;
 use crate::sim::{SimConfig, SimReport, Simulator};
-use crate::unity_world::unity_world;
+use crate::unity_world::{UnityFiles, unity_world};
 use crate::wire::client::{ClientConfig, run_client};
 use crate::world::World;
 
@@ -24,6 +24,17 @@ pub struct WorldArgs {
     /// map_bw.png). Default: the map widened by one cell. Only with --map.
     #[arg(long, value_name = "PNG", requires = "map")]
     pub floor: Option<PathBuf>,
+    /// The ground's height every 0.5 m: a 401x401 16-bit greyscale PNG in centimetres above the
+    /// floor (e.g. ../shared/udacity-world/elevation_cm.png for map_bw.png). Without --floor, the
+    /// floor is where it is below 0.5 m. Default: walls rising from the floor as the measured
+    /// profile of the Unity walls does. Only with --map.
+    #[arg(long, value_name = "PNG", requires = "map")]
+    pub elevation: Option<PathBuf>,
+    /// The rock obstacles' shapes: a survey of the lowest and highest rock surface over a grid of
+    /// cells per rock (e.g. ../shared/udacity-world/rocks.json for map_bw.png). Default: the 16
+    /// floor rocks of the Unity scene as faceted boulders fitted to the map. Only with --map.
+    #[arg(long, value_name = "JSON", requires = "map")]
+    pub rocks: Option<PathBuf>,
     /// Appearance seed: 0 is the look calibrated against the real Unity frames; other seeds vary
     /// the sun, colours and texture within what those frames show.
     #[arg(long, default_value_t = 0, value_name = "N")]
@@ -38,11 +49,16 @@ impl WorldArgs {
             None => procedural_world(seed),
             Some(map) => {
                 let read = |path: &Path| std::fs::read(path).with_context(|| format!("cannot read {}", path.display()));
-                let floor = self.floor.as_deref().map(read).transpose()?;
-                unity_world(&read(map)?, floor.as_deref(), seed).with_context(|| match &self.floor {
-                    Some(floor) => format!("map {} with floor {}", map.display(), floor.display()),
-                    None => format!("map {}", map.display()),
-                })?
+                let read_optional = |path: &Option<PathBuf>| path.as_deref().map(read).transpose();
+                let (map_png, floor_png) = (read(map)?, read_optional(&self.floor)?);
+                let (elevation_png, rocks_json) = (read_optional(&self.elevation)?, read_optional(&self.rocks)?);
+                let files = UnityFiles {
+                    map_png: &map_png,
+                    floor_png: floor_png.as_deref(),
+                    elevation_png: elevation_png.as_deref(),
+                    rocks_json: rocks_json.as_deref(),
+                };
+                unity_world(&files, seed).with_context(|| format!("the world of {}", self.describe()))?
             }
         };
         Ok(world.with_look(Look::from_seed(self.appearance_seed)))
@@ -51,8 +67,10 @@ impl WorldArgs {
     /// A short description of the world, for logs.
     pub fn describe(&self) -> String {
         let mut text = self.map.as_ref().map_or("a procedural world".to_string(), |p| p.display().to_string());
-        if let Some(floor) = &self.floor {
-            text += &format!(" (floor {})", floor.display());
+        for (what, path) in [("floor", &self.floor), ("elevation", &self.elevation), ("rocks", &self.rocks)] {
+            if let Some(path) = path {
+                text += &format!(", {what} {}", path.display());
+            }
         }
         if self.appearance_seed != 0 {
             text += &format!(", appearance seed {}", self.appearance_seed);

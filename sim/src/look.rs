@@ -35,6 +35,10 @@ pub struct Look {
     pub wall_shadow: f32,
     /// Over about this distance from the wall, metres.
     pub wall_shadow_m: f32,
+    /// How much darker the floor is in the shadow cast by walls and rocks (0..1).
+    pub shadow_floor: f32,
+    /// How much of the sunlight a rock face in a cast shadow loses (0..1).
+    pub shadow_rock: f32,
     /// Sky at the top of the image.
     pub sky_top_rgb: [f32; 3],
     /// Sky at the horizon.
@@ -68,6 +72,8 @@ impl Default for Look {
             rock_texture: 0.45,
             wall_shadow: 0.45,
             wall_shadow_m: 1.0,
+            shadow_floor: 0.0,
+            shadow_rock: 0.0,
             sky_top_rgb: [112.0, 104.0, 99.0],
             sky_horizon_rgb: [127.0, 118.0, 112.0],
             rock_from_height_m: 0.02,

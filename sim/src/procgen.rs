@@ -6,8 +6,9 @@
 use std::collections::VecDeque;
 
 use crate::boulder::{Boulder, BoulderKind, BoulderSpec, Cap};
+use crate::obstacle::Obstacle;
 use crate::random::SplitMix64;
-use crate::world::{SAMPLE_COUNT, Sample, StartPose, WORLD_SIZE, World, WorldPlan, neighbours4, widen_floor};
+use crate::world::{Ground, SAMPLE_COUNT, Sample, StartPose, WORLD_SIZE, World, WorldPlan, neighbours4, widen_floor};
 
 /// Keep canyons this far from the edge of the world, cells.
 const BORDER_CELLS: f64 = 12.0;
@@ -42,8 +43,8 @@ pub fn procedural_world(seed: u64) -> World {
     place_wall_boulders(&mut map, &mut boulders, &mut rng, (centre, centre));
     let samples = place_samples(&floor, &boulders, &mut rng, (centre, centre));
     let start = StartPose { x_m: centre + 0.5, y_m: centre + 0.5, yaw_deg: rng.range(0.0, 360.0) };
-    let terrain_salt = rng.next_u64();
-    World::build(WorldPlan { floor, ground_truth: map, boulders, samples, start, terrain_salt })
+    let ground = Ground::Generated { salt: rng.next_u64() };
+    World::build(WorldPlan { floor, ground_truth: map, boulders, surveyed_rocks: Vec::new(), samples, start, ground })
 }
 
 /// A canyon's carving head: where it is, metres, where it goes, and how wide it carves.

@@ -16,6 +16,8 @@ pub const MAX_TERRAIN_HEIGHT_M: f32 = 38.7;
 /// floor cell's centre stays flat, and that of the next cell's centre is at about 0.5 m, as in
 /// `floor_flat.png` (white where the terrain at the cell centre is below 0.5 m).
 const FLAT_INSET_M: f64 = 0.3;
+/// Surveyed ground higher than this is the foot of a wall, metres.
+const WALL_FOOT_M: f32 = 0.02;
 
 /// Height of the walls against the distance from the flat floor, metres: the 10th, 50th and 90th
 /// percentiles of the Unity terrain (measured over its 513x513 samples; distance at the middle of
@@ -70,10 +72,7 @@ impl Terrain {
     pub fn from_floor(floor: &[bool], salt: u64) -> Self {
         assert_eq!(floor.len(), WORLD_SIZE * WORLD_SIZE, "the floor mask must be 200x200");
         let side = WORLD_SIZE * NODES_PER_M;
-        let edge_distance_m: Vec<f32> = signed_edge_distances_m(floor)
-            .into_iter()
-            .map(|edge_m| (edge_m + FLAT_INSET_M).min(f32::MAX as f64) as f32)
-            .collect();
+        let edge_distance_m = floor_edge_distances_m(floor);
         let quantile = uniform_quantiles(side, salt);
         let heights_m: Vec<f32> = (0..side * side)
             .map(|i| {
@@ -87,6 +86,27 @@ impl Terrain {
                 (wall_height_m(d, quantile[i] as f64) * roughness).min(ridge) as f32
             })
             .collect();
+        Terrain::with_heights(heights_m, edge_distance_m)
+    }
+
+    /// The terrain of surveyed heights: `heights_m` of every node (`WORLD_SIZE * NODES_PER_M`
+    /// a side, row = y, node (nx, ny) at ((nx + 0.5), (ny + 0.5)) x [`TERRAIN_STEP_M`]); the
+    /// walls start where it rises above [`WALL_FOOT_M`] or where `rock_on_ground` (per node) says
+    /// a rock stands on it.
+    pub fn from_heights(heights_m: Vec<f32>, rock_on_ground: &[bool]) -> Self {
+        let side = WORLD_SIZE * NODES_PER_M;
+        assert_eq!(heights_m.len(), side * side, "one height per node");
+        let heights_m: Vec<f32> = heights_m
+            .into_iter()
+            .map(|h| if h.is_finite() { h.clamp(0.0, MAX_TERRAIN_HEIGHT_M) } else { 0.0 })
+            .collect();
+        let wall: Vec<bool> = heights_m.iter().zip(rock_on_ground).map(|(&h, &rock)| h > WALL_FOOT_M || rock).collect();
+        let edge_distance_m = signed_node_distances_m(&wall).into_iter().map(|d| d as f32).collect();
+        Terrain::with_heights(heights_m, edge_distance_m)
+    }
+
+    fn with_heights(heights_m: Vec<f32>, edge_distance_m: Vec<f32>) -> Self {
+        let side = WORLD_SIZE * NODES_PER_M;
         let padded_side = side as i64 + 2;
         let padded_m = (0..padded_side * padded_side)
             .map(|i| {
@@ -183,21 +203,37 @@ pub(crate) fn floor_from_minus_one(v: f64) -> i64 {
     (v + 1.0) as i64 - 1
 }
 
+/// Signed distance of every terrain node from the edge of the flat floor (see [`FLAT_INSET_M`]),
+/// metres: negative on the floor.
+fn floor_edge_distances_m(floor: &[bool]) -> Vec<f32> {
+    signed_edge_distances_m(floor)
+        .into_iter()
+        .map(|edge_m| (edge_m + FLAT_INSET_M).min(f32::MAX as f64) as f32)
+        .collect()
+}
+
 /// Signed distance of every terrain node from the edge of `cells` (the 1 m cells of the world, row
 /// = y, set on one side of the edge), metres: negative on the cells, positive beyond them.
 pub(crate) fn signed_edge_distances_m(cells: &[bool]) -> Vec<f64> {
     let side = WORLD_SIZE * NODES_PER_M;
     let on_cells: Vec<bool> =
         (0..side * side).map(|i| cells[(i / side / NODES_PER_M) * WORLD_SIZE + (i % side) / NODES_PER_M]).collect();
-    let outside = distance_to(&on_cells, side);
-    let inside = distance_to(&on_cells.iter().map(|on| !on).collect::<Vec<_>>(), side);
+    signed_node_distances_m(&on_cells.iter().map(|on| !on).collect::<Vec<_>>())
+}
+
+/// Signed distance of every terrain node from the edge of the nodes `beyond`, metres: positive on
+/// them, negative off them.
+fn signed_node_distances_m(beyond: &[bool]) -> Vec<f64> {
+    let side = WORLD_SIZE * NODES_PER_M;
+    let outside = distance_to(beyond, side);
+    let inside = distance_to(&beyond.iter().map(|b| !b).collect::<Vec<_>>(), side);
     let half_step = TERRAIN_STEP_M / 2.0;
     (0..side * side)
         .map(|i| {
-            if on_cells[i] {
-                half_step - inside[i] as f64 * TERRAIN_STEP_M
+            if beyond[i] {
+                inside[i] as f64 * TERRAIN_STEP_M - half_step
             } else {
-                outside[i] as f64 * TERRAIN_STEP_M - half_step
+                half_step - outside[i] as f64 * TERRAIN_STEP_M
             }
         })
         .collect()

@@ -1,11 +1,15 @@
 //! The Unity world behind `map_bw.png` (unity-sim-spec 5, `../shared/udacity-world/README.md`):
-//! its sample places and start, its floor, and the rocks that stand on it.
+//! its sample places and start, its floor and ground, and the rocks that stand on it: surveyed
+//! when the surveys are given, else built from the map and the rocks' places and scales.
 
 use crate::boulder::{Boulder, BoulderKind, BoulderSpec, Cap};
+use crate::elevation::Elevation;
+use crate::obstacle::Obstacle;
 use crate::random::SplitMix64;
+use crate::rock_survey::read_rock_survey;
 use crate::world::{
-    BODY_TOP_M, MIN_MAP_NAVIGABLE_CELLS, SAMPLE_COUNT, Sample, StartPose, WORLD_SIZE, World, WorldError, WorldPlan,
-    neighbours4, outer_region, read_mask, widen_floor,
+    BODY_TOP_M, Ground, MIN_MAP_NAVIGABLE_CELLS, SAMPLE_COUNT, Sample, StartPose, WORLD_SIZE, World, WorldError,
+    WorldPlan, neighbours4, outer_region, read_mask, widen_floor,
 };
 
 /// The 33 sample placeholders of the Unity scene (unity-sim-spec 5.3), x and z in metres.
@@ -100,32 +104,56 @@ const FOOTPRINT_FIT_TENTHS: (usize, usize) = (5, 15);
 /// Salt of the Unity world's wall shapes and boulder facets (one terrain for every run).
 const UNITY_TERRAIN_SALT: u64 = 0x0_5eed_u64;
 
-/// The Unity world from `map_bw.png`-style bytes. Its floor is `floor_png` (e.g. `floor_flat.png`,
-/// white where the Unity terrain is flat) or, without one, the map widened by one cell; the rocks
-/// of [`UNITY_ROCKS`] stand on it. 6 of the 33 placeholders get samples and the start yaw is drawn
-/// from `seed`, as Unity does in autonomous mode. The scoring ground truth is the map itself.
-pub fn unity_world(map_png: &[u8], floor_png: Option<&[u8]>, seed: u64) -> Result<World, WorldError> {
-    unity_plan(map_png, floor_png, seed).map(World::build)
+/// The files the Unity world is built from: a `map_bw.png`-style map (the scoring ground truth)
+/// and, each optional, the floor (e.g. `floor_flat.png`, white where the terrain is flat), the
+/// survey of the ground's heights (`elevation_cm.png`) and that of the rocks (`rocks.json`).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct UnityFiles<'a> {
+    /// The map's PNG bytes.
+    pub map_png: &'a [u8],
+    /// The floor's PNG bytes.
+    pub floor_png: Option<&'a [u8]>,
+    /// The ground survey's PNG bytes.
+    pub elevation_png: Option<&'a [u8]>,
+    /// The rock survey's JSON bytes.
+    pub rocks_json: Option<&'a [u8]>,
+}
+
+/// The Unity world built from `files`. Without a floor image the floor is the surveyed ground
+/// below half a metre, or without a survey the map widened by one cell; without a ground survey
+/// the walls rise from the floor as the measured profile does; without a rock survey the rocks of
+/// [`UNITY_ROCKS`] are faceted boulders fitted to the map. 6 of the 33 placeholders get samples
+/// and the start yaw is drawn from `seed`, as Unity does in autonomous mode.
+pub fn unity_world(files: &UnityFiles, seed: u64) -> Result<World, WorldError> {
+    unity_plan(files, seed).map(World::build)
 }
 
 /// What [`unity_world`] builds, before it is built.
-pub fn unity_plan(map_png: &[u8], floor_png: Option<&[u8]>, seed: u64) -> Result<WorldPlan, WorldError> {
-    let navigable = read_mask(map_png, "map")?;
+pub fn unity_plan(files: &UnityFiles, seed: u64) -> Result<WorldPlan, WorldError> {
+    let navigable = read_mask(files.map_png, "map")?;
     let count = navigable.iter().filter(|&&n| n).count();
     if count < MIN_MAP_NAVIGABLE_CELLS {
         return Err(WorldError::TooSmall(count));
     }
-    let mut floor = match floor_png {
-        Some(png) => read_mask(png, "floor")?,
-        None => widen_floor(&navigable),
+    let elevation = files.elevation_png.map(Elevation::from_png).transpose()?;
+    let mut floor = match (files.floor_png, &elevation) {
+        (Some(png), _) => read_mask(png, "floor")?,
+        (None, Some(elevation)) => elevation.floor(),
+        (None, None) => widen_floor(&navigable),
     };
     let missing = navigable.iter().zip(&floor).filter(|(n, f)| **n && !**f).count();
     if missing > 0 {
         return Err(WorldError::FloorMissesMap(missing));
     }
-    for &(x, y) in &UNITY_SAMPLE_CANDIDATES {
-        carve_access(&mut floor, x, y);
-    }
+    let ground = match elevation {
+        Some(elevation) => Ground::Surveyed(elevation),
+        None => {
+            for &(x, y) in &UNITY_SAMPLE_CANDIDATES {
+                carve_access(&mut floor, x, y);
+            }
+            Ground::Generated { salt: UNITY_TERRAIN_SALT }
+        }
+    };
     let mut rng = SplitMix64::new(seed);
     let mut candidates: Vec<(f64, f64)> = UNITY_SAMPLE_CANDIDATES.to_vec();
     let mut samples = Vec::with_capacity(SAMPLE_COUNT);
@@ -134,11 +162,17 @@ pub fn unity_plan(map_png: &[u8], floor_png: Option<&[u8]>, seed: u64) -> Result
         samples.push(Sample { x_m, y_m, radius_m: rng.range(0.07, 0.10) });
     }
     let start = StartPose { x_m: UNITY_START.0, y_m: UNITY_START.1, yaw_deg: rng.range(0.0, 360.0) };
-    let islands = enclosed_cells(&navigable);
-    let keep_free = free_ground(&navigable);
-    let boulders =
-        UNITY_ROCKS.iter().enumerate().map(|(i, rock)| fitted_boulder(rock, &keep_free, &islands, i as u64)).collect();
-    Ok(WorldPlan { floor, ground_truth: navigable, boulders, samples, start, terrain_salt: UNITY_TERRAIN_SALT })
+    let (boulders, surveyed_rocks) = match files.rocks_json {
+        Some(json) => (Vec::new(), read_rock_survey(json)?),
+        None => {
+            let islands = enclosed_cells(&navigable);
+            let keep_free = free_ground(&navigable);
+            let fitted =
+                UNITY_ROCKS.iter().enumerate().map(|(i, rock)| fitted_boulder(rock, &keep_free, &islands, i as u64));
+            (fitted.collect(), Vec::new())
+        }
+    };
+    Ok(WorldPlan { floor, ground_truth: navigable, boulders, surveyed_rocks, samples, start, ground })
 }
 
 /// The ground no rock may stand on: the map's navigable cells and the cells around the sample
@@ -234,7 +268,7 @@ mod tests {
     #[test]
     fn the_unity_map_builds_with_six_samples_and_a_random_yaw() {
         let png = shared("udacity/calibration_images/map_bw.png");
-        let world = unity_world(&png, None, 3).unwrap();
+        let world = unity_world(&UnityFiles { map_png: &png, ..Default::default() }, 3).unwrap();
         assert_eq!(world.ground_truth().iter().filter(|&&n| n).count(), 1993);
         for &(x, y) in &UNITY_SAMPLE_CANDIDATES {
             assert!(world.is_drivable(x, y), "sample placeholder ({x}, {y}) is reachable");
@@ -242,9 +276,9 @@ mod tests {
         assert_eq!(world.samples.len(), 6);
         assert!(world.samples.iter().all(|s| UNITY_SAMPLE_CANDIDATES.contains(&(s.x_m, s.y_m))));
         assert!(world.is_drivable(UNITY_START.0, UNITY_START.1));
-        let other = unity_world(&png, None, 4).unwrap();
+        let other = unity_world(&UnityFiles { map_png: &png, ..Default::default() }, 4).unwrap();
         assert_ne!(world.start.yaw_deg, other.start.yaw_deg);
-        assert_eq!(unity_world(&png, None, 3).unwrap().samples, world.samples);
+        assert_eq!(unity_world(&UnityFiles { map_png: &png, ..Default::default() }, 3).unwrap().samples, world.samples);
     }
 
     #[test]
@@ -253,7 +287,8 @@ mod tests {
         use crate::terrain::TERRAIN_STEP_M;
         let (map, floor_png) =
             (shared("udacity/calibration_images/map_bw.png"), shared("udacity-world/floor_flat.png"));
-        let world = unity_world(&map, Some(&floor_png), 0).unwrap();
+        let world =
+            unity_world(&UnityFiles { map_png: &map, floor_png: Some(&floor_png), ..Default::default() }, 0).unwrap();
         let nodes: Vec<(f64, f64, f32)> = world.terrain().nodes().collect();
         let side = (nodes.len() as f64).sqrt() as usize;
         let flat: Vec<bool> = nodes.iter().map(|n| n.2 < 0.05).collect();
@@ -289,13 +324,52 @@ mod tests {
     }
 
     #[test]
+    fn the_surveyed_world_stands_on_the_surveyed_ground_among_the_surveyed_rocks() {
+        let (map, floor_png) =
+            (shared("udacity/calibration_images/map_bw.png"), shared("udacity-world/floor_flat.png"));
+        let (elevation_png, rocks) = (shared("udacity-world/elevation_cm.png"), shared("udacity-world/rocks.json"));
+        let files = UnityFiles {
+            map_png: &map,
+            floor_png: None,
+            elevation_png: Some(&elevation_png),
+            rocks_json: Some(&rocks),
+        };
+        let world = unity_world(&files, 0).unwrap();
+        let elevation = Elevation::from_png(&elevation_png).unwrap();
+        for (x, y) in [(99.625, 85.625), (60.125, 110.375), (130.875, 40.125), (5.125, 195.875)] {
+            assert!((world.ground_height(x, y) - elevation.height_at(x, y)).abs() < 1e-4, "({x}, {y})");
+        }
+        let floor = read_mask(&floor_png, "floor").unwrap();
+        let agreeing = elevation.floor().iter().zip(&floor).filter(|(a, b)| a == b).count();
+        assert!(agreeing as f64 > 0.99 * floor.len() as f64, "the surveyed floor is floor_flat.png's: {agreeing}");
+        assert_eq!((world.surveyed_rocks().len(), world.boulders().len()), (16, 0));
+        assert!(world.is_drivable(UNITY_START.0, UNITY_START.1));
+        assert!(!world.is_drivable(110.0, 87.3), "the rock pack boulder stands in the way");
+        let overhang = &world.surveyed_rocks()[11];
+        let under_rim = (0..overhang.columns.len()).find_map(|i| {
+            let (x, y) = (
+                overhang.origin_m[0] + ((i % overhang.cols) as f64 + 0.5) * overhang.cell_m,
+                overhang.origin_m[1] + ((i / overhang.cols) as f64 + 0.5) * overhang.cell_m,
+            );
+            let raised = overhang.columns[i].is_some_and(|c| c.bottom_m as f64 > BODY_TOP_M + 0.2);
+            (raised && world.ground_height(x, y) < 0.05).then_some((x, y))
+        });
+        let (x, y) = under_rim.expect("floor under the overhanging rock");
+        assert!(world.is_drivable(x, y), "the rover fits under the rim at ({x}, {y})");
+    }
+
+    #[test]
     fn a_floor_image_must_contain_the_map() {
         let map = shared("udacity/calibration_images/map_bw.png");
         let empty = rover_imaging::encode_png(&rover_imaging::RgbImage::new(WORLD_SIZE, WORLD_SIZE)).unwrap();
-        let error = unity_world(&map, Some(&empty), 0).unwrap_err().to_string();
+        let error = unity_world(&UnityFiles { map_png: &map, floor_png: Some(&empty), ..Default::default() }, 0)
+            .unwrap_err()
+            .to_string();
         assert!(error.contains("leaves out 1993 navigable cells"), "{error}");
         let small = rover_imaging::encode_png(&rover_imaging::RgbImage::new(20, 20)).unwrap();
-        let error = unity_world(&map, Some(&small), 0).unwrap_err().to_string();
+        let error = unity_world(&UnityFiles { map_png: &map, floor_png: Some(&small), ..Default::default() }, 0)
+            .unwrap_err()
+            .to_string();
         assert!(error.contains("floor image is 20x20"), "{error}");
     }
 
@@ -303,7 +377,8 @@ mod tests {
     fn the_rocks_cover_the_maps_islands_and_no_navigable_cell() {
         let map = shared("udacity/calibration_images/map_bw.png");
         let floor = shared("udacity-world/floor_flat.png");
-        let world = unity_world(&map, Some(&floor), 0).unwrap();
+        let world =
+            unity_world(&UnityFiles { map_png: &map, floor_png: Some(&floor), ..Default::default() }, 0).unwrap();
         let navigable = read_mask(&map, "map").unwrap();
         for boulder in world.boulders() {
             assert!(boulder.cells_under(&navigable, BODY_TOP_M).is_empty(), "boulder at {:?}", boulder.centre);

@@ -2,7 +2,10 @@
 //! the run is scored against, the rock samples and the start pose, and how it looks.
 
 use crate::boulder::Boulder;
+use crate::elevation::Elevation;
 use crate::look::Look;
+use crate::obstacle::Obstacle;
+use crate::rock_survey::SurveyedRock;
 use crate::terrain::{NODES_PER_M, TERRAIN_STEP_M, Terrain};
 
 /// Floor under a boulder up to this height has the floor's colour, metres: Unity's floor runs on
@@ -60,14 +63,29 @@ pub struct WorldPlan {
     pub floor: Vec<bool>,
     /// Cells that count as navigable when the map is scored.
     pub ground_truth: Vec<bool>,
-    /// Rocks standing on the ground.
+    /// Faceted rocks standing on the ground.
     pub boulders: Vec<Boulder>,
+    /// Surveyed rocks standing on the ground.
+    pub surveyed_rocks: Vec<SurveyedRock>,
     /// Samples, in the order the simulator reports them.
     pub samples: Vec<Sample>,
     /// The rover's start pose.
     pub start: StartPose,
-    /// Varies the shape of the walls.
-    pub terrain_salt: u64,
+    /// The shape of the ground.
+    pub ground: Ground,
+}
+
+/// Where the shape of the ground comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Ground {
+    /// Walls rising from the floor as the measured profile of the Unity walls does; `salt`
+    /// varies their shape.
+    Generated {
+        /// Varies the walls' shape.
+        salt: u64,
+    },
+    /// The heights of a survey.
+    Surveyed(Elevation),
 }
 
 /// The world the rover drives in.
@@ -75,6 +93,7 @@ pub struct WorldPlan {
 pub struct World {
     terrain: Terrain,
     boulders: Vec<Boulder>,
+    surveyed_rocks: Vec<SurveyedRock>,
     ground_truth: Vec<bool>,
     painted: Vec<bool>,
     blocked: Vec<bool>,
@@ -89,8 +108,8 @@ pub struct World {
 /// Errors building a world from map images.
 #[derive(Debug, thiserror::Error)]
 pub enum WorldError {
-    /// A map image is not 200x200.
-    #[error("{name} image is {width}x{height}, expected 200x200 (1 px = 1 m, row = y, column = x)")]
+    /// A map image is not the size of the world.
+    #[error("{name} image is {width}x{height}, expected {expected}x{expected} (row = y, column = x)")]
     WrongSize {
         /// Which image.
         name: &'static str,
@@ -98,6 +117,8 @@ pub enum WorldError {
         width: usize,
         /// Its height.
         height: usize,
+        /// The side it must have.
+        expected: usize,
     },
     /// A map image cannot be decoded.
     #[error("cannot read the {name} image: {reason}")]
@@ -120,14 +141,28 @@ impl World {
     pub fn build(plan: WorldPlan) -> Self {
         assert_eq!(plan.floor.len(), WORLD_SIZE * WORLD_SIZE, "floor must be 200x200");
         assert_eq!(plan.ground_truth.len(), WORLD_SIZE * WORLD_SIZE, "ground truth must be 200x200");
-        let terrain = Terrain::from_floor(&plan.floor, plan.terrain_salt);
-        let blocked = blocked_nodes(&terrain, &plan.boulders);
-        let mut painted = plan.ground_truth.clone();
-        let floor_under_rock = plan.boulders.iter().flat_map(|b| b.cells_under(&plan.floor, PAINT_UNDER_ROCK_M));
+        let terrain = match &plan.ground {
+            Ground::Generated { salt } => Terrain::from_floor(&plan.floor, *salt),
+            Ground::Surveyed(elevation) => {
+                let heights_m = elevation.node_heights_m();
+                let rocks_on_ground = covered_nodes(&heights_m, plan.surveyed_rocks.iter().map(|r| r as &dyn Obstacle));
+                Terrain::from_heights(heights_m, &rocks_on_ground)
+            }
+        };
+        let obstacles =
+            || plan.boulders.iter().map(|b| b as &dyn Obstacle).chain(plan.surveyed_rocks.iter().map(|r| r as _));
+        let heights_m: Vec<f32> = terrain.nodes().map(|(_, _, h)| h).collect();
+        let blocked = blocked_nodes(&terrain, &covered_nodes(&heights_m, obstacles()));
+        let mut painted = match plan.ground {
+            Ground::Generated { .. } => plan.ground_truth.clone(),
+            Ground::Surveyed(_) => vec![true; plan.ground_truth.len()],
+        };
+        let floor_under_rock = obstacles().flat_map(|o| o.cells_under(&plan.floor, PAINT_UNDER_ROCK_M));
         floor_under_rock.collect::<Vec<_>>().into_iter().for_each(|cell| painted[cell] = true);
         World {
             terrain,
             boulders: plan.boulders,
+            surveyed_rocks: plan.surveyed_rocks,
             ground_truth: plan.ground_truth,
             painted,
             blocked,
@@ -143,9 +178,10 @@ impl World {
             ground_truth: floor.clone(),
             floor,
             boulders: vec![],
+            surveyed_rocks: vec![],
             samples: vec![],
             start,
-            terrain_salt: 0,
+            ground: Ground::Generated { salt: 0 },
         })
     }
 
@@ -160,9 +196,14 @@ impl World {
         &self.terrain
     }
 
-    /// The boulders.
+    /// The faceted rocks.
     pub fn boulders(&self) -> &[Boulder] {
         &self.boulders
+    }
+
+    /// The surveyed rocks.
+    pub fn surveyed_rocks(&self) -> &[SurveyedRock] {
+        &self.surveyed_rocks
     }
 
     /// The ground-truth navigable map for scoring, row-major (row = y, column = x).
@@ -170,8 +211,9 @@ impl World {
         &self.ground_truth
     }
 
-    /// The cells whose ground has the floor's colour: the navigable map, and the floor it leaves out
-    /// under boulders (row-major).
+    /// The cells whose ground has the floor's colour where it is flat: on generated ground the
+    /// navigable map and the floor it leaves out under rocks, on surveyed ground every cell
+    /// (row-major).
     pub fn painted(&self) -> &[bool] {
         &self.painted
     }
@@ -214,32 +256,37 @@ impl World {
     }
 }
 
-/// The terrain nodes the rover cannot drive on: too steep, too high, or in a boulder.
-fn blocked_nodes(terrain: &Terrain, boulders: &[Boulder]) -> Vec<bool> {
+/// The terrain nodes (ground heights `heights_m`, row by row) where one of `obstacles` stands in
+/// the rover's way: it fills the space from just above the ground up to [`BODY_TOP_M`].
+fn covered_nodes<'a>(heights_m: &[f32], obstacles: impl Iterator<Item = &'a dyn Obstacle>) -> Vec<bool> {
     let side = WORLD_SIZE * NODES_PER_M;
-    let mut blocked: Vec<bool> = terrain
-        .nodes()
-        .map(|(x, y, h)| {
-            let [gx, gy] = terrain.gradient_at(x, y);
-            h > MAX_DRIVABLE_HEIGHT_M || gx.hypot(gy) > MAX_DRIVABLE_SLOPE
-        })
-        .collect();
-    for boulder in boulders {
-        let reach = boulder.reach_m();
-        let range = |c: f64| {
-            ((c - reach) / TERRAIN_STEP_M).floor().max(0.0) as usize
-                ..=(((c + reach) / TERRAIN_STEP_M) as usize).min(side - 1)
+    let mut covered = vec![false; side * side];
+    for obstacle in obstacles {
+        let [lo, hi] = obstacle.bounds_m();
+        let range = |axis: usize| {
+            (lo[axis] / TERRAIN_STEP_M).floor().max(0.0) as usize
+                ..=((hi[axis] / TERRAIN_STEP_M).max(0.0) as usize).min(side - 1)
         };
-        for ny in range(boulder.centre[1]) {
-            for nx in range(boulder.centre[0]) {
+        for ny in range(1) {
+            for nx in range(0) {
                 let (x, y) = ((nx as f64 + 0.5) * TERRAIN_STEP_M, (ny as f64 + 0.5) * TERRAIN_STEP_M);
-                if boulder.covers(x, y, terrain.height_at(x, y) as f64, BODY_TOP_M) {
-                    blocked[ny * side + nx] = true;
-                }
+                covered[ny * side + nx] |= obstacle.covers(x, y, heights_m[ny * side + nx] as f64, BODY_TOP_M);
             }
         }
     }
-    blocked
+    covered
+}
+
+/// The terrain nodes the rover cannot drive on: too steep, too high, or `covered` by a rock.
+fn blocked_nodes(terrain: &Terrain, covered: &[bool]) -> Vec<bool> {
+    terrain
+        .nodes()
+        .zip(covered)
+        .map(|((x, y, h), &covered)| {
+            let [gx, gy] = terrain.gradient_at(x, y);
+            covered || h > MAX_DRIVABLE_HEIGHT_M || gx.hypot(gy) > MAX_DRIVABLE_SLOPE
+        })
+        .collect()
 }
 
 /// The drivable ground of a map: its navigable cells plus every cell next to one (8-neighbourhood)
@@ -301,7 +348,7 @@ pub(crate) fn rectangle(columns: std::ops::Range<usize>, rows: std::ops::Range<u
 pub fn read_mask(png: &[u8], name: &'static str) -> Result<Vec<bool>, WorldError> {
     let image = rover_imaging::decode_png(png).map_err(|e| WorldError::Unreadable { name, reason: e.to_string() })?;
     if (image.width, image.height) != (WORLD_SIZE, WORLD_SIZE) {
-        return Err(WorldError::WrongSize { name, width: image.width, height: image.height });
+        return Err(WorldError::WrongSize { name, width: image.width, height: image.height, expected: WORLD_SIZE });
     }
     Ok(image.data.chunks_exact(3).map(|p| p[0] > 0).collect())
 }
@@ -335,9 +382,10 @@ mod tests {
             floor: corridor(),
             ground_truth: corridor(),
             boulders: vec![boulder],
+            surveyed_rocks: vec![],
             samples: vec![],
             start: StartPose { x_m: 60.0, y_m: 100.0, yaw_deg: 0.0 },
-            terrain_salt: 0,
+            ground: Ground::Generated { salt: 0 },
         };
         let world = World::build(plan);
         assert!(!world.is_drivable(100.0, 100.0) && world.is_drivable(102.0, 100.0));

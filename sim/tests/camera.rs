@@ -86,7 +86,14 @@ fn unity_world() -> World {
         std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
     };
     let (map, floor) = (shared("udacity/calibration_images/map_bw.png"), shared("udacity-world/floor_flat.png"));
-    rover_sim::unity_world::unity_world(&map, Some(&floor), 0).unwrap()
+    let (elevation, rocks) = (shared("udacity-world/elevation_cm.png"), shared("udacity-world/rocks.json"));
+    let files = rover_sim::unity_world::UnityFiles {
+        map_png: &map,
+        floor_png: Some(&floor),
+        elevation_png: Some(&elevation),
+        rocks_json: Some(&rocks),
+    };
+    rover_sim::unity_world::unity_world(&files, 0).unwrap()
 }
 
 /// Poses looking at each sample from about 1.5 m, from floor cells around it.

@@ -129,10 +129,12 @@ impl Appearance {
         let terrain = world.terrain();
         let side = WORLD_SIZE * NODES_PER_M;
         let paint_m = signed_edge_distances_m(world.painted());
+        let shadows = super::shadows::node_shadows(world, &look.sun);
         let shades: Vec<PackedShade> = terrain
             .nodes()
             .zip(paint_m)
-            .map(|((x, y, h), paint_m)| node_shade(terrain, &look, [x, y, h as f64], paint_m as f32))
+            .zip(shadows)
+            .map(|(((x, y, h), paint_m), shadow)| node_shade(terrain, &look, [x, y, h as f64], paint_m as f32, shadow))
             .map(|shade| PackedShade::pack(&shade))
             .collect();
         let plain_floor = (0..WORLD_SIZE * WORLD_SIZE)
@@ -286,21 +288,27 @@ where
 }
 
 /// The baked shade of the terrain node at `node` (x, y, height), `paint_m` beyond the painted
-/// floor. The real frames show no cast shadows: only how the ground faces the sun matters.
-fn node_shade(terrain: &Terrain, look: &Look, node: [f64; 3], paint_m: f32) -> NodeShade {
+/// floor, `shadow` (0..1) in the shadow of what stands between it and the sun.
+fn node_shade(terrain: &Terrain, look: &Look, node: [f64; 3], paint_m: f32, shadow: f32) -> NodeShade {
     let [x, y, h] = node;
     let h = h as f32;
     let [gx, gy] = terrain.gradient_at(x, y);
     let length = (gx * gx + gy * gy + 1.0).sqrt();
     let normal = Vector3::new(-gx, -gy, 1.0) / length;
-    let sun = normal.dot(&look.sun).max(0.0);
+    let sun = normal.dot(&look.sun).max(0.0) * (1.0 - look.shadow_rock * shadow) as f64;
     let by_height = smoothstep((h - look.rock_from_height_m) / look.rock_blend_m + 0.5);
     let by_paint = smoothstep((paint_m - look.paint_edge_m) / look.paint_blend_m + 0.5);
     let rock = by_height.max(by_paint);
     let wall = (-terrain.edge_distance_at(x, y) as f64).max(0.0);
     let near_wall = 1.0 - look.wall_shadow as f64 * (-wall / look.wall_shadow_m as f64).exp();
     let patches = 1.0 + 0.07 * (value_noise(x, y, 3.0, 11 ^ look.texture_salt) as f64 - 0.5) * 2.0;
-    NodeShade { rock, floor: (near_wall * patches) as f32, sun: sun as f32, facing: Facing::of_normal(&normal) }
+    let shaded = 1.0 - (look.shadow_floor * shadow) as f64;
+    NodeShade {
+        rock,
+        floor: (near_wall * patches * shaded) as f32,
+        sun: sun as f32,
+        facing: Facing::of_normal(&normal),
+    }
 }
 
 fn smoothstep(t: f32) -> f32 {

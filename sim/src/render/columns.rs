@@ -11,6 +11,7 @@ use wide::{f32x4, i32x4};
 
 use super::appearance::{Appearance, Facing, NodeShade, fog_weights, lerp3, scale3, shade, shade_fixed, to_rgb8};
 use super::objects::PieceInView;
+use super::surveyed::RockInView;
 use super::view::{LevelView, Window, ceil_row};
 use super::{Hit, RenderOptions, Surface, truncated_index};
 use crate::terrain::{MAX_TERRAIN_HEIGHT_M, Terrain};
@@ -65,6 +66,7 @@ pub(super) struct Frame<'a> {
     pub(super) world: &'a World,
     pub(super) samples: &'a [Sample],
     pub(super) pieces: Vec<PieceInView<'a>>,
+    pub(super) rocks: Vec<RockInView<'a>>,
     pub(super) view: LevelView,
     pub(super) window: Window,
     pub(super) appearance: &'a Appearance,
@@ -287,7 +289,7 @@ impl Span {
 }
 
 impl Painter<'_, '_> {
-    /// Draws the band: terrain and sky, then the boulders and the samples over them. When the
+    /// Draws the band: terrain and sky, then the rocks and the samples over them. When the
     /// frame blends columns, the terrain of every other column of the band is drawn and that of
     /// each column between two drawn ones is blended from theirs.
     pub(super) fn draw(&mut self) {
@@ -302,6 +304,9 @@ impl Painter<'_, '_> {
         }
         for piece in &frame.pieces {
             self.draw_piece(piece);
+        }
+        for rock in &frame.rocks {
+            self.draw_surveyed_rock(rock);
         }
         for sample in frame.samples {
             let ground = frame.world.ground_height(sample.x_m, sample.y_m) as f64;

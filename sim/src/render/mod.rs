@@ -11,12 +11,15 @@
 mod appearance;
 mod columns;
 mod objects;
+mod shadows;
+mod surveyed;
 mod view;
 
 use rover_imaging::RgbImage;
 
 use self::appearance::Appearance;
 use self::columns::{Band, Frame, LevelRow, Painter, level_rows};
+use self::surveyed::RockShading;
 use self::view::{LevelView, MARGIN_PX, Rotation, Window};
 use crate::camera::{BodyPose, CameraModel};
 use crate::random::mix64;
@@ -79,6 +82,7 @@ pub struct Renderer {
     camera: CameraModel,
     options: RenderOptions,
     appearance: Appearance,
+    rock_shadings: Vec<RockShading>,
     rows: Vec<LevelRow>,
     threads: usize,
     /// Blend the terrain of every other column from its neighbours' (see [`Frame::blend_columns`]);
@@ -103,11 +107,13 @@ impl Renderer {
         let (level_width, level_height) = (camera.width + 2 * MARGIN_PX, camera.height + 2 * MARGIN_PX);
         let level_pixels = level_width * level_height;
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).clamp(1, MAX_THREADS);
+        let appearance = Appearance::new(world);
         Renderer {
             noise: noise_bytes(camera.width),
             camera,
             options,
-            appearance: Appearance::new(world),
+            rock_shadings: world.surveyed_rocks().iter().map(|rock| RockShading::new(rock, &appearance)).collect(),
+            appearance,
             rows: vec![LevelRow::default(); level_height],
             threads,
             blend_columns: !options.grid,
@@ -153,6 +159,7 @@ impl Renderer {
             world,
             samples,
             pieces: objects::pieces_in_view(world, &view, window),
+            rocks: surveyed::rocks_in_view(world.surveyed_rocks(), &self.rock_shadings, &view, window),
             view,
             window,
             appearance: &self.appearance,
@@ -369,9 +376,10 @@ mod tests {
             ground_truth: floor.clone(),
             floor,
             boulders,
+            surveyed_rocks: vec![],
             samples: vec![],
             start,
-            terrain_salt: 0,
+            ground: crate::world::Ground::Generated { salt: 0 },
         };
         World::build(plan)
     }
@@ -443,6 +451,88 @@ mod tests {
             disagreements * 100 < boulder_pixels,
             "{disagreements} of {boulder_pixels} pixels disagree at the outlines"
         );
+    }
+
+    /// An open world with a surveyed rock ahead of (100, 100): a dome of 0.25 m columns, standing
+    /// on the floor in its middle and raised 0.6 m off it under its rim.
+    fn world_with_a_surveyed_rock() -> World {
+        let (cols, cell_m, origin) = (14, 0.25, [101.75, 98.25]);
+        let grid = |value: &dyn Fn(f64) -> Option<f64>| {
+            let rows: Vec<String> = (0..cols)
+                .map(|r| {
+                    let cells: Vec<String> = (0..cols)
+                        .map(|c| {
+                            let radius = ((c as f64 + 0.5 - cols as f64 / 2.0)
+                                .hypot(r as f64 + 0.5 - cols as f64 / 2.0))
+                                * cell_m;
+                            value(radius).map_or("null".into(), |v| format!("{v:.2}"))
+                        })
+                        .collect();
+                    format!("[{}]", cells.join(","))
+                })
+                .collect();
+            format!("[{}]", rows.join(","))
+        };
+        let top = grid(&|r| (r < 1.7).then_some(1.6 - r * 0.5));
+        let bottom = grid(&|r| (r < 1.7).then_some(if r < 0.9 { 0.0 } else { 0.6 }));
+        let json = format!(
+            r#"{{"rocks": [{{"cell_m": {cell_m}, "origin": [{}, {}], "rows": {cols}, "cols": {cols}, "bottom_m": {bottom}, "top_m": {top}}}]}}"#,
+            origin[0], origin[1]
+        );
+        let floor = vec![true; WORLD_SIZE * WORLD_SIZE];
+        let plan = crate::world::WorldPlan {
+            ground_truth: floor.clone(),
+            floor,
+            boulders: vec![],
+            surveyed_rocks: crate::rock_survey::read_rock_survey(json.as_bytes()).unwrap(),
+            samples: vec![],
+            start: crate::world::StartPose { x_m: 100.0, y_m: 100.0, yaw_deg: 0.0 },
+            ground: crate::world::Ground::Generated { salt: 0 },
+        };
+        World::build(plan)
+    }
+
+    #[test]
+    fn surveyed_rocks_are_drawn_where_their_rays_meet_their_columns() {
+        let world = world_with_a_surveyed_rock();
+        let camera = CameraModel::rover();
+        for pose in [
+            BodyPose { x_m: 100.0, y_m: 100.0, ..Default::default() },
+            BodyPose { x_m: 101.0, y_m: 98.0, yaw_deg: 35.0, ..Default::default() },
+            BodyPose { x_m: 100.5, y_m: 100.0, ground_m: 1.0, ..Default::default() },
+        ] {
+            let options = RenderOptions { record_hits: true, ..RenderOptions::default() };
+            let mut renderer = Renderer::new(&world, camera, options);
+            renderer.render(&world, &[], &pose, &mut RgbImage::default());
+            let view = LevelView::new(&camera, camera.position(&pose), pose.yaw_deg);
+            let rock = &world.surveyed_rocks()[0];
+            let (mut rock_pixels, mut disagreements, mut floor_under_rim) = (0, 0, 0);
+            for (index, hit) in renderer.hits().iter().enumerate() {
+                let (u, v) = (index % 320 + MARGIN_PX, index / 320 + MARGIN_PX);
+                let [dx, dy] = view.column_direction(u);
+                let rise = view.row_rise(v);
+                let inside = |t: f64| {
+                    let p = view.camera + nalgebra::Vector3::new(dx, dy, rise) * t;
+                    rock.column_at(p.x, p.y).is_some_and(|c| (c.bottom_m as f64..=c.top_m as f64).contains(&p.z))
+                };
+                let nearest = (1..4000).map(|k| k as f64 * 0.002).find(|&t| inside(t));
+                let agrees = match (hit.surface == Surface::Boulder, nearest) {
+                    (true, Some(t)) => (hit.depth_m as f64 - t).abs() < 0.01 + 0.01 * t,
+                    (false, Some(t)) => t >= hit.depth_m as f64 - 0.01,
+                    (true, None) => false,
+                    (false, None) => true,
+                };
+                rock_pixels += (hit.surface == Surface::Boulder) as usize;
+                disagreements += !agrees as usize;
+                let p = view.camera + nalgebra::Vector3::new(dx, dy, rise) * hit.depth_m as f64;
+                floor_under_rim += (hit.surface == Surface::Floor && rock.column_at(p.x, p.y).is_some()) as usize;
+            }
+            assert!(rock_pixels > 3000, "{rock_pixels} rock pixels");
+            assert!(disagreements * 100 < rock_pixels, "{disagreements} of {rock_pixels} pixels disagree");
+            if pose.ground_m == 0.0 {
+                assert!(floor_under_rim > 50, "the floor shows under the raised rim: {floor_under_rim} pixels");
+            }
+        }
     }
 
     /// The body at the start of `world` on level ground, with the given yaw, pitch and roll.
