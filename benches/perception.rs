@@ -39,7 +39,7 @@ fn python_reference(dataset: &std::path::Path) -> Result<f64, String> {
 
 fn main() -> anyhow::Result<()> {
     let dataset = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/udacity/test_dataset");
-    let frames = read_log(&dataset)?;
+    let frames = read_log(&dataset)?.frames;
     let jpegs: Vec<Vec<u8>> = frames.iter().map(|f| f.jpeg()).collect::<anyhow::Result<_>>()?;
     let (mut perception, geometry) = PerceptionParams::default().pipeline()?;
     let mapping = MappingParams::default();

@@ -17,7 +17,8 @@ use crate::dataset::{RecordedFrame, read_log};
 /// Options of `rover replay`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ReplayArgs {
-    /// Dataset folder with robot_log.csv and IMG/ (e.g. ../shared/udacity/test_dataset).
+    /// Recorded dataset: a folder with robot_log.csv and IMG/ (e.g. ../shared/udacity/test_dataset),
+    /// or the log itself, as the simulator wrote it on any machine.
     pub dataset: PathBuf,
     /// Ground-truth map for the scores (200x200 PNG, navigable > 0).
     #[arg(long, value_name = "MAP_PNG")]
@@ -146,7 +147,7 @@ pub fn read_ground_truth(path: &Path) -> anyhow::Result<Vec<bool>> {
 
 /// Runs `rover replay` offline (the libraries in this process) and prints the report.
 pub fn run(args: &ReplayArgs, perception: &PerceptionParams, mapping: &MappingParams) -> anyhow::Result<ReplayReport> {
-    let frames = read_log(&args.dataset)?;
+    let frames = read_log(&args.dataset)?.frames;
     let truth = args.ground_truth.as_deref().map(read_ground_truth).transpose()?;
     let (report, _) = replay_frames(&frames, perception, mapping, truth.as_deref())?;
     print_report(args, &report)?;
@@ -155,7 +156,7 @@ pub fn run(args: &ReplayArgs, perception: &PerceptionParams, mapping: &MappingPa
 
 /// Runs `rover replay --via-dds` against the running nodes and prints the report.
 pub async fn run_via_dds(args: &ReplayArgs, runtime: &rover_node::Runtime) -> anyhow::Result<ReplayReport> {
-    let frames = read_log(&args.dataset)?;
+    let frames = read_log(&args.dataset)?.frames;
     let report = crate::replay_dds::replay_over_dds(&frames, runtime).await?;
     print_report(args, &report)?;
     Ok(report)

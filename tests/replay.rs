@@ -130,7 +130,7 @@ impl Tester {
 
 /// A recorded camera frame of the dataset.
 fn good_jpeg() -> Vec<u8> {
-    std::fs::read(rover::dataset::read_log(std::path::Path::new(&test_dataset_dir())).unwrap()[20].image.clone())
+    std::fs::read(rover::dataset::read_log(std::path::Path::new(&test_dataset_dir())).unwrap().frames[20].image.clone())
         .unwrap()
 }
 

@@ -25,7 +25,7 @@ fn sim_check(dataset: &Path, extra: &[&str]) -> serde_json::Value {
 #[test]
 fn the_simulated_world_agrees_with_the_283_real_frames() {
     let report = sim_check(&PathBuf::from(test_dataset_dir()), &[]);
-    let summary = &report["summary"];
+    let summary = &report["summary"]["all"];
     eprintln!("{summary}");
     assert_eq!(summary["frames"], 283);
     assert!(number(summary, "nav_iou_mean") >= 0.80, "navigable IoU mean {summary}");
@@ -34,7 +34,8 @@ fn the_simulated_world_agrees_with_the_283_real_frames() {
     assert!(number(summary, "obstacle_iou_mean") >= 0.85, "obstacle IoU mean {summary}");
     assert!(number(summary, "agreement_mean") >= 0.90, "pixel agreement {summary}");
     assert!(number(summary, "colour_difference_mean") <= 25.0, "colour difference {summary}");
-    assert_eq!(report["frames"].as_array().map(Vec::len), Some(283));
+    assert_eq!(report["datasets"][0]["frames"].as_array().map(Vec::len), Some(283));
+    assert_eq!(report["datasets"][0]["read"]["frames"], 283);
 }
 
 #[test]
@@ -97,7 +98,7 @@ fn images_show_real_simulated_and_masks_side_by_side() {
     let dataset = small_dataset(3);
     let images = dataset.join("pictures");
     let report = sim_check(&dataset, &["--images", &images.display().to_string()]);
-    assert_eq!(report["summary"]["frames"], 3);
+    assert_eq!(report["summary"]["all"]["frames"], 3);
     let mut pictures: Vec<_> = std::fs::read_dir(&images).unwrap().map(|e| e.unwrap().path()).collect();
     pictures.sort();
     assert_eq!(pictures.len(), 3);
@@ -116,5 +117,5 @@ fn a_missing_dataset_or_map_is_a_clear_error() {
         .expect("run rover sim-check");
     assert!(!output.status.success());
     let error = String::from_utf8_lossy(&output.stderr);
-    assert!(error.contains("/nonexistent/dataset/robot_log.csv"), "{error}");
+    assert!(error.contains("/nonexistent/dataset") && error.contains("robot_log.csv"), "{error}");
 }

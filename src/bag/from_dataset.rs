@@ -22,7 +22,8 @@ const CONVERTER_NODE: &str = "rosbag2_recorder";
 /// Options of `rover bag from-dataset`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct FromDatasetArgs {
-    /// Dataset folder with robot_log.csv and IMG/ (e.g. ../shared/udacity/test_dataset).
+    /// Recorded dataset: a folder with robot_log.csv and IMG/ (e.g. ../shared/udacity/test_dataset),
+    /// or the log itself, as the simulator wrote it on any machine.
     #[arg(value_name = "DATASET")]
     pub dataset: PathBuf,
     /// The bag folder to create (it must not exist yet).
@@ -73,7 +74,7 @@ impl DatasetTopics {
 /// Writes the bag of `args.dataset` into `args.output`; topic names follow the namespace and
 /// remaps of `ros_args`.
 pub fn from_dataset(args: &FromDatasetArgs, ros_args: &RosArgs) -> anyhow::Result<BagMetadata> {
-    let frames = read_log(&args.dataset)?;
+    let frames = read_log(&args.dataset)?.frames;
     anyhow::ensure!(!frames.is_empty(), "{}: robot_log.csv has no frames", args.dataset.display());
     let identity = NodeIdentity::resolve(CONVERTER_NODE, ros_args)?;
     let mut writer = BagWriter::create(&args.output)?;

@@ -1,44 +1,63 @@
 //! `rover sim-check`: how closely the simulated world resembles the real one. The simulator renders
-//! the camera at every logged pose of a recorded dataset; the rover's own perception classifies the
-//! real and the simulated image, and their bird's-eye masks are compared pixel by pixel.
+//! the camera at every logged pose of recorded datasets; the rover's own perception classifies the
+//! real and the simulated image, and their bird's-eye masks are compared pixel by pixel, frame by
+//! frame, summed up per dataset, per 8 m square of the map ([`squares`]) and per kind of surface
+//! ([`bands`]).
+
+mod bands;
+pub mod squares;
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use rover_imaging::{RgbImage, UNITY_JPEG_QUALITY};
 use rover_perception::Perception;
-use rover_perception::classify::{Class, Thresholds};
+use rover_perception::classify::Class;
 use rover_perception::params::PerceptionParams;
 use rover_sim::camera::{BodyPose, CameraModel};
 use rover_sim::cli::WorldArgs;
-use rover_sim::render::{Hit, RenderOptions, Renderer, Surface};
+use rover_sim::render::{RenderOptions, Renderer};
 use rover_sim::world::World;
 use serde::Serialize;
 
-use crate::dataset::{RecordedFrame, read_log};
+use self::bands::BandTally;
+pub use self::bands::{BANDS, BandColours, ColourSummary, band_of};
+use self::squares::{SquareSummary, is_held_out, square_of, square_summaries};
+use crate::dataset::{ReadReport, RecordedFrame, read_log};
 
 /// Options of `rover sim-check`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimCheckArgs {
-    /// Dataset folder with robot_log.csv and IMG/ (e.g. ../shared/udacity/test_dataset).
-    pub dataset: PathBuf,
-    /// The world the dataset was recorded in.
+    /// Recorded datasets: folders with robot_log.csv and IMG/ (e.g. ../shared/udacity/test_dataset),
+    /// or the logs themselves, as the simulator wrote them on any machine.
+    #[arg(required = true, num_args = 1.., value_name = "DATASET")]
+    pub datasets: Vec<PathBuf>,
+    /// The world the datasets were recorded in.
     #[command(flatten)]
     pub world: WorldArgs,
-    /// Print one JSON object (summary and frames) instead of a table.
+    /// Print one JSON object (summaries, squares, colours and every frame) instead of tables.
     #[arg(long)]
     pub json: bool,
-    /// Write one side-by-side PNG per frame into this folder: real | simulated | masks (white: both
-    /// navigable, red: only the real one, blue: only the simulated one, grey: both not navigable).
+    /// Write one side-by-side PNG per frame into this folder (a subfolder per dataset when there are
+    /// several): real | simulated | masks (white: both navigable, red: only the real one, blue:
+    /// only the simulated one, grey: both not navigable).
     #[arg(long, value_name = "DIR")]
     pub images: Option<PathBuf>,
+    /// Write a picture of the map, each 8 m square with frames coloured by their mean navigable
+    /// IoU, to this PNG.
+    #[arg(long, value_name = "PNG")]
+    pub squares_picture: Option<PathBuf>,
 }
 
 /// How one frame's simulated view compares with the real one.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, PartialEq, Default)]
 pub struct FrameCheck {
     /// The real image's file name.
     pub image: String,
+    /// Where it was taken: x, metres.
+    pub x_m: f64,
+    /// y, metres.
+    pub y_m: f64,
     /// Intersection over union of the navigable bird's-eye pixels.
     pub nav_iou: f64,
     /// Intersection over union of the obstacle bird's-eye pixels.
@@ -72,151 +91,54 @@ pub struct CheckSummary {
     pub colour_difference_mean: f64,
 }
 
-/// The report of a check: the summary, the colours by band and every frame.
+/// The figures of a set of frames: all of them, and split into those taken in the squares the
+/// look was calibrated on and in those kept aside.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct SplitSummary {
+    /// Every frame.
+    pub all: CheckSummary,
+    /// The frames of the squares used to calibrate the look.
+    pub calibration: CheckSummary,
+    /// The frames of the squares kept aside ([`squares::is_held_out`]).
+    pub held_out: CheckSummary,
+}
+
+impl SplitSummary {
+    fn of(frames: &[FrameCheck]) -> Self {
+        let held_out = |f: &&FrameCheck| is_held_out(square_of(f.x_m, f.y_m));
+        let (aside, calibration): (Vec<FrameCheck>, Vec<FrameCheck>) =
+            frames.iter().cloned().partition(|f| held_out(&f));
+        SplitSummary { all: summarize(frames), calibration: summarize(&calibration), held_out: summarize(&aside) }
+    }
+}
+
+/// The check of one dataset.
 #[derive(Debug, Clone, Serialize)]
-pub struct CheckReport {
-    /// The summary.
-    pub summary: CheckSummary,
-    /// Real and simulated colours where the simulator drew each kind of surface.
-    pub bands: Vec<BandColours>,
-    /// One entry per frame, in the dataset's order.
+pub struct DatasetCheck {
+    /// The dataset as given.
+    pub dataset: PathBuf,
+    /// How its log was read.
+    pub read: ReadReport,
+    /// Its figures.
+    pub summary: SplitSummary,
+    /// Its frames by 8 m square.
+    pub squares: Vec<SquareSummary>,
+    /// One entry per frame, in the log's order.
     pub frames: Vec<FrameCheck>,
 }
 
-/// The kinds of simulated surface in which colours are compared, with their names.
-pub const BANDS: [&str; 16] = [
-    "sky",
-    "floor 0-1.5 m away",
-    "floor 1.5-3 m away",
-    "floor 3-6 m away",
-    "floor 6-10 m away",
-    "floor 10+ m away",
-    "floor fading into rock",
-    "wall foot 0-10 cm high",
-    "wall foot 10-30 cm high",
-    "wall 0.3-1.5 m high",
-    "wall in shade",
-    "wall half lit",
-    "wall in sun",
-    "boulder in shade",
-    "boulder half lit",
-    "boulder in sun",
-];
-
-/// The band of a simulated pixel, an index into [`BANDS`] (none for samples).
-pub fn band_of(hit: &Hit) -> Option<usize> {
-    let by_depth = |depth: f32| [1.5, 3.0, 6.0, 10.0].iter().take_while(|&&limit| depth >= limit).count();
-    let by_sun = |sun: f32| {
-        if sun < 0.35 {
-            0
-        } else if sun < 0.7 {
-            1
-        } else {
-            2
-        }
-    };
-    match hit.surface {
-        Surface::Sky => Some(0),
-        Surface::Sample => None,
-        Surface::Boulder => Some(13 + by_sun(hit.sun)),
-        Surface::Floor | Surface::Rock if hit.height_m < 0.02 && hit.rock < 0.05 => Some(1 + by_depth(hit.depth_m)),
-        Surface::Floor | Surface::Rock if hit.height_m < 0.02 => Some(6),
-        Surface::Floor | Surface::Rock if hit.height_m < 0.1 => Some(7),
-        Surface::Floor | Surface::Rock if hit.height_m < 0.3 => Some(8),
-        Surface::Floor | Surface::Rock if hit.height_m < 1.5 => Some(9),
-        Surface::Floor | Surface::Rock => Some(10 + by_sun(hit.sun)),
-    }
-}
-
-/// Real and simulated colours of one band.
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct BandColours {
-    /// The band's name.
-    pub band: String,
-    /// Pixels in the band over all frames.
-    pub pixels: u64,
-    /// The real pixels.
-    pub real: ColourSummary,
-    /// The simulated pixels.
-    pub sim: ColourSummary,
-}
-
-/// The colours of one band in one kind of image.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
-pub struct ColourSummary {
-    /// Median colour.
-    pub median_rgb: [u8; 3],
-    /// Fraction of the pixels that the perception's colour rule calls navigable.
-    pub navigable: f64,
-}
-
-/// Colour histograms of the bands of one kind of image (real or simulated), filled frame by frame.
-struct ColourTally {
-    histograms: Vec<[[u64; 256]; 3]>,
-    navigable: Vec<u64>,
-}
-
-impl ColourTally {
-    fn new() -> Self {
-        ColourTally { histograms: vec![[[0; 256]; 3]; BANDS.len()], navigable: vec![0; BANDS.len()] }
-    }
-
-    fn add(&mut self, band: usize, rgb: [u8; 3], thresholds: &Thresholds) {
-        for (k, &channel) in rgb.iter().enumerate() {
-            self.histograms[band][k][channel as usize] += 1;
-        }
-        self.navigable[band] += thresholds.is_navigable(rgb) as u64;
-    }
-
-    /// The summary of band `band`, which holds `pixels` pixels.
-    fn summary(&self, band: usize, pixels: u64) -> ColourSummary {
-        let median = [0, 1, 2].map(|k| {
-            let mut running = 0;
-            self.histograms[band][k]
-                .iter()
-                .position(|&n| {
-                    running += n;
-                    running * 2 >= pixels
-                })
-                .unwrap_or(0) as u8
-        });
-        ColourSummary { median_rgb: median, navigable: self.navigable[band] as f64 / pixels as f64 }
-    }
-}
-
-/// The colours of the bands in the real and the simulated images.
-struct BandTally {
-    real: ColourTally,
-    sim: ColourTally,
-    pixels: Vec<u64>,
-}
-
-impl BandTally {
-    fn new() -> Self {
-        BandTally { real: ColourTally::new(), sim: ColourTally::new(), pixels: vec![0; BANDS.len()] }
-    }
-
-    fn add(&mut self, hits: &[Hit], real: &RgbImage, simulated: &RgbImage, thresholds: &Thresholds) {
-        for (index, hit) in hits.iter().enumerate() {
-            let Some(band) = band_of(hit) else { continue };
-            let (x, y) = (index % real.width, index / real.width);
-            self.real.add(band, real.pixel(x, y), thresholds);
-            self.sim.add(band, simulated.pixel(x, y), thresholds);
-            self.pixels[band] += 1;
-        }
-    }
-
-    fn colours(&self) -> Vec<BandColours> {
-        (0..BANDS.len())
-            .filter(|&b| self.pixels[b] > 0)
-            .map(|b| BandColours {
-                band: BANDS[b].to_string(),
-                pixels: self.pixels[b],
-                real: self.real.summary(b, self.pixels[b]),
-                sim: self.sim.summary(b, self.pixels[b]),
-            })
-            .collect()
-    }
+/// The report of a check: the figures of all datasets together, by square and by kind of
+/// surface, and each dataset's.
+#[derive(Debug, Clone, Serialize)]
+pub struct CheckReport {
+    /// All frames of all datasets.
+    pub summary: SplitSummary,
+    /// All frames by 8 m square.
+    pub squares: Vec<SquareSummary>,
+    /// Real and simulated colours where the simulator drew each kind of surface.
+    pub bands: Vec<BandColours>,
+    /// Each dataset, in the order given.
+    pub datasets: Vec<DatasetCheck>,
 }
 
 /// Intersection over union of two masks; two empty masks agree fully.
@@ -249,7 +171,7 @@ pub fn colour_difference(a: &RgbImage, b: &RgbImage) -> f64 {
 }
 
 /// The value below which `fraction` of the sorted `values` lie (nearest rank).
-fn percentile(sorted: &[f64], fraction: f64) -> f64 {
+pub(crate) fn percentile(sorted: &[f64], fraction: f64) -> f64 {
     if sorted.is_empty() {
         return 0.0;
     }
@@ -292,11 +214,42 @@ pub fn body_pose(frame: &RecordedFrame, ground_m: f64) -> BodyPose {
     }
 }
 
-/// Renders, classifies and compares every frame of the dataset in the world of `args`.
+/// Renders, classifies and compares every frame of the datasets in the world of `args`, and
+/// writes the pictures asked for.
 pub fn check(args: &SimCheckArgs, perception: &PerceptionParams) -> anyhow::Result<CheckReport> {
-    let frames = read_log(&args.dataset)?;
-    anyhow::ensure!(!frames.is_empty(), "{} has no frames", args.dataset.display());
-    check_world(&frames, &args.world.world(0)?, perception, args.images.as_deref())
+    let recordings = args.datasets.iter().map(|dataset| read_log(dataset)).collect::<anyhow::Result<Vec<_>>>()?;
+    if let Some(empty) = recordings.iter().find(|r| r.frames.is_empty()) {
+        anyhow::bail!("{} has no frames", empty.report.log.display());
+    }
+    let world = args.world.world(0)?;
+    let mut checker = Checker::new(&world, perception)?;
+    let mut datasets = Vec::with_capacity(args.datasets.len());
+    for (index, (dataset, recording)) in args.datasets.iter().zip(recordings).enumerate() {
+        let images = args.images.as_ref().map(|dir| match args.datasets.len() {
+            1 => dir.clone(),
+            _ => dir.join(format!("{}-{}", index + 1, dataset_name(dataset))),
+        });
+        let frames = checker.check_frames(&recording.frames, images.as_deref())?;
+        let (summary, squares) = (SplitSummary::of(&frames), square_summaries(&frames));
+        datasets.push(DatasetCheck { dataset: dataset.clone(), read: recording.report, summary, squares, frames });
+    }
+    let all: Vec<FrameCheck> = datasets.iter().flat_map(|d| d.frames.iter().cloned()).collect();
+    let report = CheckReport {
+        summary: SplitSummary::of(&all),
+        squares: square_summaries(&all),
+        bands: checker.bands.colours(),
+        datasets,
+    };
+    if let Some(path) = &args.squares_picture {
+        write_png(path, &squares::picture(&report.squares, world.ground_truth()))?;
+    }
+    Ok(report)
+}
+
+/// A short name of a dataset for folder names: its folder's name.
+fn dataset_name(dataset: &Path) -> String {
+    let folder = if dataset.is_dir() { Some(dataset) } else { dataset.parent() };
+    folder.and_then(Path::file_name).map_or_else(|| "dataset".into(), |n| n.to_string_lossy().into_owned())
 }
 
 /// Renders `world` at every pose of `frames`, classifies and compares; writes the side-by-side
@@ -306,37 +259,78 @@ pub fn check_world(
     world: &World,
     perception: &PerceptionParams,
     images: Option<&Path>,
-) -> anyhow::Result<CheckReport> {
-    let options = RenderOptions { record_hits: true, ..RenderOptions::default() };
-    let mut renderer = Renderer::new(world, CameraModel::rover(), options);
-    let (mut real_view, _) = perception.pipeline()?;
-    let (mut sim_view, _) = perception.pipeline()?;
-    let (width, height) = (real_view.calibration().width, real_view.calibration().height);
-    if let Some(dir) = images {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+) -> anyhow::Result<(SplitSummary, Vec<FrameCheck>)> {
+    let frames = Checker::new(world, perception)?.check_frames(frames, images)?;
+    Ok((SplitSummary::of(&frames), frames))
+}
+
+/// What checking frames in one world keeps from frame to frame: the renderer, the two
+/// perception pipelines and the colour tallies.
+struct Checker<'w> {
+    world: &'w World,
+    renderer: Renderer,
+    real_view: Perception,
+    sim_view: Perception,
+    thresholds: rover_perception::classify::Thresholds,
+    bands: BandTally,
+    rendered: RgbImage,
+    jpeg: Vec<u8>,
+}
+
+impl<'w> Checker<'w> {
+    fn new(world: &'w World, perception: &PerceptionParams) -> anyhow::Result<Self> {
+        let options = RenderOptions { record_hits: true, ..RenderOptions::default() };
+        Ok(Checker {
+            world,
+            renderer: Renderer::new(world, CameraModel::rover(), options),
+            real_view: perception.pipeline()?.0,
+            sim_view: perception.pipeline()?.0,
+            thresholds: perception.thresholds()?,
+            bands: BandTally::new(),
+            rendered: RgbImage::default(),
+            jpeg: Vec::new(),
+        })
     }
-    let (mut rendered, mut jpeg) = (RgbImage::default(), Vec::new());
-    let thresholds = perception.thresholds()?;
-    let mut bands = BandTally::new();
-    let mut checks = Vec::with_capacity(frames.len());
-    for (index, frame) in frames.iter().enumerate() {
+
+    /// Checks every frame, with a progress line every [`PROGRESS_EVERY`].
+    fn check_frames(&mut self, frames: &[RecordedFrame], images: Option<&Path>) -> anyhow::Result<Vec<FrameCheck>> {
+        if let Some(dir) = images {
+            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        }
+        let mut progress = std::time::Instant::now();
+        let mut checks = Vec::with_capacity(frames.len());
+        for (index, frame) in frames.iter().enumerate() {
+            checks.push(self.check_frame(frame, images)?);
+            if progress.elapsed() >= PROGRESS_EVERY {
+                tracing::info!("{} of {} frames checked", index + 1, frames.len());
+                progress = std::time::Instant::now();
+            }
+        }
+        Ok(checks)
+    }
+
+    fn check_frame(&mut self, frame: &RecordedFrame, images: Option<&Path>) -> anyhow::Result<FrameCheck> {
+        let (width, height) = (self.real_view.calibration().width, self.real_view.calibration().height);
         let real = rover_imaging::decode_jpeg(&frame.jpeg()?, width, height)
             .with_context(|| frame.image.display().to_string())?;
+        let world = self.world;
         let pose = body_pose(frame, world.ground_height(frame.state.x_m, frame.state.y_m) as f64);
-        renderer.render(world, &[], &pose, &mut rendered);
-        rover_imaging::encode_jpeg_into(&rendered, UNITY_JPEG_QUALITY, &mut jpeg)?;
-        let simulated = rover_imaging::decode_jpeg(&jpeg, rendered.width, rendered.height)?;
-        bands.add(renderer.hits(), &real, &simulated, &thresholds);
-        let real_classes = real_view.process_rgb(&real)?.to_vec();
-        let sim_classes = sim_view.process_rgb(&simulated)?;
+        self.renderer.render(world, &[], &pose, &mut self.rendered);
+        rover_imaging::encode_jpeg_into(&self.rendered, UNITY_JPEG_QUALITY, &mut self.jpeg)?;
+        let simulated = rover_imaging::decode_jpeg(&self.jpeg, self.rendered.width, self.rendered.height)?;
+        self.bands.add(self.renderer.hits(), &real, &simulated, &self.thresholds);
+        let real_classes = self.real_view.process_rgb(&real)?.to_vec();
+        let sim_classes = self.sim_view.process_rgb(&simulated)?;
         let (nav_iou, obstacle_iou, agreement) = compare_classes(&real_classes, sim_classes);
         let count = |classes: &[Class]| classes.iter().filter(|c| **c == Class::Navigable).count();
         let name = frame.image.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
         if let Some(dir) = images {
-            let picture = side_by_side(&real, &simulated, &real_view, &real_classes, sim_classes);
+            let picture = side_by_side(&real, &simulated, &self.real_view, &real_classes, sim_classes);
             write_png(&dir.join(Path::new(&name).with_extension("png")), &picture)?;
         }
-        checks.push(FrameCheck {
+        Ok(FrameCheck {
+            x_m: frame.state.x_m,
+            y_m: frame.state.y_m,
             nav_iou,
             obstacle_iou,
             agreement,
@@ -344,13 +338,12 @@ pub fn check_world(
             real_navigable_px: count(&real_classes),
             sim_navigable_px: count(sim_classes),
             image: name,
-        });
-        if (index + 1) % 50 == 0 {
-            tracing::info!("{} of {} frames checked", index + 1, frames.len());
-        }
+        })
     }
-    Ok(CheckReport { summary: summarize(&checks), bands: bands.colours(), frames: checks })
 }
+
+/// A progress line at most this often.
+const PROGRESS_EVERY: std::time::Duration = std::time::Duration::from_secs(2);
 
 /// Pixels of the side-by-side picture per image pixel.
 const PICTURE_SCALE: usize = 2;
@@ -396,25 +389,56 @@ fn write_png(path: &Path, image: &RgbImage) -> anyhow::Result<()> {
     std::fs::write(path, rover_imaging::encode_png(image)?).with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// The report as tables: the summary, then the colours by band.
+/// Squares listed as the worst in the table.
+const WORST_SQUARES: usize = 8;
+
+/// The report as tables: each dataset's figures (all its frames, those of the squares the look
+/// was calibrated on and of those kept aside), all datasets together, the worst squares, then the
+/// colours by band.
 pub fn table(report: &CheckReport) -> String {
-    let summary = &report.summary;
     let mut text = format!(
-        "frames                 {:>8}\n\
-         nav IoU mean           {:>8.3}\n\
-         nav IoU median         {:>8.3}\n\
-         nav IoU p10            {:>8.3}\n\
-         obstacle IoU mean      {:>8.3}\n\
-         pixel agreement mean   {:>8.3}\n\
-         colour difference mean {:>8.1}\n",
-        summary.frames,
-        summary.nav_iou_mean,
-        summary.nav_iou_median,
-        summary.nav_iou_p10,
-        summary.obstacle_iou_mean,
-        summary.agreement_mean,
-        summary.colour_difference_mean
+        "{:<34} {:>6} {:>12} {:>7} {:>6} {:>13} {:>10} {:>12}\n",
+        "dataset", "frames", "nav IoU mean", "median", "p10", "obstacle IoU", "agreement", "colour diff"
     );
+    let row = |name: &str, s: &CheckSummary| {
+        format!(
+            "{name:<34} {:>6} {:>12.3} {:>7.3} {:>6.3} {:>13.3} {:>10.3} {:>12.1}\n",
+            s.frames,
+            s.nav_iou_mean,
+            s.nav_iou_median,
+            s.nav_iou_p10,
+            s.obstacle_iou_mean,
+            s.agreement_mean,
+            s.colour_difference_mean
+        )
+    };
+    let split = |name: &str, split: &SplitSummary| {
+        row(name, &split.all)
+            + &row("  squares used for calibration", &split.calibration)
+            + &row("  squares kept aside", &split.held_out)
+    };
+    for dataset in &report.datasets {
+        text += &split(&dataset_name(&dataset.dataset), &dataset.summary);
+    }
+    if report.datasets.len() > 1 {
+        text += &split("all datasets", &report.summary);
+    }
+    let mut worst: Vec<&SquareSummary> = report.squares.iter().collect();
+    worst.sort_by(|a, b| a.nav_iou_mean.total_cmp(&b.nav_iou_mean));
+    text += "\nworst 8 m squares        frames  nav IoU mean    p10\n";
+    for square in worst.iter().take(WORST_SQUARES) {
+        let aside = if square.held_out { "  (kept aside)" } else { "" };
+        text += &format!(
+            "x {:>3}-{:<3} y {:>3}-{:<3}     {:>6} {:>13.3} {:>6.3}{aside}\n",
+            square.x_m,
+            square.x_m + squares::SQUARE_M,
+            square.y_m,
+            square.y_m + squares::SQUARE_M,
+            square.frames,
+            square.nav_iou_mean,
+            square.nav_iou_p10
+        );
+    }
     text += "\nband                        pixels   real median      sim median       real nav  sim nav\n";
     for band in &report.bands {
         let rgb = |c: [u8; 3]| format!("{:>3} {:>3} {:>3}", c[0], c[1], c[2]);
@@ -451,13 +475,11 @@ mod tests {
     #[test]
     fn the_summary_has_the_mean_median_and_tenth_percentile() {
         let frame = |nav_iou: f64| FrameCheck {
-            image: String::new(),
             nav_iou,
             obstacle_iou: 0.5,
             agreement: 0.9,
             colour_difference: 10.0,
-            real_navigable_px: 0,
-            sim_navigable_px: 0,
+            ..FrameCheck::default()
         };
         let frames: Vec<FrameCheck> = (1..=10).map(|i| frame(i as f64 / 10.0)).collect();
         let summary = summarize(&frames);

@@ -27,7 +27,7 @@ pub struct LoadedFrame {
 
 /// The 283 recorded frames with their images.
 pub fn recorded_frames() -> Vec<LoadedFrame> {
-    let frames = read_log(Path::new(&test_dataset_dir())).expect("the recorded dataset");
+    let frames = read_log(Path::new(&test_dataset_dir())).expect("the recorded dataset").frames;
     frames.into_iter().map(|frame| LoadedFrame { jpeg: frame.jpeg().expect("a recorded JPEG"), frame }).collect()
 }
 
