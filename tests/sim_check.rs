@@ -1,20 +1,24 @@
 //! The simulated world against the real one, with `rover sim-check` as users run it: the simulator
-//! renders every logged pose of the 283 recorded Unity frames, the rover's perception classifies
-//! both images, and the bird's-eye masks and the colours by kind of surface must agree.
+//! renders every logged pose of recorded Unity frames in the surveyed world, the rover's
+//! perception classifies both images, and the bird's-eye masks and the colours by kind of surface
+//! must agree, also on frames taken where the look was not calibrated.
 
 mod support;
 
 use std::path::{Path, PathBuf};
 
-use support::{map_bw_png, number, rover, shared_dir, test_dataset_dir};
+use support::{number, rover, shared_dir, surveyed_world_args, test_dataset_dir};
 
 fn sim_check(dataset: &Path, extra: &[&str]) -> serde_json::Value {
-    let shared = |path: &str| shared_dir().join(path).display().to_string();
+    sim_check_datasets(&[dataset], extra)
+}
+
+fn sim_check_datasets(datasets: &[&Path], extra: &[&str]) -> serde_json::Value {
     let output = std::process::Command::new(rover())
         .arg("sim-check")
-        .arg(dataset)
-        .args(["--map", &map_bw_png()])
-        .args(["--floor", &shared("udacity-world/floor_flat.png"), "--json"])
+        .args(datasets)
+        .args(surveyed_world_args())
+        .arg("--json")
         .args(extra)
         .output()
         .expect("run rover sim-check");
@@ -75,22 +79,63 @@ fn each_kind_of_surface_has_the_colour_the_real_camera_sees_there() {
     }
 }
 
-/// A dataset of the first frames of the real one, in a temporary folder (the images linked).
-fn small_dataset(frames: usize) -> PathBuf {
-    let source = PathBuf::from(test_dataset_dir());
-    let dir = std::env::temp_dir().join(format!("rover-sim-check-{}", std::process::id()));
+/// A dataset in a temporary folder named `name`: the log of `source` with its header and every
+/// `every`-th row of its first `frames`, byte for byte (line ends too), and its images linked.
+fn dataset_part(source: &Path, name: &str, frames: usize, every: usize) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rover-sim-check-{name}-{}", std::process::id()));
     std::fs::create_dir_all(dir.join("IMG")).unwrap();
     let log = std::fs::read_to_string(source.join("robot_log.csv")).unwrap();
-    let kept: Vec<&str> = log.lines().take(frames + 1).collect();
-    std::fs::write(dir.join("robot_log.csv"), kept.join("\n")).unwrap();
-    for line in &kept[1..] {
-        let name = Path::new(line.split(';').next().unwrap()).file_name().unwrap();
+    let mut lines = log.split_inclusive('\n');
+    let header = lines.next().unwrap();
+    let kept: Vec<&str> = lines.take(frames).step_by(every).collect();
+    std::fs::write(dir.join("robot_log.csv"), std::iter::once(header).chain(kept.iter().copied()).collect::<String>())
+        .unwrap();
+    for line in kept {
+        let name = line.split(';').next().unwrap().rsplit(['/', '\\']).next().unwrap();
         let link = dir.join("IMG").join(name);
         if !link.exists() {
             std::os::unix::fs::symlink(source.join("IMG").join(name), link).unwrap();
         }
     }
     dir
+}
+
+/// A dataset of the first frames of the 283 real ones.
+fn small_dataset(frames: usize) -> PathBuf {
+    dataset_part(Path::new(&test_dataset_dir()), "small", frames, 1)
+}
+
+/// The long recording over most of the map, as the simulator wrote it on a Windows machine.
+fn long_recording() -> PathBuf {
+    shared_dir().join("udacity/recordings/tzyhpcom-2018-03-03")
+}
+
+#[test]
+fn a_long_recording_made_elsewhere_is_read_as_it_is_and_checked_square_by_square() {
+    let recording = dataset_part(&long_recording(), "long", usize::MAX, 10);
+    let log = std::fs::read_to_string(recording.join("robot_log.csv")).unwrap();
+    assert!(log.contains("\r\n") && log.contains("C:\\Users\\"), "the part keeps Windows paths and line ends");
+    let picture = recording.join("squares.png");
+    let test_dataset = PathBuf::from(test_dataset_dir());
+    let datasets = [recording.as_path(), test_dataset.as_path()];
+    let report = sim_check_datasets(&datasets, &["--squares-picture", &picture.display().to_string()]);
+    let long = &report["datasets"][0];
+    assert_eq!(long["read"]["frames"], 431);
+    assert_eq!(long["read"]["skipped"].as_array().map(Vec::len), Some(0));
+    assert_eq!(report["datasets"][1]["summary"]["all"]["frames"], 283);
+    assert_eq!(report["summary"]["all"]["frames"], 431 + 283);
+    let (calibration, aside) = (&long["summary"]["calibration"], &long["summary"]["held_out"]);
+    eprintln!("calibration squares {calibration}\nkept aside {aside}");
+    assert!(number(calibration, "frames") > 200.0 && number(aside, "frames") > 100.0);
+    assert!(number(&long["summary"]["all"], "nav_iou_mean") >= 0.68, "{}", long["summary"]["all"]);
+    assert!(number(&long["summary"]["all"], "nav_iou_p10") >= 0.42, "{}", long["summary"]["all"]);
+    let generalises = number(aside, "nav_iou_mean") >= number(calibration, "nav_iou_mean") - 0.03;
+    assert!(generalises, "the squares kept aside agree almost as well as those calibrated on");
+    let squares = long["squares"].as_array().unwrap();
+    assert!(squares.len() >= 50, "the recording covers most of the map's squares: {}", squares.len());
+    let image = rover_imaging::decode_png(&std::fs::read(&picture).unwrap()).unwrap();
+    assert_eq!(image.width, 800, "the map at 4 pixels a metre");
+    std::fs::remove_dir_all(recording).unwrap();
 }
 
 #[test]

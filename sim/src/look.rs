@@ -27,14 +27,21 @@ pub struct Look {
     pub rock_lit_rgb: [f32; 3],
     /// Rock colour in shade.
     pub rock_shade_rgb: [f32; 3],
+    /// Colour of the rock obstacles (boulders) in full sun, before texture: darker than the walls.
+    pub boulder_lit_rgb: [f32; 3],
+    /// Colour of the rock obstacles in shade.
+    pub boulder_shade_rgb: [f32; 3],
     /// Rock is fully lit once it faces the sun this squarely (cosine of the angle, 0..1).
     pub rock_full_sun: f32,
     /// Relative brightness variation of the rock's texture.
     pub rock_texture: f32,
     /// How much darker the floor is right at the foot of a wall (0..1).
     pub wall_shadow: f32,
-    /// Over about this distance from the wall, metres.
+    /// Over about this distance from the wall, metres...
     pub wall_shadow_m: f32,
+    /// ...widened, seen from afar, by this share of the ground one pixel row covers (the
+    /// terrain's textures are blurred over what a pixel covers).
+    pub wall_shadow_spread: f32,
     /// How much darker the floor is in the shadow cast by walls and rocks (0..1).
     pub shadow_floor: f32,
     /// How much of the sunlight a rock face in a cast shadow loses (0..1).
@@ -68,12 +75,15 @@ impl Default for Look {
             floor_dimple_depth: 0.0,
             rock_lit_rgb: [46.0, 32.0, 27.0],
             rock_shade_rgb: [10.0, 7.0, 5.0],
+            boulder_lit_rgb: [22.0, 14.0, 11.0],
+            boulder_shade_rgb: [6.0, 3.0, 2.0],
             rock_full_sun: 0.5,
             rock_texture: 0.45,
-            wall_shadow: 0.45,
-            wall_shadow_m: 1.0,
-            shadow_floor: 0.0,
-            shadow_rock: 0.0,
+            wall_shadow: 0.65,
+            wall_shadow_m: 0.3,
+            wall_shadow_spread: 0.15,
+            shadow_floor: 0.1,
+            shadow_rock: 0.5,
             sky_top_rgb: [112.0, 104.0, 99.0],
             sky_horizon_rgb: [127.0, 118.0, 112.0],
             rock_from_height_m: 0.02,
@@ -120,6 +130,8 @@ impl Look {
             floor_far_rgb: vary(base.floor_far_rgb),
             rock_lit_rgb: vary(base.rock_lit_rgb),
             rock_shade_rgb: vary(base.rock_shade_rgb),
+            boulder_lit_rgb: vary(base.boulder_lit_rgb),
+            boulder_shade_rgb: vary(base.boulder_shade_rgb),
             sky_top_rgb: vary(base.sky_top_rgb),
             sky_horizon_rgb: vary(base.sky_horizon_rgb),
             rock_from_height_m: base.rock_from_height_m * rng.range(0.8, 1.25) as f32,

@@ -91,16 +91,15 @@ impl Terrain {
 
     /// The terrain of surveyed heights: `heights_m` of every node (`WORLD_SIZE * NODES_PER_M`
     /// a side, row = y, node (nx, ny) at ((nx + 0.5), (ny + 0.5)) x [`TERRAIN_STEP_M`]); the
-    /// walls start where it rises above [`WALL_FOOT_M`] or where `rock_on_ground` (per node) says
-    /// a rock stands on it.
-    pub fn from_heights(heights_m: Vec<f32>, rock_on_ground: &[bool]) -> Self {
+    /// walls start where it rises above [`WALL_FOOT_M`].
+    pub fn from_heights(heights_m: Vec<f32>) -> Self {
         let side = WORLD_SIZE * NODES_PER_M;
         assert_eq!(heights_m.len(), side * side, "one height per node");
         let heights_m: Vec<f32> = heights_m
             .into_iter()
             .map(|h| if h.is_finite() { h.clamp(0.0, MAX_TERRAIN_HEIGHT_M) } else { 0.0 })
             .collect();
-        let wall: Vec<bool> = heights_m.iter().zip(rock_on_ground).map(|(&h, &rock)| h > WALL_FOOT_M || rock).collect();
+        let wall: Vec<bool> = heights_m.iter().map(|&h| h > WALL_FOOT_M).collect();
         let edge_distance_m = signed_node_distances_m(&wall).into_iter().map(|d| d as f32).collect();
         Terrain::with_heights(heights_m, edge_distance_m)
     }

@@ -143,11 +143,7 @@ impl World {
         assert_eq!(plan.ground_truth.len(), WORLD_SIZE * WORLD_SIZE, "ground truth must be 200x200");
         let terrain = match &plan.ground {
             Ground::Generated { salt } => Terrain::from_floor(&plan.floor, *salt),
-            Ground::Surveyed(elevation) => {
-                let heights_m = elevation.node_heights_m();
-                let rocks_on_ground = covered_nodes(&heights_m, plan.surveyed_rocks.iter().map(|r| r as &dyn Obstacle));
-                Terrain::from_heights(heights_m, &rocks_on_ground)
-            }
+            Ground::Surveyed(elevation) => Terrain::from_heights(elevation.node_heights_m()),
         };
         let obstacles =
             || plan.boulders.iter().map(|b| b as &dyn Obstacle).chain(plan.surveyed_rocks.iter().map(|r| r as _));

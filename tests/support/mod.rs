@@ -33,6 +33,16 @@ pub fn map_bw_png() -> String {
     shared_dir().join("udacity/calibration_images/map_bw.png").display().to_string()
 }
 
+/// The options of the surveyed Unity world: `map_bw.png` with the surveyed ground and rocks.
+pub fn surveyed_world_args() -> Vec<String> {
+    let shared = |path: &str| shared_dir().join(path).display().to_string();
+    ["--map", &map_bw_png(), "--elevation", &shared("udacity-world/elevation_cm.png")]
+        .into_iter()
+        .map(String::from)
+        .chain(["--rocks".into(), shared("udacity-world/rocks.json")])
+        .collect()
+}
+
 /// The 283 recorded Udacity frames (`robot_log.csv` and `IMG/`).
 pub fn test_dataset_dir() -> String {
     shared_dir().join("udacity/test_dataset").display().to_string()

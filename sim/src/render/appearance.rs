@@ -31,13 +31,16 @@ const ROCK_TEXEL_M: f64 = 0.12;
 const FIXED_BITS: u32 = 8;
 
 /// How a terrain node is lit and coloured, baked once per world: the weight of rock against
-/// floor, the floor's brightness (darker at the foot of walls), the rock's sunlight and which
-/// way the ground faces (for its texture).
+/// floor, the floor's brightness (its patches and the shadows cast on it), the rock's sunlight,
+/// how far the node lies from the foot of the walls (the floor darkens there, by how much depends
+/// on how far off it is seen: [`Appearance::near_wall`]) and which way the ground faces (for its
+/// texture).
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct NodeShade {
     pub(super) rock: f32,
     pub(super) floor: f32,
     pub(super) sun: f32,
+    pub(super) wall_m: f32,
     pub(super) facing: Facing,
 }
 
@@ -77,36 +80,42 @@ impl Facing {
     }
 }
 
-/// A [`NodeShade`] in four bytes (rock and sun in 1/255, floor in 1/200), so that the shading of
-/// the whole terrain stays small enough for the caches.
+/// A [`NodeShade`] in five bytes (rock and sun in 1/255, floor in 1/200, the distance from the
+/// walls in 1/32 m up to [`WALL_PACKED_MAX_M`]), so that the shading of the whole terrain stays
+/// small enough for the caches.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-struct PackedShade([u8; 4]);
+struct PackedShade {
+    lanes: [u8; 4],
+    facing: u8,
+}
 
-/// Scale of the packed floor brightness (it can exceed 1 a little).
-const FLOOR_PACKING: f32 = 200.0;
+/// Scales of the packed lanes: rock, floor (it can exceed 1 a little), sun, distance from the
+/// walls.
+const LANE_SCALES: [f32; 4] = [255.0, 200.0, 255.0, 32.0];
+/// Farther from the walls than this, the floor is as far as the packing tells, metres.
+const WALL_PACKED_MAX_M: f32 = 255.0 / 32.0;
 
 impl PackedShade {
     fn pack(shade: &NodeShade) -> Self {
-        let byte = |v: f32, scale: f32| (v * scale).round().clamp(0.0, 255.0) as u8;
-        let facing = shade.facing as u8;
-        PackedShade([byte(shade.rock, 255.0), byte(shade.floor, FLOOR_PACKING), byte(shade.sun, 255.0), facing])
+        let values = [shade.rock, shade.floor, shade.sun, shade.wall_m];
+        let lanes = std::array::from_fn(|k| (values[k] * LANE_SCALES[k]).round().clamp(0.0, 255.0) as u8);
+        PackedShade { lanes, facing: shade.facing as u8 }
     }
 
-    /// Rock, floor, sun and facing as floats, in their packed units.
+    /// Rock, floor, sun and distance from the walls as floats, in their packed units.
     fn lanes(self) -> f32x4 {
-        f32x4::new(self.0.map(f32::from))
+        f32x4::new(self.lanes.map(f32::from))
     }
 
-    /// The shade whose rock, floor and sun are the first three of `lanes` in the packed units,
-    /// facing as this one.
+    /// The shade whose values are `lanes` in the packed units, facing as this one.
     fn with_lanes(self, lanes: f32x4) -> NodeShade {
-        let [rock, floor, sun, _] = (lanes / f32x4::new([255.0, FLOOR_PACKING, 255.0, 1.0])).to_array();
-        let facing = [Facing::Up, Facing::AlongX, Facing::AlongY][self.0[3] as usize % 3];
-        NodeShade { rock, floor, sun, facing }
+        let [rock, floor, sun, wall_m] = (lanes / f32x4::new(LANE_SCALES)).to_array();
+        let facing = [Facing::Up, Facing::AlongX, Facing::AlongY][self.facing as usize % 3];
+        NodeShade { rock, floor, sun, wall_m, facing }
     }
 
     fn rock(self) -> f32 {
-        self.0[0] as f32 / 255.0
+        self.lanes[0] as f32 / LANE_SCALES[0]
     }
 }
 
@@ -193,25 +202,42 @@ impl Appearance {
         ([at(0, 0), at(1, 0), at(0, 1), at(1, 1)], fractions)
     }
 
-    /// The floor's brightness at (x, y), fixed point, with its detail texture.
-    pub(super) fn floor_factor(&self, x: f64, y: f64) -> u32 {
+    /// The floor's brightness at (x, y), seen where one pixel row covers `footprint_m` of ground,
+    /// fixed point, with its detail texture.
+    pub(super) fn floor_factor(&self, x: f64, y: f64, footprint_m: f32) -> u32 {
         let (corners, [fx, fy]) = self.corners_around(x, y);
-        let floor = bilinear(corners.map(|p| p.0[1] as f32), fx, fy) / FLOOR_PACKING;
+        let [_, floor, _, wall] =
+            (bilinear(corners.map(PackedShade::lanes), fx, fy) / f32x4::new(LANE_SCALES)).to_array();
+        let floor = floor * self.near_wall(wall, footprint_m);
         ((floor * (1 << FIXED_BITS) as f32) as u32 * self.floor_texel(x as f32, y as f32)) >> FIXED_BITS
     }
 
+    /// How bright the floor is `wall_m` from the foot of the walls (0..1), seen where one pixel
+    /// row covers `footprint_m` of ground: the darkening there widens with the footprint, as the
+    /// terrain's textures are blurred over what a pixel covers.
+    pub(super) fn near_wall(&self, wall_m: f32, footprint_m: f32) -> f32 {
+        if wall_m >= WALL_PACKED_MAX_M {
+            return 1.0;
+        }
+        let look = &self.look;
+        let width_m = look.wall_shadow_m + look.wall_shadow_spread * footprint_m;
+        1.0 - look.wall_shadow * exp_minus(wall_m / width_m)
+    }
+
     /// A pixel of flat ground at (x, y) whose colour may have turned to rock, given the floor's
-    /// colour there (`floor_rgb`, fog included), the fog's weights; and its rock weight.
+    /// colour there (`floor_rgb`, fog included), the fog's weights and the ground one pixel row
+    /// covers there; and its rock weight.
     pub(super) fn painted_floor(
         &self,
         x: f64,
         y: f64,
         floor_rgb: [f32; 3],
-        visible: f32,
-        haze: [f32; 3],
+        fog: (f32, [f32; 3]),
+        footprint_m: f32,
     ) -> ([u8; 3], f32) {
-        let NodeShade { rock, floor, sun, .. } = self.shade_at(x, y);
-        let floor_rgb = scale3(floor_rgb, floor);
+        let (visible, haze) = fog;
+        let NodeShade { rock, floor, sun, wall_m, .. } = self.shade_at(x, y);
+        let floor_rgb = scale3(floor_rgb, floor * self.near_wall(wall_m, footprint_m));
         let rock_rgb = scale3(self.rock_rgb(sun), visible);
         let (x, y) = (x as f32, y as f32);
         let floor_texture = self.floor_texel(x, y) as f32;
@@ -260,9 +286,10 @@ impl Appearance {
         self.floor_by_depth[index]
     }
 
-    /// Colour of a terrain point with shade `shade` seen at `depth`, before texture and fog.
-    pub(super) fn terrain_rgb(&self, shade: &NodeShade, depth: f64) -> [f32; 3] {
-        let floor = scale3(self.floor_rgb(depth), shade.floor);
+    /// Colour of a terrain point with shade `shade` seen at `depth`, where one pixel row covers
+    /// `footprint_m` of ground, before texture and fog.
+    pub(super) fn terrain_rgb(&self, shade: &NodeShade, depth: f64, footprint_m: f32) -> [f32; 3] {
+        let floor = scale3(self.floor_rgb(depth), shade.floor * self.near_wall(shade.wall_m, footprint_m));
         lerp3(floor, self.rock_rgb(shade.sun), shade.rock)
     }
 
@@ -274,6 +301,11 @@ impl Appearance {
     /// Colour of rock lit by `sun` (0..1), before texture and fog.
     pub(super) fn rock_rgb(&self, sun: f32) -> [f32; 3] {
         lerp3(self.look.rock_shade_rgb, self.look.rock_lit_rgb, (sun / self.look.rock_full_sun).min(1.0))
+    }
+
+    /// Colour of a boulder lit by `sun` (0..1), before texture and fog.
+    pub(super) fn boulder_rgb(&self, sun: f32) -> [f32; 3] {
+        lerp3(self.look.boulder_shade_rgb, self.look.boulder_lit_rgb, (sun / self.look.rock_full_sun).min(1.0))
     }
 }
 
@@ -299,17 +331,24 @@ fn node_shade(terrain: &Terrain, look: &Look, node: [f64; 3], paint_m: f32, shad
     let by_height = smoothstep((h - look.rock_from_height_m) / look.rock_blend_m + 0.5);
     let by_paint = smoothstep((paint_m - look.paint_edge_m) / look.paint_blend_m + 0.5);
     let rock = by_height.max(by_paint);
-    let wall = (-terrain.edge_distance_at(x, y) as f64).max(0.0);
-    let near_wall = 1.0 - look.wall_shadow as f64 * (-wall / look.wall_shadow_m as f64).exp();
+    let wall_m = (-terrain.edge_distance_at(x, y)).max(0.0);
     let patches = 1.0 + 0.07 * (value_noise(x, y, 3.0, 11 ^ look.texture_salt) as f64 - 0.5) * 2.0;
     let shaded = 1.0 - (look.shadow_floor * shadow) as f64;
-    NodeShade {
-        rock,
-        floor: (near_wall * patches * shaded) as f32,
-        sun: sun as f32,
-        facing: Facing::of_normal(&normal),
-    }
+    NodeShade { rock, floor: (patches * shaded) as f32, sun: sun as f32, wall_m, facing: Facing::of_normal(&normal) }
 }
+
+/// e^-x for x >= 0, from a table (beyond its end, 0).
+fn exp_minus(x: f32) -> f32 {
+    let index = (x * EXP_TABLE_PER_UNIT) as usize;
+    EXP_MINUS.get(index).copied().unwrap_or(0.0)
+}
+
+/// Entries of the table of e^-x per unit of x, and their number.
+const EXP_TABLE_PER_UNIT: f32 = 64.0;
+const EXP_TABLE_LEN: usize = 1024;
+
+static EXP_MINUS: std::sync::LazyLock<[f32; EXP_TABLE_LEN]> =
+    std::sync::LazyLock::new(|| std::array::from_fn(|i| (-(i as f64 + 0.5) / EXP_TABLE_PER_UNIT as f64).exp() as f32));
 
 fn smoothstep(t: f32) -> f32 {
     let t = t.clamp(0.0, 1.0);

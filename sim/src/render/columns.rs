@@ -39,6 +39,7 @@ const GRID_HALF_WIDTH_M: f64 = 0.012;
 pub(super) struct LevelRow {
     sky: [u8; 3],
     depth: f64,
+    footprint_m: f32,
     rgb: [f32; 3],
     visible: f32,
     haze: [f32; 3],
@@ -54,7 +55,7 @@ pub(super) fn level_rows(view: &LevelView, appearance: &Appearance, rows: &mut [
             let depth = view.focal_px * view.camera.z.max(1e-3) / (v as f64 - view.cy_px);
             let (visible, haze) = fog_weights(depth);
             let rgb = scale3(appearance.floor_rgb(depth), visible);
-            LevelRow { sky, depth, rgb, visible, haze }
+            LevelRow { sky, depth, footprint_m: view.footprint_m(depth), rgb, visible, haze }
         } else {
             LevelRow { sky, ..LevelRow::default() }
         };
@@ -438,10 +439,10 @@ impl Painter<'_, '_> {
         let shade = if inside_world(x, y) {
             appearance.shade_at(x, y)
         } else {
-            NodeShade { rock: 1.0, floor: 1.0, sun: 0.5, facing: Facing::AlongX }
+            NodeShade { rock: 1.0, floor: 1.0, sun: 0.5, wall_m: 0.0, facing: Facing::AlongX }
         };
         let (visible, haze) = fog_weights(depth);
-        let rgb = scale3(appearance.terrain_rgb(&shade, depth), visible);
+        let rgb = scale3(appearance.terrain_rgb(&shade, depth, view.footprint_m(depth)), visible);
         let (floor_u, floor_v) = appearance.floor_texture_coordinates(x as f32, y as f32);
         let (a, b) = shade.facing.texture_coordinates(x as f32, y as f32, z as f32);
         let (rock_u, rock_v) = appearance.rock_texture_coordinates(a, b);
@@ -488,12 +489,12 @@ impl Painter<'_, '_> {
         let first = truncated_index(view.row(t_out, 0.0).max(0.0)).saturating_add(1);
         let sun = appearance.look.sun.z as f32;
         for v in first..bottom {
-            let LevelRow { depth, rgb, visible, haze, .. } = self.frame.rows[v];
+            let LevelRow { depth, footprint_m, rgb, visible, haze, .. } = self.frame.rows[v];
             let (x, y) = (view.camera.x + depth * dir[0], view.camera.y + depth * dir[1]);
             let (mut pixel, rock) = if plain {
-                (shade(rgb, appearance.floor_factor(x, y), haze), 0.0)
+                (shade(rgb, appearance.floor_factor(x, y, footprint_m), haze), 0.0)
             } else {
-                appearance.painted_floor(x, y, rgb, visible, haze)
+                appearance.painted_floor(x, y, rgb, (visible, haze), footprint_m)
             };
             if self.frame.options.grid {
                 let rgb = pixel.map(f32::from);

@@ -140,7 +140,7 @@ impl Painter<'_, '_> {
         let columns = whole_pixels(lo_u, hi_u, self.band.columns.clone());
         let normal = face.normal;
         let sun = appearance.sunlight(&normal);
-        let lit_rgb = appearance.rock_rgb(sun);
+        let lit_rgb = appearance.boulder_rgb(sun);
         let facing = Facing::of_normal(&normal);
         for u in columns {
             let Some((top, bottom)) = column_span(outline, u as f64) else { continue };

@@ -119,13 +119,16 @@ impl Painter<'_, '_> {
     /// Draws a surveyed rock in the band's columns, where it is the nearest surface.
     pub(super) fn draw_surveyed_rock(&mut self, rock: &RockInView) {
         let columns = rock.columns.start.max(self.band.columns.start)..rock.columns.end.min(self.band.columns.end);
+        let mut covered = RowMask::new(self.frame.level_height);
         for u in columns {
-            self.draw_rock_column(rock, u);
+            covered.clear();
+            self.draw_rock_column(rock, u, &mut covered);
         }
     }
 
-    /// Draws the cells of `rock` that the ray of level column `u` crosses, front to back.
-    fn draw_rock_column(&mut self, in_view: &RockInView, u: usize) {
+    /// Draws the cells of `rock` that the ray of level column `u` crosses, front to back;
+    /// `covered` marks the rows a nearer cell of the rock already covers.
+    fn draw_rock_column(&mut self, in_view: &RockInView, u: usize, covered: &mut RowMask) {
         let (view, rock) = (&self.frame.view, in_view.rock);
         let [dx, dy] = view.column_direction(u);
         let [gx, gy] =
@@ -156,7 +159,7 @@ impl Painter<'_, '_> {
             if let Some(column) = rock.column(c, r) {
                 let sun = in_view.shading.sun[r as usize * rock.cols + c as usize];
                 let span = [column.bottom_m as f64, column.top_m as f64];
-                self.draw_rock_cell(u, [dx, dy], span, [t_in, t_out], side, sun);
+                self.draw_rock_cell(u, [dx, dy], span, [t_in, t_out], (side, sun), covered);
             }
             if t_c < t_r {
                 (c, t_in, side) = (c + step_c, t_c, Facing::AlongX);
@@ -169,20 +172,28 @@ impl Painter<'_, '_> {
     }
 
     /// Draws the rock spanning heights `span` over the depths `depths` of level column `u`
-    /// (horizontal ray direction `dir`), entered across a boundary facing `side`, lit by `sun`.
-    fn draw_rock_cell(&mut self, u: usize, dir: [f64; 2], span: [f64; 2], depths: [f64; 2], side: Facing, sun: f32) {
+    /// (horizontal ray direction `dir`), entered across a boundary facing `side` and lit by `sun`,
+    /// in the rows no nearer cell of the rock `covered`.
+    fn draw_rock_cell(
+        &mut self,
+        u: usize,
+        dir: [f64; 2],
+        span: [f64; 2],
+        depths: [f64; 2],
+        (side, sun): (Facing, f32),
+        covered: &mut RowMask,
+    ) {
         let (view, appearance) = (&self.frame.view, self.frame.appearance);
         let Window { v0, v1, .. } = self.frame.window;
-        let rows = [
-            view.row(depths[0], span[1]),
-            view.row(depths[1], span[1]),
-            view.row(depths[0], span[0]),
-            view.row(depths[1], span[0]),
-        ];
-        let (first, last) = rows.iter().fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-        for v in whole_pixels(first, last, v0..v1) {
+        let corners = [[0, 1], [1, 1], [0, 0], [1, 0]].map(|[d, h]| view.row(depths[d], span[h]));
+        let (first, last) = corners.iter().fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        let rows = whole_pixels(first, last, v0..v1);
+        let mut next = rows.start;
+        while let Some(v) = covered.next_clear(next, rows.end) {
+            next = v + 1;
             let rise = view.row_rise(v);
             let Some((t, face)) = entry(view.camera.z, rise, span, depths, side) else { continue };
+            covered.set(v);
             let index = self.index(u, v);
             if t as f32 >= self.depth_at(index) {
                 continue;
@@ -195,10 +206,44 @@ impl Painter<'_, '_> {
             };
             let (visible, haze) = fog_weights(t);
             let (a, b) = facing.texture_coordinates(point.x, point.y, point.z);
-            let pixel = shade(scale3(appearance.rock_rgb(sun), visible), appearance.rock_texel(a, b), haze);
+            let pixel = shade(scale3(appearance.boulder_rgb(sun), visible), appearance.rock_texel(a, b), haze);
             let hit = Hit { surface: Surface::Boulder, depth_m: t as f32, height_m: point.z, sun, rock: 1.0 };
             self.put(index, pixel, hit);
         }
+    }
+}
+
+/// A set of the rows of a level column, to skip runs of them at once.
+pub(super) struct RowMask {
+    words: Vec<u64>,
+}
+
+impl RowMask {
+    fn new(rows: usize) -> Self {
+        RowMask { words: vec![0; rows.div_ceil(64)] }
+    }
+
+    fn clear(&mut self) {
+        self.words.fill(0);
+    }
+
+    fn set(&mut self, row: usize) {
+        self.words[row / 64] |= 1 << (row % 64);
+    }
+
+    /// The first row in `from..end` not in the set.
+    fn next_clear(&self, from: usize, end: usize) -> Option<usize> {
+        let mut row = from;
+        while row < end {
+            let free = !self.words[row / 64] >> (row % 64);
+            if free == 0 {
+                row = (row / 64 + 1) * 64;
+                continue;
+            }
+            row += free.trailing_zeros() as usize;
+            return (row < end).then_some(row);
+        }
+        None
     }
 }
 
@@ -223,6 +268,19 @@ fn grid_crossing(origin: [f64; 2], step: [f64; 2], size: [f64; 2]) -> Option<[f6
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_row_mask_finds_the_next_row_not_yet_covered() {
+        let mut mask = RowMask::new(200);
+        (3..70).chain([71, 130]).for_each(|row| mask.set(row));
+        assert_eq!(mask.next_clear(0, 200), Some(0));
+        assert_eq!(mask.next_clear(3, 200), Some(70));
+        assert_eq!(mask.next_clear(71, 200), Some(72));
+        assert_eq!(mask.next_clear(130, 131), None);
+        assert_eq!(mask.next_clear(40, 60), None);
+        mask.clear();
+        assert_eq!(mask.next_clear(199, 200), Some(199));
+    }
 
     #[test]
     fn a_ray_crosses_the_grid_between_its_edges() {

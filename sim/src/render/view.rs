@@ -76,6 +76,11 @@ impl LevelView {
         -(v as f64 - self.cy_px) / self.focal_px
     }
 
+    /// The depth of ground one level row covers at forward depth `depth` on the floor, metres.
+    pub(super) fn footprint_m(&self, depth: f64) -> f32 {
+        (depth * depth / (self.focal_px * self.camera.z.max(0.05))) as f32
+    }
+
     /// Row where a point at forward depth `depth` and height `z` appears.
     pub(super) fn row(&self, depth: f64, z: f64) -> f64 {
         self.cy_px + self.focal_px * (self.camera.z - z) / depth
