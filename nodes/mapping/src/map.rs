@@ -3,7 +3,7 @@
 
 use rover_msgs::body::{ARM_REACH_M, CameraMount, SAMPLE_SPREAD_M};
 use rover_msgs::map_grid::{
-    CELLS, OCCUPANCY_FREE, OCCUPANCY_OCCUPIED, OCCUPANCY_UNKNOWN, cell_at, cell_of_point, cell_xy,
+    CELLS, OCCUPANCY_FREE, OCCUPANCY_OCCUPIED, OCCUPANCY_UNKNOWN, SIDE_CELLS, cell_at, cell_of_point, cell_xy,
 };
 
 use crate::projection::{Pose, Projector};
@@ -61,6 +61,23 @@ impl MapConfig {
             OCCUPANCY_UNKNOWN
         }
     }
+}
+
+/// Samples lie on the floor or at the foot of a wall, so a rock cell with no navigable cell within
+/// this distance, metres, is an echo: a sample on the foot of a wall, seen from afar, projected
+/// as if it lay on the floor, which puts it metres into the wall behind it.
+const ROCK_FLOOR_REACH_M: f64 = 2.5;
+
+/// Whether `occupancy` has a free cell within `reach_m` of the centre of cell `(x, y)`.
+fn floor_within(occupancy: &[i8], (x, y): (usize, usize), reach_m: f64) -> bool {
+    let reach = reach_m as usize;
+    let near = |v: usize| v.saturating_sub(reach)..=(v + reach).min(SIDE_CELLS - 1);
+    near(y).any(|cy| {
+        near(x).any(|cx| {
+            let distance_m = (cx as f64 - x as f64).hypot(cy as f64 - y as f64);
+            distance_m <= reach_m && occupancy[cell_at(cx, cy)] == OCCUPANCY_FREE
+        })
+    })
 }
 
 /// Width of the bearing bins of [`NearestObstacles`], degrees.
@@ -404,11 +421,14 @@ impl WorldMap {
     }
 
     /// The located rocks, world metres: rock cells within `merge_m` are one rock (see
-    /// [`rock_positions`]).
+    /// [`rock_positions`]); cells with no navigable cell within [`ROCK_FLOOR_REACH_M`] are left
+    /// out (see there).
     pub fn rocks(&self, merge_m: f64) -> Vec<(f64, f64)> {
+        let occupancy = self.occupancy();
         let cells: Vec<RockCell> = self
             .rock_cells()
             .into_iter()
+            .filter(|&(x, y)| floor_within(&occupancy, (x, y), ROCK_FLOOR_REACH_M))
             .map(|(x, y)| RockCell { x, y, range_m: self.rock_range_m[cell_at(x, y)] })
             .collect();
         rock_positions(&cells, merge_m)
@@ -581,6 +601,24 @@ mod tests {
         };
         assert_eq!(obstacle_frames(20.0), [1, 1, 1], "every obstacle cell counts");
         assert_eq!(obstacle_frames(1.5), [1, 1, 0], "the wall and 1.5 m behind it count, the far face does not");
+    }
+
+    #[test]
+    fn a_rock_far_into_a_wall_is_an_echo_and_one_at_its_foot_a_rock() {
+        let (rows, cols) = (14, 4);
+        let rocks_with_rock_in_row = |row: usize| {
+            let mut cells: Vec<u8> =
+                (0..rows * cols).map(|i| if i / cols < 4 { NAVIGABLE } else { OBSTACLE }).collect();
+            cells[row * cols + 1] = ROCK;
+            let mut map = WorldMap::new(STRICT);
+            for _ in 0..2 {
+                map.update(&scan(&cells, rows, cols), Pose { x_m: 20.0, y_m: 20.5, ..Pose::default() });
+            }
+            assert_eq!(map.rock_cells().len(), 1, "the rock cell is mapped either way");
+            map.rocks(3.5)
+        };
+        assert_eq!(rocks_with_rock_in_row(5), vec![(23.5, 20.5)], "1 m beyond the floor");
+        assert!(rocks_with_rock_in_row(12).is_empty(), "5 m into the wall");
     }
 
     #[test]

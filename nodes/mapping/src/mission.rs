@@ -268,7 +268,7 @@ pub(crate) mod test_scans {
     use super::*;
 
     /// A scan of frame `frame` stamped `sec`, taken at (x, y) facing +x with 6 samples on the
-    /// ground, that sees rock on a 2 m square from 0.5 m ahead of the rover.
+    /// ground, that sees floor from 0.5 m ahead of the rover and rock on the 1.5 m beyond it.
     pub(crate) fn rock_scan(frame: u64, sec: i32, position: (f64, f64)) -> TerrainScan {
         let (rows, cols) = (4, 4);
         TerrainScan {
@@ -279,7 +279,9 @@ pub(crate) mod test_scans {
             origin_y_m: -1.0,
             rows,
             cols,
-            cells: vec![TerrainScan::ROCK; (rows * cols) as usize],
+            cells: (0..rows * cols)
+                .map(|i| if i < cols { TerrainScan::NAVIGABLE } else { TerrainScan::ROCK })
+                .collect(),
             ..TerrainScan::default()
         }
     }
