@@ -1,6 +1,8 @@
 //! The world: a 200 m x 200 m terrain (row = y, column = x) with its boulders, the ground truth
 //! the run is scored against, the rock samples and the start pose, and how it looks.
 
+use nalgebra::Point3;
+
 use crate::boulder::Boulder;
 use crate::elevation::Elevation;
 use crate::look::Look;
@@ -43,6 +45,14 @@ pub struct Sample {
     pub y_m: f64,
     /// Radius, metres (the samples are 0.14 to 0.20 m across).
     pub radius_m: f64,
+}
+
+impl Sample {
+    /// Its centre, metres: Unity spawns the samples at the floor's height whatever the ground
+    /// there, so one on the foot of a wall sits partly in the slope, as low as one on the floor.
+    pub fn centre(&self) -> Point3<f64> {
+        Point3::new(self.x_m, self.y_m, self.radius_m * 0.75)
+    }
 }
 
 /// Where and how the rover starts.

@@ -209,3 +209,30 @@ fn samples_look_like_unity_samples_and_the_usual_thresholds_work_but_not_perfect
     assert!((0.6..0.98).contains(&samples.fraction(rock)), "samples read as rock: {:.3}", samples.fraction(rock));
     assert!(floor.fraction(rock) + walls.fraction(rock) < 0.002, "only samples read as rock");
 }
+
+#[test]
+fn samples_lie_at_the_floors_height_so_one_on_a_wall_foot_is_half_in_the_slope() {
+    let world = unity_world();
+    let sample_pixels = |sample: Sample| {
+        let pose = poses_facing_samples(&world, &[sample]).pop().expect("a free place facing the sample");
+        let mut renderer = Renderer::new(
+            &world,
+            CameraModel::rover(),
+            RenderOptions { record_hits: true, ..RenderOptions::default() },
+        );
+        let mut image = RgbImage::default();
+        renderer.render(&world, &[sample], &pose, &mut image);
+        renderer.hits().iter().filter(|hit| hit.surface == Surface::Sample).count()
+    };
+    let on_the_floor = Sample { x_m: 97.44, y_m: 74.65, radius_m: 0.09 };
+    let on_a_wall_foot = Sample { x_m: 21.724, y_m: 102.178, radius_m: 0.09 };
+    let (floor_ground_m, foot_ground_m) = (
+        world.ground_height(on_the_floor.x_m, on_the_floor.y_m),
+        world.ground_height(on_a_wall_foot.x_m, on_a_wall_foot.y_m),
+    );
+    assert!(floor_ground_m < 0.02 && (0.08..0.2).contains(&foot_ground_m), "{floor_ground_m} / {foot_ground_m} m");
+    let (whole, half_hidden) = (sample_pixels(on_the_floor), sample_pixels(on_a_wall_foot));
+    eprintln!("sample pixels from 1.8 m: on the floor {whole}, on the foot of a wall {half_hidden}");
+    assert!(whole > 40, "a sample on the floor shows whole: {whole} pixels");
+    assert!(half_hidden > 5 && half_hidden * 10 < whole * 8, "the slope hides part of it: {half_hidden} of {whole}");
+}

@@ -6,7 +6,6 @@
 
 use std::ops::Range;
 
-use nalgebra::Point3;
 use wide::{f32x4, i32x4};
 
 use super::appearance::{Appearance, Facing, NodeShade, fog_weights, lerp3, scale3, shade, shade_fixed, to_rgb8};
@@ -310,8 +309,7 @@ impl Painter<'_, '_> {
             self.draw_surveyed_rock(rock);
         }
         for sample in frame.samples {
-            let ground = frame.world.ground_height(sample.x_m, sample.y_m) as f64;
-            self.draw_sample(&Point3::new(sample.x_m, sample.y_m, ground + sample.radius_m * 0.75), sample.radius_m);
+            self.draw_sample(&sample.centre(), sample.radius_m);
         }
     }
 
