@@ -131,7 +131,7 @@ pub fn replay_frames(
         frames_rejected: rejected,
         mapped_pct: scores.map(|s| s.mapped_pct),
         fidelity_pct: scores.map(|s| s.fidelity_pct),
-        rocks_located: map.rocks(mapping.rock_merge_m).len(),
+        rocks_located: map.rocks(&occupancy, mapping.rock_merge_m).len(),
         navigable_cells: occupancy_counts(&occupancy).0,
         perception_ms_median: median_ms(perception_times),
         mapping_ms_median: Some(median_ms(mapping_times)),

@@ -420,15 +420,14 @@ impl WorldMap {
         (0..CELLS).filter(|&c| self.is_rock(c)).map(cell_xy).collect()
     }
 
-    /// The located rocks, world metres: rock cells within `merge_m` are one rock (see
-    /// [`rock_positions`]); cells with no navigable cell within [`ROCK_FLOOR_REACH_M`] are left
-    /// out (see there).
-    pub fn rocks(&self, merge_m: f64) -> Vec<(f64, f64)> {
-        let occupancy = self.occupancy();
+    /// The located rocks, world metres, given this map's [`WorldMap::occupancy`]: rock cells
+    /// within `merge_m` are one rock (see [`rock_positions`]); cells with no navigable cell within
+    /// [`ROCK_FLOOR_REACH_M`] are left out (see there).
+    pub fn rocks(&self, occupancy: &[i8], merge_m: f64) -> Vec<(f64, f64)> {
         let cells: Vec<RockCell> = self
             .rock_cells()
             .into_iter()
-            .filter(|&(x, y)| floor_within(&occupancy, (x, y), ROCK_FLOOR_REACH_M))
+            .filter(|&(x, y)| floor_within(occupancy, (x, y), ROCK_FLOOR_REACH_M))
             .map(|(x, y)| RockCell { x, y, range_m: self.rock_range_m[cell_at(x, y)] })
             .collect();
         rock_positions(&cells, merge_m)
@@ -579,12 +578,16 @@ mod tests {
         for _ in 0..2 {
             map.update(&scan(&far, rows, cols), Pose { x_m: 20.0, y_m: 20.5, ..Pose::default() });
         }
-        assert_eq!(map.rocks(3.5), vec![(26.5, 20.5)], "seen from 6.75 m");
+        assert_eq!(map.rocks(&map.occupancy(), 3.5), vec![(26.5, 20.5)], "seen from 6.75 m");
         for _ in 0..2 {
             map.update(&scan(&near, rows, cols), Pose { x_m: 22.0, y_m: 20.5, ..Pose::default() });
         }
         assert_eq!(map.rock_cells().len(), 2);
-        assert_eq!(map.rocks(3.5), vec![(23.5, 20.5)], "seen from 1.75 m, the far echo merged into it");
+        assert_eq!(
+            map.rocks(&map.occupancy(), 3.5),
+            vec![(23.5, 20.5)],
+            "seen from 1.75 m, the far echo merged into it"
+        );
     }
 
     #[test]
@@ -615,7 +618,7 @@ mod tests {
                 map.update(&scan(&cells, rows, cols), Pose { x_m: 20.0, y_m: 20.5, ..Pose::default() });
             }
             assert_eq!(map.rock_cells().len(), 1, "the rock cell is mapped either way");
-            map.rocks(3.5)
+            map.rocks(&map.occupancy(), 3.5)
         };
         assert_eq!(rocks_with_rock_in_row(5), vec![(23.5, 20.5)], "1 m beyond the floor");
         assert!(rocks_with_rock_in_row(12).is_empty(), "5 m into the wall");

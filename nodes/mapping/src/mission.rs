@@ -198,7 +198,12 @@ impl MappingCore {
 
     /// The located rocks, world metres.
     pub fn rocks(&self) -> Vec<(f64, f64)> {
-        self.map.rocks(self.params.rock_merge_m)
+        self.rocks_on(&self.map.occupancy())
+    }
+
+    /// The located rocks of the map whose cells are `occupancy`.
+    fn rocks_on(&self, occupancy: &[i8]) -> Vec<(f64, f64)> {
+        self.map.rocks(occupancy, self.params.rock_merge_m)
     }
 
     /// What a snapshot keeps.
@@ -217,7 +222,7 @@ impl MappingCore {
     /// once, for the occupancy grid, the statistics and the inset alike.
     pub fn publication(&self, header: Header) -> MapPublication {
         let occupancy = self.map.occupancy();
-        let rocks = self.rocks();
+        let rocks = self.rocks_on(&occupancy);
         let stats = self.stats(&occupancy, &rocks, header);
         MapPublication { occupancy, stats, rocks }
     }

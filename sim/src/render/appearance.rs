@@ -205,17 +205,20 @@ impl Appearance {
     /// The floor's brightness at (x, y), seen where one pixel row covers `footprint_m` of ground,
     /// fixed point, with its detail texture.
     pub(super) fn floor_factor(&self, x: f64, y: f64, footprint_m: f32) -> u32 {
-        let (corners, [fx, fy]) = self.corners_around(x, y);
-        let [_, floor, _, wall] =
-            (bilinear(corners.map(PackedShade::lanes), fx, fy) / f32x4::new(LANE_SCALES)).to_array();
-        let floor = floor * self.near_wall(wall, footprint_m);
+        let floor = self.floor_brightness(&self.shade_at(x, y), footprint_m);
         ((floor * (1 << FIXED_BITS) as f32) as u32 * self.floor_texel(x as f32, y as f32)) >> FIXED_BITS
+    }
+
+    /// The floor's brightness with shade `shade`, seen where one pixel row covers `footprint_m`
+    /// of ground: its own, darkened near the walls ([`Appearance::near_wall`]).
+    fn floor_brightness(&self, shade: &NodeShade, footprint_m: f32) -> f32 {
+        shade.floor * self.near_wall(shade.wall_m, footprint_m)
     }
 
     /// How bright the floor is `wall_m` from the foot of the walls (0..1), seen where one pixel
     /// row covers `footprint_m` of ground: the darkening there widens with the footprint, as the
     /// terrain's textures are blurred over what a pixel covers.
-    pub(super) fn near_wall(&self, wall_m: f32, footprint_m: f32) -> f32 {
+    fn near_wall(&self, wall_m: f32, footprint_m: f32) -> f32 {
         if wall_m >= WALL_PACKED_MAX_M {
             return 1.0;
         }
@@ -236,8 +239,9 @@ impl Appearance {
         footprint_m: f32,
     ) -> ([u8; 3], f32) {
         let (visible, haze) = fog;
-        let NodeShade { rock, floor, sun, wall_m, .. } = self.shade_at(x, y);
-        let floor_rgb = scale3(floor_rgb, floor * self.near_wall(wall_m, footprint_m));
+        let node = self.shade_at(x, y);
+        let NodeShade { rock, sun, .. } = node;
+        let floor_rgb = scale3(floor_rgb, self.floor_brightness(&node, footprint_m));
         let rock_rgb = scale3(self.rock_rgb(sun), visible);
         let (x, y) = (x as f32, y as f32);
         let floor_texture = self.floor_texel(x, y) as f32;
@@ -289,7 +293,7 @@ impl Appearance {
     /// Colour of a terrain point with shade `shade` seen at `depth`, where one pixel row covers
     /// `footprint_m` of ground, before texture and fog.
     pub(super) fn terrain_rgb(&self, shade: &NodeShade, depth: f64, footprint_m: f32) -> [f32; 3] {
-        let floor = scale3(self.floor_rgb(depth), shade.floor * self.near_wall(shade.wall_m, footprint_m));
+        let floor = scale3(self.floor_rgb(depth), self.floor_brightness(shade, footprint_m));
         lerp3(floor, self.rock_rgb(shade.sun), shade.rock)
     }
 
@@ -300,12 +304,18 @@ impl Appearance {
 
     /// Colour of rock lit by `sun` (0..1), before texture and fog.
     pub(super) fn rock_rgb(&self, sun: f32) -> [f32; 3] {
-        lerp3(self.look.rock_shade_rgb, self.look.rock_lit_rgb, (sun / self.look.rock_full_sun).min(1.0))
+        self.sunlit(self.look.rock_shade_rgb, self.look.rock_lit_rgb, sun)
     }
 
     /// Colour of a boulder lit by `sun` (0..1), before texture and fog.
     pub(super) fn boulder_rgb(&self, sun: f32) -> [f32; 3] {
-        lerp3(self.look.boulder_shade_rgb, self.look.boulder_lit_rgb, (sun / self.look.rock_full_sun).min(1.0))
+        self.sunlit(self.look.boulder_shade_rgb, self.look.boulder_lit_rgb, sun)
+    }
+
+    /// A rock surface's colour between `shade_rgb` and `lit_rgb`, lit by `sun` (0..1): fully
+    /// lit from [`Look::rock_full_sun`] on.
+    fn sunlit(&self, shade_rgb: [f32; 3], lit_rgb: [f32; 3], sun: f32) -> [f32; 3] {
+        lerp3(shade_rgb, lit_rgb, (sun / self.look.rock_full_sun).min(1.0))
     }
 }
 
