@@ -3,7 +3,7 @@
 
 Started before the graph: it imports everything, writes OUT.ready and waits for the file OUT.go, which
 the test creates once the nodes are up; only then does it join the DDS domain, so the discovery
-figures leave out Python's start-up. It subscribes to every topic of DESIGN.md, then, while the graph
+figures leave out Python's start-up. It subscribes to every topic of the graph (docs/architecture.md), then, while the graph
 runs against the headless simulator:
   * records the wall-clock time of the first message on every graph topic (discovery figures),
   * checks the content of the messages (decodable JPEGs, image sizes, frame ids, finite numbers,
@@ -53,7 +53,7 @@ VALUE_TOLERANCE = 2e-3
 
 
 class GraphTopic:
-    """A topic of DESIGN.md: its type, the node at its other end, whether it is latched, and
+    """A topic of the graph: its type, the node at its other end, whether it is latched, and
     whether it is one of the lock-step loop's per-frame topics, which the graph reads best effort."""
 
     def __init__(self, name, msg_type, publisher=None, subscriber=None, latched=False, timed=True, per_frame=False):
@@ -409,7 +409,7 @@ def wait_for_first_messages(node, probe, timeout_s):
 
 
 def graph_mismatches(node, nodes):
-    """What the ROS graph lacks compared to DESIGN.md: the names `nodes`, topic types, endpoints."""
+    """What the ROS graph lacks compared to the topic table: the names `nodes`, topic types, endpoints."""
     found = []
     names = {name for name, ns in node.get_node_names_and_namespaces() if ns == "/"}
     found += [f"node /{n} missing" for n in nodes if n not in names]

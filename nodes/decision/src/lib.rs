@@ -1,7 +1,7 @@
 //! The rover's decisions: a state machine that explores the map's frontiers, steers around what
 //! the camera sees, approaches and waits for samples, recovers when stuck and returns home.
 //!
-//! Plain types and no DDS here; [`node`] wires the machine to the topics.
+//! The machine, its modes and its planning are plain types; [`node`] is the DDS wiring to the topics.
 
 pub mod approach;
 pub mod arrivals;

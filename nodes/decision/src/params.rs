@@ -29,7 +29,7 @@ rover_node::node_params! {
         /// on the move at up to full lock).
         turn_in_place_deg: f64 [10.0, 180.0] = 65.0,
         /// A turn in place ends below this bearing, degrees (the rest is turned on the move while
-        /// speeding up; 12 left 18 s more of turning in place a mission, see docs/mission.md).
+        /// speeding up).
         turn_done_deg: f64 [1.0, 90.0] = 25.0,
         /// Half width of the lanes checked for free ground, metres.
         lane_half_width_m: f64 [0.1, 2.0] = 0.5,
@@ -37,8 +37,7 @@ rover_node::node_params! {
         lookahead_m: f64 [0.5, 20.0] = 2.5,
         /// Farther along the path, up to this far, the follower steers straight toward the
         /// farthest point that a line clear of walls leads to, metres (no farther than
-        /// `lookahead_m`: off; 8 made missions on `map_bw.png` faster in process but not in the
-        /// graph, and procedural ones slower, see docs/mission.md).
+        /// `lookahead_m`: off).
         max_lookahead_m: f64 [0.5, 30.0] = 2.5,
         /// Frames between replans.
         replan_frames: i64 [1, 10000] = 12,

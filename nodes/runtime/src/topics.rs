@@ -1,4 +1,4 @@
-//! Every topic of the graph: relative name, message type and QoS, in one table (DESIGN.md "Topics").
+//! Every topic of the graph: relative name, message type and QoS, in one table (docs/architecture.md).
 
 use std::marker::PhantomData;
 
