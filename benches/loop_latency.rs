@@ -30,7 +30,7 @@ use rover::graph::Graph;
 use rover::steadiness::{PERIOD, SLOW_FACTOR, Steadiness, SteadinessRecord};
 use rover_bridge::stats::HOP_NAMES;
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
-use rover_node::{spawn_subscriber, topics};
+use rover_runtime::{spawn_subscriber, topics};
 use rover_sim::wire::client::{ClientConfig, Simulation, run_client};
 use rover_sim::wire::command::Command;
 use support::echo_sim::{LoadedFrame, recorded_frames, telemetry_json};
@@ -127,14 +127,14 @@ struct Probe {
     terrain: Arrivals,
     drive: Arrivals,
     diagnostics: support::Latest<DiagnosticArray>,
-    _node: rover_node::RosNode,
-    _runtime: rover_node::Runtime,
+    _node: rover_runtime::RosNode,
+    _runtime: rover_runtime::Runtime,
 }
 
 impl Probe {
     fn start(domain: &Domain) -> Probe {
         let runtime = test_runtime(domain);
-        let (mut node, _) = runtime.node::<rover_node::NoParams>("latency_probe").expect("the probe node");
+        let (mut node, _) = runtime.node::<rover_runtime::NoParams>("latency_probe").expect("the probe node");
         let (telemetry, terrain, drive) = (Arrivals::default(), Arrivals::default(), Arrivals::default());
         let sink = telemetry.clone();
         let subscription = node.subscription(&topics::TELEMETRY).expect("subscribe");

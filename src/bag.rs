@@ -1,6 +1,6 @@
 //! `rover bag`: records topics of the graph into a rosbag2 bag in MCAP storage, plays a bag back
 //! with its timing, and turns a recorded Udacity dataset into a bag. The bag format is
-//! [`rover_bag`]; this module wires it to the topic table ([`rover_node::topics`]) and DDS.
+//! [`rover_bag`]; this module wires it to the topic table ([`rover_runtime::topics`]) and DDS.
 
 pub mod from_dataset;
 pub mod play;
@@ -10,8 +10,8 @@ use std::path::Path;
 
 use rover_bag::{BagMetadata, BagWriter, MessageTime, QosProfile, TopicId, TopicInfo};
 use rover_msgs::RosMessage;
-use rover_node::names::NodeIdentity;
-use rover_node::topics::{Topic, TopicVisitor, visit_all};
+use rover_runtime::names::NodeIdentity;
+use rover_runtime::topics::{Topic, TopicVisitor, visit_all};
 
 /// Options of `rover bag`.
 #[derive(Debug, Clone, clap::Args)]
@@ -110,7 +110,7 @@ fn write_message<M: RosMessage>(
     time: MessageTime,
     message: &M,
 ) -> anyhow::Result<()> {
-    Ok(writer.write(topic, time, &rover_node::cdr::encode(message)?)?)
+    Ok(writer.write(topic, time, &rover_runtime::cdr::encode(message)?)?)
 }
 
 /// The size of the bag's storage files, bytes.

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use rover_node::Runtime;
+use rover_runtime::Runtime;
 use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use rover_decision::machine::Mode;
-use rover_node::{Runtime, Shutdown};
+use rover_runtime::{Runtime, Shutdown};
 use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 

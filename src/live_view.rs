@@ -10,8 +10,8 @@ use foxglove::websocket::ShutdownHandle;
 use foxglove::{ChannelBuilder, Context, PartialMetadata, RawChannel, Schema, WebSocketServer};
 use rover_bag::schema::{SCHEMA_ENCODING, schema_text};
 use rover_msgs::RosMessage;
-use rover_node::topics::{self, Topic, TopicVisitor, visit_all};
-use rover_node::{MessageInfo, NoParams, RosNode, Runtime, spawn_subscriber_with_info};
+use rover_runtime::topics::{self, Topic, TopicVisitor, visit_all};
+use rover_runtime::{MessageInfo, NoParams, RosNode, Runtime, spawn_subscriber_with_info};
 use tokio::task::JoinHandle;
 
 use crate::bag::record::message_time;
@@ -102,7 +102,7 @@ impl TopicVisitor for Forward<'_> {
             return Ok(());
         }
         let channel = channel::<M>(self.context, &self.node.identity().resolve_topic(topic.name)?)?;
-        let handler = move |message: M, info: MessageInfo| match rover_node::cdr::encode(&message) {
+        let handler = move |message: M, info: MessageInfo| match rover_runtime::cdr::encode(&message) {
             Ok(data) => channel.log_with_meta(&data, PartialMetadata { log_time: Some(message_time(&info).log_ns) }),
             Err(e) => tracing::warn!("{e:#}"),
         };

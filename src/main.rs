@@ -5,8 +5,8 @@ use std::process::ExitCode;
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use rover::bag::{BagArgs, BagCommand};
 use rover::nodes::{Node, ROS_ARGS_HELP, node_names, run_all};
-use rover_node::params::help_table;
-use rover_node::{Runtime, Shutdown, logging, split_ros_args};
+use rover_runtime::params::help_table;
+use rover_runtime::{Runtime, Shutdown, logging, split_ros_args};
 
 /// The rover autonomy stack: Socket.IO bridge to the simulator and ROS 2 nodes over DDS.
 #[derive(Parser)]
@@ -111,11 +111,11 @@ fn raw_ros_args() -> Vec<String> {
 }
 
 /// The DDS runtime of the process, kept in `slot` so that it outlives the async tasks.
-fn dds(slot: &mut Option<Runtime>, ros_args: rover_node::RosArgs, shutdown: Shutdown) -> anyhow::Result<&Runtime> {
+fn dds(slot: &mut Option<Runtime>, ros_args: rover_runtime::RosArgs, shutdown: Shutdown) -> anyhow::Result<&Runtime> {
     Ok(slot.insert(Runtime::new(ros_args, shutdown)?))
 }
 
-async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut Option<Runtime>) -> anyhow::Result<()> {
+async fn run(command: Command, ros_args: rover_runtime::RosArgs, participant: &mut Option<Runtime>) -> anyhow::Result<()> {
     let shutdown = Shutdown::on_signals();
     match command {
         Command::Node(node) => node.run(dds(participant, ros_args, shutdown)?).await,
@@ -128,8 +128,8 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
             rover::replay::run_via_dds(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
         }
         Command::Replay(args) => {
-            let perception = rover_node::resolve_params(Node::Perception.name(), &ros_args)?;
-            let mapping = rover_node::resolve_params(Node::Mapping.name(), &ros_args)?;
+            let perception = rover_runtime::resolve_params(Node::Perception.name(), &ros_args)?;
+            let mapping = rover_runtime::resolve_params(Node::Mapping.name(), &ros_args)?;
             rover::replay::run(&args, &perception, &mapping).map(drop)
         }
         Command::Eval(args) => {
@@ -150,7 +150,7 @@ async fn run(command: Command, ros_args: rover_node::RosArgs, participant: &mut 
             rover::demo::run_demo(&args, dds(participant, ros_args, shutdown)?, &raw_ros_args()).await.map(drop)
         }
         Command::SimCheck(args) => {
-            let perception = rover_node::resolve_params(Node::Perception.name(), &ros_args)?;
+            let perception = rover_runtime::resolve_params(Node::Perception.name(), &ros_args)?;
             let report = rover::sim_check::check(&args, &perception)?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&report)?);

@@ -19,7 +19,7 @@ use rover_mapping::mission::{MapPublication, MappingCore};
 use rover_mapping::params::MappingParams;
 use rover_mapping::score::{LocatedSamples, occupancy_scores};
 use rover_msgs::std_msgs::Header;
-use rover_node::{Rejections, RosArgs, Shutdown, resolve_params};
+use rover_runtime::{Rejections, RosArgs, Shutdown, resolve_params};
 use rover_perception::params::PerceptionParams;
 use rover_pickup::{Pickup, PickupParams, checked_arm_input};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};

@@ -3,8 +3,8 @@
 //! the tests take the nodes from.
 
 use futures::future::{FutureExt as _, LocalBoxFuture, try_join_all};
-use rover_node::Runtime;
-use rover_node::params::{NodeParams, ParamSpec};
+use rover_runtime::Runtime;
+use rover_runtime::params::{NodeParams, ParamSpec};
 
 /// The help on ROS arguments that the node subcommands print.
 pub const ROS_ARGS_HELP: &str = "ROS arguments (after the subcommand's own options):

@@ -155,7 +155,7 @@ pub fn run(args: &ReplayArgs, perception: &PerceptionParams, mapping: &MappingPa
 }
 
 /// Runs `rover replay --via-dds` against the running nodes and prints the report.
-pub async fn run_via_dds(args: &ReplayArgs, runtime: &rover_node::Runtime) -> anyhow::Result<ReplayReport> {
+pub async fn run_via_dds(args: &ReplayArgs, runtime: &rover_runtime::Runtime) -> anyhow::Result<ReplayReport> {
     let frames = read_log(&args.dataset)?.frames;
     let report = crate::replay_dds::replay_over_dds(&frames, runtime).await?;
     print_report(args, &report)?;

@@ -9,7 +9,7 @@ use futures::StreamExt;
 use rover_bridge::convert::{FrameMessages, PinholeCamera};
 use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::msg::MapStats;
-use rover_node::{NoParams, Runtime, messages, topics};
+use rover_runtime::{NoParams, Runtime, messages, topics};
 
 use crate::dataset::RecordedFrame;
 use crate::replay::ReplayReport;

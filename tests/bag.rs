@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use rover_bag::BagReader;
 use rover_msgs::msg::MapStats;
-use rover_node::topics;
+use rover_runtime::topics;
 use support::{Domain, Latest, Process, eventually, map_bw_png, rover, start_process, test_dataset_dir, test_runtime};
 
 /// Simulated seconds of the recorded mission.
@@ -101,7 +101,7 @@ fn record_mission(name: &str) -> Recorded {
 fn last_in_bag<M: rover_msgs::RosMessage>(dir: &Path, topic: &str) -> M {
     let bag = BagReader::open(dir).expect("open the bag");
     let last = bag.messages().map(|m| m.expect("read the bag")).filter(|m| m.topic == topic).last();
-    rover_node::cdr::decode(&last.unwrap_or_else(|| panic!("no {topic} in the bag")).data).expect("decode")
+    rover_runtime::cdr::decode(&last.unwrap_or_else(|| panic!("no {topic} in the bag")).data).expect("decode")
 }
 
 #[test]
@@ -167,7 +167,7 @@ fn rosbags_and_rclpy_read_every_message_of_the_recorded_mission() {
 /// the nodes. Needs a tokio runtime (the test's node).
 fn play_and_read_map_stats(domain: &Domain, bag: &Path, play_args: &[&str]) -> MapStats {
     let runtime = test_runtime(domain);
-    let (mut node, _) = runtime.node::<rover_node::NoParams>("bag_test").expect("test node");
+    let (mut node, _) = runtime.node::<rover_runtime::NoParams>("bag_test").expect("test node");
     let stats = Latest::subscribe(&mut node, &topics::MAP_STATS);
     let terrain = node.publisher(&topics::TERRAIN).expect("a rover/terrain publisher");
     let mapping_ready = eventually(SUBSCRIBER_WAIT, || node.subscription_count(&terrain) >= 1);

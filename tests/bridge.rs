@@ -11,7 +11,7 @@ use ros2_client::parameters::{Parameter, ParameterValue};
 use ros2_client::rcl_interfaces::{SetParametersRequest, SetParametersResponse};
 use ros2_client::{Client, Context, Name, NodeName, NodeOptions, ServiceMapping, ServiceTypeName};
 use rover_msgs::geometry_msgs::{Twist, Vector3};
-use rover_node::Publisher;
+use rover_runtime::Publisher;
 use rover_sim::wire::client::{Connection, unity_url};
 use rover_sim::wire::packet::Inbound;
 use support::echo_sim::{EchoCheckingSimulator, SeenReply, recorded_frames, run_fake_unity, telemetry_json};
@@ -148,8 +148,8 @@ struct BadInputCase {
     bridge: Process,
     diagnostics: Latest<rover_msgs::diagnostic_msgs::DiagnosticArray>,
     telemetry: Latest<rover_msgs::msg::Telemetry>,
-    _runtime: rover_node::Runtime,
-    node: rover_node::RosNode,
+    _runtime: rover_runtime::Runtime,
+    node: rover_runtime::RosNode,
 }
 
 impl BadInputCase {
@@ -158,9 +158,9 @@ impl BadInputCase {
         let domain = Domain::reserve();
         let bridge = start_bridge(&domain, extra);
         let runtime = test_runtime(&domain);
-        let (mut node, _) = runtime.node::<rover_node::NoParams>("observer").unwrap();
-        let diagnostics = Latest::subscribe(&mut node, &rover_node::topics::DIAGNOSTICS);
-        let telemetry = Latest::subscribe(&mut node, &rover_node::topics::TELEMETRY);
+        let (mut node, _) = runtime.node::<rover_runtime::NoParams>("observer").unwrap();
+        let diagnostics = Latest::subscribe(&mut node, &rover_runtime::topics::DIAGNOSTICS);
+        let telemetry = Latest::subscribe(&mut node, &rover_runtime::topics::TELEMETRY);
         BadInputCase { domain, bridge, diagnostics, telemetry, _runtime: runtime, node }
     }
 
@@ -324,9 +324,9 @@ async fn raw_images_insets_params_file_and_clean_shutdown() {
     );
     wait_for_port(domain.port(), Duration::from_secs(20));
     let runtime = test_runtime(&domain);
-    let (mut node, _) = runtime.node::<rover_node::NoParams>("observer").unwrap();
-    let raw = Latest::subscribe(&mut node, &rover_node::topics::CAMERA_RAW);
-    let map_image = node.publisher(&rover_node::topics::MAP_IMAGE).unwrap();
+    let (mut node, _) = runtime.node::<rover_runtime::NoParams>("observer").unwrap();
+    let raw = Latest::subscribe(&mut node, &rover_runtime::topics::CAMERA_RAW);
+    let map_image = node.publisher(&rover_runtime::topics::MAP_IMAGE).unwrap();
     let inset = rover_msgs::sensor_msgs::Image {
         header: rover_msgs::std_msgs::Header::now("map"),
         height: 20,
@@ -414,7 +414,7 @@ impl ParameterClient {
         tokio::spawn(node.spinner().expect("a spinner").spin());
         let service = Name::new("/bridge", "set_parameters").unwrap();
         let service_type = ServiceTypeName::new("rcl_interfaces", "SetParameters");
-        let qos = rover_node::qos::reliable(1);
+        let qos = rover_runtime::qos::reliable(1);
         let client = node
             .create_client(ServiceMapping::Enhanced, &service, &service_type, qos.clone(), qos)
             .expect("a service client");
@@ -490,7 +490,7 @@ async fn reply_under_teleop(
 #[tokio::test(flavor = "multi_thread")]
 async fn a_nan_cmd_vel_brakes_the_rover_instead_of_releasing_the_brake() {
     let mut case = BadInputCase::start(&[]);
-    let cmd_vel = case.node.publisher(&rover_node::topics::CMD_VEL).unwrap();
+    let cmd_vel = case.node.publisher(&rover_runtime::topics::CMD_VEL).unwrap();
     let mut client = RawClient::connect(case.domain.port()).await;
     let throttle = |data: &serde_json::Value| data["throttle"].as_str().and_then(|t| t.parse::<f64>().ok());
     let driving = reply_under_teleop(&mut client, &cmd_vel, twist_forward(1.0), |d| throttle(d) > Some(0.0)).await;

@@ -15,7 +15,7 @@ use rover::graph_mission::{SIMULATOR_PROCESS, run_graph_mission};
 use rover::mission_map::write_mission_png;
 use rover::nodes::Node;
 use rover_msgs::msg::MapStats;
-use rover_node::topics;
+use rover_runtime::topics;
 use rover_sim::sim::SimConfig;
 use support::{Domain, Latest, graph_config, test_runtime};
 
@@ -66,7 +66,7 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
     println!("CHAOS_SEED={seed}");
     let domain = Domain::reserve();
     let runtime = test_runtime(&domain);
-    let (mut observer, _) = runtime.node::<rover_node::NoParams>("chaos_observer").expect("observer node");
+    let (mut observer, _) = runtime.node::<rover_runtime::NoParams>("chaos_observer").expect("observer node");
     let map_stats = Latest::subscribe(&mut observer, &topics::MAP_STATS);
     let log_dir = std::env::temp_dir().join(format!("rover-test-chaos-{}", std::process::id()));
     let config = GraphConfig { respawn: true, ..graph_config(&domain, log_dir.clone()) };

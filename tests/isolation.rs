@@ -16,8 +16,8 @@ use rover_bridge::stats::SILENCE_BRAKES_KEY;
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{DriveCommand, Telemetry};
-use rover_node::ros_args::Remap;
-use rover_node::{RosArgs, RosNode, Runtime, Shutdown, topics};
+use rover_runtime::ros_args::Remap;
+use rover_runtime::{RosArgs, RosNode, Runtime, Shutdown, topics};
 use support::{Domain, Latest, Process, STOP_TIMEOUT, eventually, graph_config, rover, start_process};
 
 /// What a test node receives in one namespace of one domain.
@@ -30,7 +30,7 @@ struct Observer {
 
 impl Observer {
     fn start(runtime: &Runtime, name: &str) -> Observer {
-        let (mut node, _) = runtime.node::<rover_node::NoParams>(name).expect("create the observer node");
+        let (mut node, _) = runtime.node::<rover_runtime::NoParams>(name).expect("create the observer node");
         Observer {
             telemetry: Latest::subscribe(&mut node, &topics::TELEMETRY),
             drive: Latest::subscribe(&mut node, &topics::DRIVE_CMD),
@@ -62,7 +62,7 @@ impl DomainView {
         let a = Observer::start(&runtime, "obs_a");
         let b = Observer::start(&runtime, "obs_b");
         let (mut node, _) =
-            runtime.node::<rover_node::NoParams>("obs_diagnostics").expect("create the diagnostics observer");
+            runtime.node::<rover_runtime::NoParams>("obs_diagnostics").expect("create the diagnostics observer");
         let diagnostics = Latest::subscribe(&mut node, &topics::DIAGNOSTICS);
         DomainView { diagnostics, a, b, _diagnostics_node: node, _runtime: runtime }
     }

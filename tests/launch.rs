@@ -15,8 +15,8 @@ use nix::sys::signal::Signal;
 use rover::graph::send_signal;
 use rover::nodes::Node;
 use rover_msgs::msg::{DriveCommand, Telemetry};
-use rover_node::ros_args::Remap;
-use rover_node::{RosArgs, RosNode, Runtime, Shutdown, topics};
+use rover_runtime::ros_args::Remap;
+use rover_runtime::{RosArgs, RosNode, Runtime, Shutdown, topics};
 use support::{Domain, Latest, eventually, rover};
 
 /// The processes a launcher with the simulator starts: every node, then the simulator.
@@ -45,7 +45,7 @@ impl Watcher {
         let remap = Remap { node: None, from: "__ns".into(), to: namespace.into() };
         let ros_args = RosArgs { remaps: vec![remap], ..RosArgs::default() };
         let runtime = Runtime::on_domain(domain.id, ros_args, Shutdown::new()).expect("the test's DDS participant");
-        let (mut node, _) = runtime.node::<rover_node::NoParams>("launch_watcher").expect("create the watcher node");
+        let (mut node, _) = runtime.node::<rover_runtime::NoParams>("launch_watcher").expect("create the watcher node");
         let telemetry = Latest::subscribe(&mut node, &topics::TELEMETRY);
         let drive = Latest::subscribe(&mut node, &topics::DRIVE_CMD);
         Watcher { telemetry, drive, _node: node, _runtime: runtime, _tokio: tokio }

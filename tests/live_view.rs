@@ -89,12 +89,12 @@ async fn a_foxglove_client_subscribes_to_the_map_and_the_plan_and_decodes_them()
             Message::Binary(data) if data.first() == Some(&MESSAGE_DATA) => {
                 let (subscription, payload) = (u32::from_le_bytes(data[1..5].try_into().unwrap()), &data[13..]);
                 if subscription == MAP_SUBSCRIPTION {
-                    let map = rover_node::cdr::decode::<OccupancyGrid>(payload).expect("a CDR OccupancyGrid");
+                    let map = rover_runtime::cdr::decode::<OccupancyGrid>(payload).expect("a CDR OccupancyGrid");
                     assert_eq!((map.info.width, map.info.height), (200, 200));
                     grid = grid.or(map.data.contains(&0).then_some(map));
                 } else {
                     assert_eq!(subscription, PLAN_SUBSCRIPTION, "one of our subscriptions' ids");
-                    let path = rover_node::cdr::decode::<Path>(payload).expect("a CDR Path");
+                    let path = rover_runtime::cdr::decode::<Path>(payload).expect("a CDR Path");
                     plan = plan.or((!path.poses.is_empty()).then_some(path));
                 }
             }

@@ -13,9 +13,9 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use rover::nodes::Node;
-use rover_node::params::{self, ParamSpec, ParameterValue};
-use rover_node::ros_args::Remap;
-use rover_node::{RosArgs, resolve_params};
+use rover_runtime::params::{self, ParamSpec, ParameterValue};
+use rover_runtime::ros_args::Remap;
+use rover_runtime::{RosArgs, resolve_params};
 
 /// The nodes of the graph with their declared parameters, in launch order.
 fn declared_nodes() -> Vec<(&'static str, Vec<ParamSpec>)> {
@@ -192,7 +192,7 @@ fn a_value_in_the_file_overrides_the_default_and_a_later_p_overrides_the_file() 
     let mut ros_args = RosArgs { params_files: vec![edited.clone()], ..RosArgs::default() };
     let from_file = resolve_params::<rover_mapping::params::MappingParams>("mapping", &ros_args).unwrap();
     assert_eq!(from_file.max_range_m, 6.5);
-    ros_args.params.push(rover_node::ros_args::ParamOverride {
+    ros_args.params.push(rover_runtime::ros_args::ParamOverride {
         node: Some("mapping".into()),
         name: "max_range_m".into(),
         value: "5".into(),

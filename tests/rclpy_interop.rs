@@ -1,5 +1,5 @@
 //! rclpy against the whole graph, run against the headless simulator: a plain rclpy process
-//! (`tests/python/interop_probe.py`) sees every node and topic of the graph (`rover_node::topics`) with its type, checks
+//! (`tests/python/interop_probe.py`) sees every node and topic of the graph (`rover_runtime::topics`) with its type, checks
 //! the content of the messages, joins the latched map late, sets a bridge parameter through the
 //! standard parameter services, drives the rover over `cmd_vel`, and times discovery. Run once with
 //! every node in its own process and once with all of them in one (`rover all`).
@@ -11,7 +11,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use rover::graph::{Graph, GraphConfig};
-use rover_node::sync::lock;
+use rover_runtime::sync::lock;
 use support::{Domain, Process, start_process};
 
 /// Seed of the procedural world (no sample is picked up during the probe's teleop phases).
@@ -29,7 +29,7 @@ const IMAGE_DISCOVERY_LIMIT_S: f64 = 3.0;
 const IMAGE_TOPICS: [&str; 3] = ["/camera/image_raw", "/map/image", "/rover/vision"];
 /// The probe normally finishes in about 20 s.
 const PROBE_TIMEOUT: Duration = Duration::from_secs(90);
-/// Topics of `rover_node::topics` that carry messages while the rover drives; not among them: the
+/// Topics of `rover_runtime::topics` that carry messages while the rover drives; not among them: the
 /// on-demand `rover/pickup`, the teleop input `cmd_vel`, the latched `/tf_static` and
 /// `rover/plan`, and `/clock`.
 const STREAMING_TOPICS: [&str; 16] = [

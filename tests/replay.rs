@@ -9,7 +9,7 @@ use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::msg::{MapStats, Telemetry, TerrainScan};
 use rover_msgs::sensor_msgs::CompressedImage;
 use rover_msgs::std_msgs::Header;
-use rover_node::{Publisher, RosNode, Runtime, topics};
+use rover_runtime::{Publisher, RosNode, Runtime, topics};
 use support::{
     Domain, Latest, Process, STOP_TIMEOUT, eventually, map_bw_png, rover, start_process, test_dataset_dir, test_runtime,
 };
@@ -97,7 +97,7 @@ struct Tester {
 
 impl Tester {
     fn new(runtime: &Runtime) -> Self {
-        let (mut node, _) = runtime.node::<rover_node::NoParams>("tester").unwrap();
+        let (mut node, _) = runtime.node::<rover_runtime::NoParams>("tester").unwrap();
         Tester {
             camera: node.publisher(&topics::CAMERA_COMPRESSED).unwrap(),
             telemetry: node.publisher(&topics::TELEMETRY).unwrap(),

@@ -276,8 +276,8 @@ async fn a_sensor_data_publisher_reaches_the_loops_readers() {
     let Some(domain) = support::ros2_domain_or_skip() else { return };
     let _echo = start_process(&support::echo_node(), &[], &domain, "ros2-cli-echo");
     let runtime = support::test_runtime(&domain);
-    let (mut node, _) = runtime.node::<rover_node::NoParams>("sensor_data_observer").expect("the observer node");
-    let replies = support::Latest::subscribe(&mut node, &rover_node::topics::DRIVE_CMD);
+    let (mut node, _) = runtime.node::<rover_runtime::NoParams>("sensor_data_observer").expect("the observer node");
+    let replies = support::Latest::subscribe(&mut node, &rover_runtime::topics::DRIVE_CMD);
     let telemetry = "{frame: 7, x_m: 3.0}";
     let args = ["topic", "pub", "--qos-profile", "sensor_data", "-r", "10", "-t", "50"];
     let args = [&args[..], &["/rover/telemetry", "rover_msgs/msg/Telemetry", telemetry]].concat();

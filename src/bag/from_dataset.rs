@@ -9,9 +9,9 @@ use rover_msgs::body::CameraMount;
 use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::frame_ids;
 use rover_msgs::std_msgs::Header;
-use rover_node::RosArgs;
-use rover_node::names::NodeIdentity;
-use rover_node::topics;
+use rover_runtime::RosArgs;
+use rover_runtime::names::NodeIdentity;
+use rover_runtime::topics;
 
 use super::{add_topic, summary, write_message};
 use crate::dataset::{RecordedFrame, read_log};

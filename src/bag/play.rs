@@ -8,8 +8,8 @@ use std::time::{Duration, Instant};
 use futures::future::BoxFuture;
 use rover_bag::{BagMessage, BagReader, TopicInfo};
 use rover_msgs::RosMessage;
-use rover_node::topics::{Topic, TopicVisitor, visit_all};
-use rover_node::{NoParams, Publisher, RosNode, Runtime, Shutdown};
+use rover_runtime::topics::{Topic, TopicVisitor, visit_all};
+use rover_runtime::{NoParams, Publisher, RosNode, Runtime, Shutdown};
 
 use super::{check_known, resolve_names};
 
@@ -60,7 +60,7 @@ trait CdrPublisher: Send {
 
 impl<M: RosMessage> CdrPublisher for Publisher<M> {
     fn publish_cdr(&self, data: &[u8]) -> anyhow::Result<()> {
-        let message = rover_node::cdr::decode::<M>(data)?;
+        let message = rover_runtime::cdr::decode::<M>(data)?;
         self.publish(message).map_err(|e| anyhow::anyhow!("cannot publish a {}: {e}", M::type_name()))
     }
 

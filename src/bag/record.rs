@@ -8,9 +8,9 @@ use std::time::{Duration, Instant};
 
 use rover_bag::{BagMetadata, BagWriter, MessageTime, TopicId};
 use rover_msgs::RosMessage;
-use rover_node::sync::lock;
-use rover_node::topics::{Topic, TopicVisitor, visit_all};
-use rover_node::{MessageInfo, NoParams, RosNode, Runtime, spawn_subscriber_with_info};
+use rover_runtime::sync::lock;
+use rover_runtime::topics::{Topic, TopicVisitor, visit_all};
+use rover_runtime::{MessageInfo, NoParams, RosNode, Runtime, spawn_subscriber_with_info};
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
@@ -160,7 +160,7 @@ impl TopicVisitor for Subscribe<'_> {
         let id = add_topic(self.writer, self.node.identity(), topic)?;
         let subscription = self.node.subscription(&topic.with_history_depth(READER_HISTORY_DEPTH))?;
         let sender = self.sender.clone();
-        let handler = move |message: M, info: MessageInfo| match rover_node::cdr::encode(&message) {
+        let handler = move |message: M, info: MessageInfo| match rover_runtime::cdr::encode(&message) {
             Ok(data) => {
                 let _ = sender.send(Received { topic: id, time: message_time(&info), data });
             }

@@ -7,7 +7,7 @@
 use rover_msgs::frame_ids;
 use rover_msgs::msg::DriveCommand;
 use rover_msgs::std_msgs::Header;
-use rover_node::{NoParams, Runtime, Shutdown, logging, publish_or_warn, spawn_subscriber, split_ros_args, topics};
+use rover_runtime::{NoParams, Runtime, Shutdown, logging, publish_or_warn, spawn_subscriber, split_ros_args, topics};
 
 fn main() -> anyhow::Result<()> {
     let (own, ros_args) = split_ros_args(std::env::args().collect())?;

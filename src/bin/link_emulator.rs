@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use clap::Parser;
 use rover::link::{Direction, Impairment, LinkCounts};
-use rover_node::{Shutdown, logging};
+use rover_runtime::{Shutdown, logging};
 
 /// Largest packet a TUN device hands over (its MTU is 1500; this leaves room).
 const MAX_PACKET_BYTES: usize = 65_536;

@@ -165,8 +165,8 @@ pub fn eventually(timeout: Duration, mut condition: impl FnMut() -> bool) -> boo
 }
 
 /// A DDS participant inside the test process, on the test's domain.
-pub fn test_runtime(domain: &Domain) -> rover_node::Runtime {
-    rover_node::Runtime::on_domain(domain.id, rover_node::RosArgs::default(), rover_node::Shutdown::new())
+pub fn test_runtime(domain: &Domain) -> rover_runtime::Runtime {
+    rover_runtime::Runtime::on_domain(domain.id, rover_runtime::RosArgs::default(), rover_runtime::Shutdown::new())
         .expect("create the test's DDS participant")
 }
 
@@ -177,10 +177,10 @@ pub struct Latest<M> {
 
 impl<M: rover_msgs::RosMessage> Latest<M> {
     /// Subscribes to `topic` with `node`.
-    pub fn subscribe(node: &mut rover_node::RosNode, topic: &rover_node::topics::Topic<M>) -> Self {
+    pub fn subscribe(node: &mut rover_runtime::RosNode, topic: &rover_runtime::topics::Topic<M>) -> Self {
         let latest = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
         let sink = latest.clone();
-        rover_node::spawn_subscriber(node.subscription(topic).expect("subscribe"), tracing::Span::none(), move |m| {
+        rover_runtime::spawn_subscriber(node.subscription(topic).expect("subscribe"), tracing::Span::none(), move |m| {
             sink.lock().unwrap().push(m)
         });
         Latest { latest }

@@ -22,7 +22,7 @@ mod test_maps;
 pub mod tour;
 
 use rover_msgs::msg::TerrainScan;
-use rover_node::{Rejections, topics};
+use rover_runtime::{Rejections, topics};
 
 use crate::local::FreeSpaceRays;
 use crate::machine::{Observation, Sighting};

@@ -12,8 +12,8 @@ use rover_msgs::map_grid::{SIDE_CELLS, cell_centre_m};
 use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, Telemetry, TerrainScan};
 use rover_msgs::nav_msgs::{OccupancyGrid, Path};
 use rover_msgs::std_msgs::Header;
-use rover_node::snapshot::SnapshotFile;
-use rover_node::{Publisher, Rejections, Runtime, publish_or_warn, topics};
+use rover_runtime::snapshot::SnapshotFile;
+use rover_runtime::{Publisher, Rejections, Runtime, publish_or_warn, topics};
 use tracing::Instrument as _;
 
 use crate::checked_observation;

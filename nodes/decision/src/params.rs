@@ -2,7 +2,7 @@
 
 use crate::local::FreeSpaceRays;
 
-rover_node::node_params! {
+rover_runtime::node_params! {
     /// Parameters of the decision node.
     pub struct DecisionParams {
         /// Cruising speed on open ground, m/s (Unity caps it at 5).

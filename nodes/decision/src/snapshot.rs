@@ -1,13 +1,13 @@
 //! The decision node's memory on disk: what the exploration learnt, the rocks given up on, where
 //! the mission stands and how far its time has got, so that a node restarted after a crash neither
 //! explores again what it had seen nor chases what it had given up, and keeps its deadline (a
-//! snapshot file of [`rover_node::snapshot`], layout in [`encode`]). Home and the collected count
+//! snapshot file of [`rover_runtime::snapshot`], layout in [`encode`]). Home and the collected count
 //! come from the mapping node (`rover/map_stats`).
 
 use rover_msgs::frames::MissionFrames;
 use rover_msgs::map_grid::CELLS;
 use rover_msgs::validate::MAX_POSITION_M;
-use rover_node::snapshot::{Fields, SnapshotError, Writer};
+use rover_runtime::snapshot::{Fields, SnapshotError, Writer};
 
 use crate::explore::ExplorerMemory;
 use crate::machine::{Recollection, Stage};

@@ -7,7 +7,7 @@ use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{MapStats, Telemetry, TerrainScan};
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tally::SampleTally;
-use rover_node::{Rejections, topics};
+use rover_runtime::{Rejections, topics};
 
 use crate::map::{ScanGrid, Update, WorldMap};
 use crate::params::MappingParams;

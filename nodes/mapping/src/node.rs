@@ -12,8 +12,8 @@ use rover_msgs::msg::MapStats;
 use rover_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
 use rover_msgs::sensor_msgs::Image;
 use rover_msgs::std_msgs::Header;
-use rover_node::snapshot::SnapshotFile;
-use rover_node::{Publisher, Runtime, publish_or_warn, topics};
+use rover_runtime::snapshot::SnapshotFile;
+use rover_runtime::{Publisher, Runtime, publish_or_warn, topics};
 use tracing::Instrument as _;
 
 use crate::image::{InsetStats, map_inset};

@@ -2,7 +2,7 @@
 
 use crate::map::MapConfig;
 
-rover_node::node_params! {
+rover_runtime::node_params! {
     /// Parameters of the mapping node.
     pub struct MappingParams {
         /// Scan cells farther than this from the rover are ignored, metres.

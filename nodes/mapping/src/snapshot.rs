@@ -1,10 +1,10 @@
 //! The mapping node's memory on disk: the map's evidence, home and the collected count, so that a
 //! node restarted after a crash carries on where the last one stopped (a snapshot file of
-//! [`rover_node::snapshot`], layout in [`encode`]).
+//! [`rover_runtime::snapshot`], layout in [`encode`]).
 
 use rover_msgs::map_grid::CELLS;
 use rover_msgs::tally::SampleTally;
-use rover_node::snapshot::{Fields, SnapshotError, Writer};
+use rover_runtime::snapshot::{Fields, SnapshotError, Writer};
 
 use crate::map::{CLASSES, Evidence, WEIGHED};
 

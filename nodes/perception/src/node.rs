@@ -7,8 +7,8 @@ use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::msg::{Telemetry, TerrainScan};
 use rover_msgs::sensor_msgs::{CompressedImage, Image};
 use rover_msgs::std_msgs::Header;
-use rover_node::pairing::Pairer;
-use rover_node::{Publisher, Rejections, Runtime, publish_or_warn, topics};
+use rover_runtime::pairing::Pairer;
+use rover_runtime::{Publisher, Rejections, Runtime, publish_or_warn, topics};
 
 use crate::Perception;
 use crate::params::PerceptionParams;

@@ -4,7 +4,7 @@ use crate::classify::{RockRule, Thresholds};
 use crate::scan::ScanGeometry;
 use crate::{Calibration, Perception};
 
-rover_node::node_params! {
+rover_runtime::node_params! {
     /// Parameters of the perception node.
     pub struct PerceptionParams {
         /// Calibration corners in the camera image: near-left x, y, near-right x, y, far-right x, y, far-left x, y (pixels).

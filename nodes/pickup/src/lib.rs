@@ -8,9 +8,9 @@ pub mod node;
 use rover_msgs::frames::MissionFrames;
 use rover_msgs::msg::Telemetry;
 use rover_msgs::tally::SampleTally;
-use rover_node::{Rejections, topics};
+use rover_runtime::{Rejections, topics};
 
-rover_node::node_params! {
+rover_runtime::node_params! {
     /// Parameters of the pickup node.
     pub struct PickupParams {
         /// The rover counts as stopped below this speed, m/s.

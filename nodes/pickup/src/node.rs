@@ -4,7 +4,7 @@ use futures::StreamExt;
 use rover_msgs::frame_ids;
 use rover_msgs::msg::PickupRequest;
 use rover_msgs::std_msgs::Header;
-use rover_node::{Rejections, Runtime, publish_or_warn, topics};
+use rover_runtime::{Rejections, Runtime, publish_or_warn, topics};
 use tracing::Instrument as _;
 
 use crate::{Pickup, PickupParams, checked_arm_input};

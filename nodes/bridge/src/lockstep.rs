@@ -9,8 +9,8 @@ use std::time::{Duration, Instant};
 
 use rover_msgs::geometry_msgs::Twist;
 use rover_msgs::validate::Validate as _;
-use rover_node::rejections::clipped;
-use rover_node::sync::lock;
+use rover_runtime::rejections::clipped;
+use rover_runtime::sync::lock;
 use tokio::sync::oneshot;
 
 use crate::insets::Insets;

@@ -10,7 +10,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use rover_node::sync::lock;
+use rover_runtime::sync::lock;
 
 /// The two inset images, as base64 JPEG (empty before the first, or in a reply, where the
 /// connection has the image already).

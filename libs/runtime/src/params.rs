@@ -358,7 +358,7 @@ pub fn help_table(specs: &[ParamSpec]) -> String {
 /// only when the node starts (a name that is not a field does not compile).
 ///
 /// ```
-/// rover_node::node_params! {
+/// rover_runtime::node_params! {
 ///     /// Parameters of an example node.
 ///     pub struct ExampleParams {
 ///         /// TCP port to listen on.
@@ -375,7 +375,7 @@ pub fn help_table(specs: &[ParamSpec]) -> String {
 /// A name in `read_at_start` that is not a parameter does not compile:
 ///
 /// ```compile_fail
-/// rover_node::node_params! {
+/// rover_runtime::node_params! {
 ///     /// Parameters with a misspelt start-only one.
 ///     pub struct MisspeltParams {
 ///         /// TCP port to listen on.

@@ -18,7 +18,7 @@ use engineioxide::handler::EngineIoHandler;
 use engineioxide::sid::Sid;
 use engineioxide::socket::{DisconnectReason, Socket};
 use engineioxide::{Str, config::EngineIoConfig, layer::EngineIoLayer};
-use rover_node::sync::lock;
+use rover_runtime::sync::lock;
 use tokio::sync::mpsc::error::TrySendError;
 use tokio::sync::oneshot;
 use tower::util::MapRequestLayer;

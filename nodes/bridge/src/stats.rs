@@ -7,8 +7,8 @@ use std::time::{Duration, Instant};
 
 use rover_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
 use rover_msgs::std_msgs::Header;
-use rover_node::rejections::worth_logging;
-use rover_node::sync::lock;
+use rover_runtime::rejections::worth_logging;
+use rover_runtime::sync::lock;
 
 use crate::reply::{CommandSource, Reply};
 

@@ -16,8 +16,8 @@ use rover_msgs::rosgraph_msgs::Clock;
 use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image};
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tf2_msgs::TFMessage;
-use rover_node::sync::lock;
-use rover_node::{Publisher, RosNode, Runtime, publish_or_warn, spawn_subscriber, topics};
+use rover_runtime::sync::lock;
+use rover_runtime::{Publisher, RosNode, Runtime, publish_or_warn, spawn_subscriber, topics};
 use tracing::Instrument as _;
 
 use crate::clock::SimClock;
@@ -28,7 +28,7 @@ use crate::server::{self, ServerConfig};
 use crate::telemetry::SimTelemetry;
 use crate::teleop::TeleopGains;
 
-rover_node::node_params! {
+rover_runtime::node_params! {
     /// Parameters of the bridge node.
     pub struct BridgeParams {
         /// Address the Socket.IO server listens on.
@@ -267,8 +267,8 @@ fn subscribe_insets(
 
 #[cfg(test)]
 mod tests {
-    use rover_node::NodeParams as _;
-    use rover_node::params::{self, ParameterValue};
+    use rover_runtime::NodeParams as _;
+    use rover_runtime::params::{self, ParameterValue};
 
     use super::*;
 

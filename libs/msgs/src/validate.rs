@@ -1,7 +1,7 @@
 //! Checks of received messages, one place for every node: the numbers a node computes with are
 //! finite and within sane bounds, sizes agree with their arrays, and no field asks for unbounded
 //! work or memory. A node checks each message it takes from DDS before using it (see
-//! `rover_node::rejections`).
+//! `rover_runtime::rejections`).
 
 use std::fmt;
 
