@@ -14,15 +14,18 @@ struct CountingAllocator {
     peak: AtomicUsize,
 }
 
+// SAFETY: every call goes on to the system allocator with the caller's layout and pointer.
 unsafe impl GlobalAlloc for CountingAllocator {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
         let in_use = self.in_use.fetch_add(layout.size(), Ordering::Relaxed) + layout.size();
         self.peak.fetch_max(in_use, Ordering::Relaxed);
+        // SAFETY: the caller's layout, as `GlobalAlloc::alloc` requires.
         unsafe { System.alloc(layout) }
     }
 
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         self.in_use.fetch_sub(layout.size(), Ordering::Relaxed);
+        // SAFETY: `ptr` came from `alloc` above with this layout.
         unsafe { System.dealloc(ptr, layout) }
     }
 }
