@@ -115,7 +115,11 @@ fn dds(slot: &mut Option<Runtime>, ros_args: rover_runtime::RosArgs, shutdown: S
     Ok(slot.insert(Runtime::new(ros_args, shutdown)?))
 }
 
-async fn run(command: Command, ros_args: rover_runtime::RosArgs, participant: &mut Option<Runtime>) -> anyhow::Result<()> {
+async fn run(
+    command: Command,
+    ros_args: rover_runtime::RosArgs,
+    participant: &mut Option<Runtime>,
+) -> anyhow::Result<()> {
     let shutdown = Shutdown::on_signals();
     match command {
         Command::Node(node) => node.run(dds(participant, ros_args, shutdown)?).await,

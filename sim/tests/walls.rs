@@ -108,7 +108,10 @@ fn procedural_walls_rise_and_steepen_as_the_surveyed_walls_do() {
             for (p, (r, o)) in ["p10", "median", "p90"].iter().zip(real.iter().zip(ours)) {
                 assert!((o / r - 1.0).abs() <= 0.25, "seed {seed}, {band:?} m: {p} height {o:.2} m, survey {r:.2}");
             }
-            assert!((our_slope - real_slope).abs() <= 10.0, "seed {seed}, {band:?} m: slope {our_slope:.0}, survey {real_slope:.0}");
+            assert!(
+                (our_slope - real_slope).abs() <= 10.0,
+                "seed {seed}, {band:?} m: slope {our_slope:.0}, survey {real_slope:.0}"
+            );
         }
     }
 }
@@ -121,5 +124,8 @@ fn procedural_walls_vary_along_their_length_over_the_surveyed_distances() {
         let (real, ours) = (surveyed.correlation_at(lag_m), procedural.correlation_at(lag_m));
         assert!((ours - real).abs() <= 0.2, "{lag_m} m along a wall: correlation {ours:.2}, survey {real:.2}");
     }
-    assert!(surveyed.correlation_at(2.0) > 0.5 && surveyed.correlation_at(16.0) < 0.2, "the survey's walls change over metres");
+    assert!(
+        surveyed.correlation_at(2.0) > 0.5 && surveyed.correlation_at(16.0) < 0.2,
+        "the survey's walls change over metres"
+    );
 }

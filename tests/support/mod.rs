@@ -180,9 +180,11 @@ impl<M: rover_msgs::RosMessage> Latest<M> {
     pub fn subscribe(node: &mut rover_runtime::RosNode, topic: &rover_runtime::topics::Topic<M>) -> Self {
         let latest = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
         let sink = latest.clone();
-        rover_runtime::spawn_subscriber(node.subscription(topic).expect("subscribe"), tracing::Span::none(), move |m| {
-            sink.lock().unwrap().push(m)
-        });
+        rover_runtime::spawn_subscriber(
+            node.subscription(topic).expect("subscribe"),
+            tracing::Span::none(),
+            move |m| sink.lock().unwrap().push(m),
+        );
         Latest { latest }
     }
 
