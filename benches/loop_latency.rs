@@ -8,7 +8,7 @@
 //! time a frame took in each process (the client is this benchmark's own process): with two
 //! telemetries always in flight, the loop's mean latency is about the CPU time of a frame when
 //! the two cores are busy. Beside the first pass a thread times a fixed piece of work every 2 ms
-//! ([`rover::steadiness`]): the share of the run the host slowed the cores, and the latency of the
+//! ([`rover::processes::steadiness`]): the share of the run the host slowed the cores, and the latency of the
 //! frames clear of those spells (the thread's CPU, about 0.03 ms a frame, counts as the client's).
 //! The verdicts hold the latency against issue 19's goal three ways: as it is, for the frames
 //! clear of the spells, and as ratios to the seed solution (the goal was set beside its 20.8 and
@@ -25,9 +25,9 @@ use std::process::Stdio;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use rover::cpu::{CpuMeter, ms_per_frame};
-use rover::graph::Graph;
-use rover::steadiness::{PERIOD, SLOW_FACTOR, Steadiness, SteadinessRecord};
+use rover::processes::cpu::{CpuMeter, ms_per_frame};
+use rover::processes::graph::Graph;
+use rover::processes::steadiness::{PERIOD, SLOW_FACTOR, Steadiness, SteadinessRecord};
 use rover_bridge::stats::HOP_NAMES;
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_runtime::{spawn_subscriber, topics};

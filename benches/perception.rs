@@ -9,8 +9,8 @@ use std::path::PathBuf;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use rover::dataset::read_log;
-use rover::replay::{frame_pose, scan_grid};
+use rover::tools::dataset::read_log;
+use rover::tools::replay::{frame_pose, scan_grid};
 use rover_mapping::map::WorldMap;
 use rover_mapping::params::MappingParams;
 use rover_perception::params::PerceptionParams;

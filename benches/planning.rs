@@ -15,8 +15,8 @@ use std::collections::BinaryHeap;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use rover::dataset::read_log;
-use rover::replay::{read_ground_truth, replay_frames};
+use rover::tools::dataset::read_log;
+use rover::tools::replay::{read_ground_truth, replay_frames};
 use rover_decision::grid::{Cell, CostMap, Costs, Grid, Planner};
 use rover_decision::params::DecisionParams;
 use rover_decision::route::path_costs;

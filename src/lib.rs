@@ -1,22 +1,7 @@
-//! The `rover` application: the subcommands that combine the libraries of the graph (replaying
-//! recorded datasets, the demo, the evaluation, recording and playing bags).
+//! The `rover` application on top of the libraries and nodes: running missions and scoring them
+//! ([`missions`]), starting and watching the graph's processes ([`processes`]), and the tools for
+//! recordings, bags and the live view ([`tools`]).
 
-pub mod bag;
-pub mod chaos;
-pub mod cpu;
-pub mod dataset;
-pub mod demo;
-pub mod eval;
-pub mod graph;
-pub mod graph_mission;
-pub mod link;
-pub mod live_view;
-pub mod mission;
-pub mod mission_map;
-pub mod nodes;
-pub mod replay;
-pub mod replay_dds;
-pub mod sim_check;
-pub mod steadiness;
-pub mod time_by_mode;
-pub mod timeline;
+pub mod missions;
+pub mod processes;
+pub mod tools;

@@ -3,8 +3,8 @@
 use std::process::ExitCode;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
-use rover::bag::{BagArgs, BagCommand};
-use rover::nodes::{Node, ROS_ARGS_HELP, node_names, run_all};
+use rover::processes::nodes::{Node, ROS_ARGS_HELP, node_names, run_all};
+use rover::tools::bag::{BagArgs, BagCommand};
 use rover_runtime::params::help_table;
 use rover_runtime::{Runtime, Shutdown, logging, split_ros_args};
 
@@ -29,32 +29,32 @@ enum Command {
     /// Replay a recorded dataset (robot_log.csv + IMG/) through perception and mapping and print
     /// the Udacity scores. Parameters: -p perception:NAME:=VALUE, -p mapping:NAME:=VALUE.
     #[command(after_help = ROS_ARGS_HELP)]
-    Replay(rover::replay::ReplayArgs),
+    Replay(rover::tools::replay::ReplayArgs),
     /// Run the demo: the simulator on the built-in procedural world and the whole graph, each node
     /// in its own process, headless; a live progress line, then a summary table, the mission's
     /// picture (PNG: map, path, samples, scores) and the JSON report. Ctrl-C stops everything.
     #[command(after_help = ROS_ARGS_HELP)]
-    Demo(rover::demo::DemoArgs),
+    Demo(rover::missions::demo::DemoArgs),
     /// Run one full mission per seed and print a table of the scores (mapped and fidelity against
     /// the simulator's true world, samples, distance home, time, frames per second, CPU time a frame).
     #[command(after_help = ROS_ARGS_HELP)]
-    Eval(rover::eval::EvalArgs),
+    Eval(rover::missions::eval::EvalArgs),
     /// Compare the simulated world with a recorded one: render the simulator at every logged pose,
     /// classify the real and the simulated image with the perception pipeline, and report how far
     /// their bird's-eye masks agree. Parameters: -p perception:NAME:=VALUE.
     #[command(name = "sim-check", after_help = ROS_ARGS_HELP)]
-    SimCheck(rover::sim_check::SimCheckArgs),
+    SimCheck(rover::tools::sim_check::SimCheckArgs),
     /// Run the headless simulator: connects to the bridge as the Unity simulator does, renders the
     /// camera, simulates the rover and prints a report at the end (or on Ctrl-C).
     Sim(rover_sim::cli::SimArgs),
     /// Record and play rosbag2 bags (MCAP storage) of the graph's topics, as `ros2 bag` does, and
     /// turn a recorded dataset into a bag.
-    Bag(rover::bag::BagArgs),
+    Bag(rover::tools::bag::BagArgs),
     /// Serve the graph's camera and its calibration, map, odometry, TF, rocks, mode, plan and
     /// telemetry live to Foxglove
     /// (Open connection, Foxglove WebSocket, ws://127.0.0.1:8765) until Ctrl-C.
     #[command(name = "live-view", after_help = ROS_ARGS_HELP)]
-    LiveView(rover::live_view::LiveViewArgs),
+    LiveView(rover::tools::live_view::LiveViewArgs),
 }
 
 /// The command line, with each node's parameter table in its long help.
@@ -129,50 +129,53 @@ async fn run(
             Ok(())
         }
         Command::Replay(args) if args.via_dds => {
-            rover::replay::run_via_dds(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
+            rover::tools::replay::run_via_dds(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
         }
         Command::Replay(args) => {
             let perception = rover_runtime::resolve_params(Node::Perception.name(), &ros_args)?;
             let mapping = rover_runtime::resolve_params(Node::Mapping.name(), &ros_args)?;
-            rover::replay::run(&args, &perception, &mapping).map(drop)
+            rover::tools::replay::run(&args, &perception, &mapping).map(drop)
         }
         Command::Eval(args) => {
-            let settings = rover::mission::NodeSettings::resolve(&ros_args)?;
+            let settings = rover::missions::in_process::NodeSettings::resolve(&ros_args)?;
             let results = if args.in_process {
-                rover::eval::run_in_process_eval(&args, &settings, &shutdown)?
+                rover::missions::eval::run_in_process_eval(&args, &settings, &shutdown)?
             } else {
-                rover::eval::run_graph_eval(&args, dds(participant, ros_args, shutdown)?, &raw_ros_args()).await?
+                rover::missions::eval::run_graph_eval(&args, dds(participant, ros_args, shutdown)?, &raw_ros_args())
+                    .await?
             };
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&results)?);
             } else {
-                print!("{}", rover::eval::table(&results));
+                print!("{}", rover::missions::eval::table(&results));
             }
             Ok(())
         }
         Command::Demo(args) => {
-            rover::demo::run_demo(&args, dds(participant, ros_args, shutdown)?, &raw_ros_args()).await.map(drop)
+            rover::missions::demo::run_demo(&args, dds(participant, ros_args, shutdown)?, &raw_ros_args())
+                .await
+                .map(drop)
         }
         Command::SimCheck(args) => {
             let perception = rover_runtime::resolve_params(Node::Perception.name(), &ros_args)?;
-            let report = rover::sim_check::check(&args, &perception)?;
+            let report = rover::tools::sim_check::check(&args, &perception)?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&report)?);
             } else {
-                print!("{}", rover::sim_check::table(&report));
+                print!("{}", rover::tools::sim_check::table(&report));
             }
             Ok(())
         }
         Command::Sim(args) => rover_sim::cli::run(&args, async move { shutdown.wait().await }).await.map(drop),
         Command::Bag(BagArgs { command: BagCommand::Record(args) }) => {
-            rover::bag::record::record(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
+            rover::tools::bag::record::record(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
         }
         Command::Bag(BagArgs { command: BagCommand::Play(args) }) => {
-            rover::bag::play::play(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
+            rover::tools::bag::play::play(&args, dds(participant, ros_args, shutdown)?).await.map(drop)
         }
         Command::Bag(BagArgs { command: BagCommand::FromDataset(args) }) => {
-            rover::bag::from_dataset::from_dataset(&args, &ros_args).map(drop)
+            rover::tools::bag::from_dataset::from_dataset(&args, &ros_args).map(drop)
         }
-        Command::LiveView(args) => rover::live_view::run(&args, dds(participant, ros_args, shutdown)?).await,
+        Command::LiveView(args) => rover::tools::live_view::run(&args, dds(participant, ros_args, shutdown)?).await,
     }
 }

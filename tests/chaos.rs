@@ -8,12 +8,12 @@ mod support;
 
 use std::time::Instant;
 
-use rover::chaos::Chaos;
-use rover::eval::RunResult;
-use rover::graph::GraphConfig;
-use rover::graph_mission::{SIMULATOR_PROCESS, run_graph_mission};
-use rover::mission_map::write_mission_png;
-use rover::nodes::Node;
+use rover::missions::chaos::Chaos;
+use rover::missions::eval::RunResult;
+use rover::missions::in_graph::{SIMULATOR_PROCESS, run_graph_mission};
+use rover::missions::picture::write_mission_png;
+use rover::processes::graph::GraphConfig;
+use rover::processes::nodes::Node;
 use rover_msgs::msg::MapStats;
 use rover_runtime::topics;
 use rover_sim::sim::SimConfig;
@@ -88,7 +88,7 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
     .expect("the mission ran");
     let wall_seconds = started.elapsed().as_secs_f64();
     let result = RunResult::of(WORLD_SEED, samples, &outcome.report, &outcome.progress, wall_seconds, &outcome.cpu);
-    println!("{}", rover::eval::table(std::slice::from_ref(&result)));
+    println!("{}", rover::missions::eval::table(std::slice::from_ref(&result)));
     let picture = log_dir.join("map.png");
     write_mission_png(&picture, &outcome.mission_map, &result).expect("write the mission's picture");
     println!("the mission's picture: {}", picture.display());

@@ -11,7 +11,7 @@ use std::collections::BTreeSet;
 use std::path::Path;
 use std::time::Duration;
 
-use rover::graph::{Graph, GraphConfig};
+use rover::processes::graph::{Graph, GraphConfig};
 use rover_bridge::stats::SILENCE_BRAKES_KEY;
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
 use rover_msgs::geometry_msgs::PoseArray;

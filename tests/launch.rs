@@ -12,8 +12,8 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::Duration;
 
 use nix::sys::signal::Signal;
-use rover::graph::send_signal;
-use rover::nodes::Node;
+use rover::processes::graph::send_signal;
+use rover::processes::nodes::Node;
 use rover_msgs::msg::{DriveCommand, Telemetry};
 use rover_runtime::ros_args::Remap;
 use rover_runtime::{RosArgs, RosNode, Runtime, Shutdown, topics};
@@ -21,7 +21,7 @@ use support::{Domain, Latest, eventually, rover};
 
 /// The processes a launcher with the simulator starts: every node, then the simulator.
 fn processes() -> Vec<&'static str> {
-    rover::nodes::node_names().chain(["sim"]).collect()
+    rover::processes::nodes::node_names().chain(["sim"]).collect()
 }
 
 fn launch_scripts() -> PathBuf {
@@ -261,7 +261,7 @@ fn rover_nodes_prints_every_node_in_start_order_for_the_launchers() {
     let output = Command::new(rover()).arg("nodes").output().expect("run rover nodes");
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let printed = String::from_utf8_lossy(&output.stdout);
-    assert_eq!(printed.lines().collect::<Vec<_>>(), rover::nodes::node_names().collect::<Vec<_>>());
+    assert_eq!(printed.lines().collect::<Vec<_>>(), rover::processes::nodes::node_names().collect::<Vec<_>>());
 }
 
 #[test]

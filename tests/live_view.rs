@@ -27,7 +27,7 @@ struct Demo(Child);
 
 impl Drop for Demo {
     fn drop(&mut self) {
-        rover::graph::send_signal(self.0.id(), nix::sys::signal::Signal::SIGINT);
+        rover::processes::graph::send_signal(self.0.id(), nix::sys::signal::Signal::SIGINT);
         let stopped = support::eventually(Duration::from_secs(15), || self.0.try_wait().ok().flatten().is_some());
         if !stopped {
             let _ = self.0.kill();

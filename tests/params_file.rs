@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use rover::nodes::Node;
+use rover::processes::nodes::Node;
 use rover_runtime::params::{self, ParamSpec, ParameterValue};
 use rover_runtime::ros_args::Remap;
 use rover_runtime::{RosArgs, resolve_params};

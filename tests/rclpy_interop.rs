@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use rover::graph::{Graph, GraphConfig};
+use rover::processes::graph::{Graph, GraphConfig};
 use rover_runtime::sync::lock;
 use support::{Domain, Process, start_process};
 
@@ -135,7 +135,7 @@ fn start_graph(mode: Mode, domain: &Domain) -> Graph {
 fn start_probe(python: &Path, domain: &Domain, report: &Path) -> Process {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/python/interop_probe.py");
     let report = report.to_str().expect("a UTF-8 temporary path");
-    let nodes = rover::nodes::node_names().collect::<Vec<_>>().join(",");
+    let nodes = rover::processes::nodes::node_names().collect::<Vec<_>>().join(",");
     start_process(python, &["-W", "ignore", script, "--out", report, "--nodes", &nodes], domain, "interop-probe")
 }
 
@@ -201,7 +201,7 @@ fn print_report(mode: Mode, report: &serde_json::Value, discovery: &[(&str, Opti
 /// The last lines of the probe's and the nodes' logs, for failure messages.
 fn log_tails(graph: &mut Graph, probe: &Process) -> String {
     let mut text = format!("\n--- probe log ({}):\n{}", probe.log.display(), tail(&probe.log_text(), 30));
-    for name in std::iter::once("all").chain(rover::nodes::node_names()) {
+    for name in std::iter::once("all").chain(rover::processes::nodes::node_names()) {
         if let Some(node) = graph.node_mut(name) {
             text += &format!("\n--- {name} log ({}):\n{}", node.log.display(), tail(&node.log_text(), 10));
         }

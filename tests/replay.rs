@@ -130,8 +130,10 @@ impl Tester {
 
 /// A recorded camera frame of the dataset.
 fn good_jpeg() -> Vec<u8> {
-    std::fs::read(rover::dataset::read_log(std::path::Path::new(&test_dataset_dir())).unwrap().frames[20].image.clone())
-        .unwrap()
+    std::fs::read(
+        rover::tools::dataset::read_log(std::path::Path::new(&test_dataset_dir())).unwrap().frames[20].image.clone(),
+    )
+    .unwrap()
 }
 
 #[tokio::test(flavor = "multi_thread")]

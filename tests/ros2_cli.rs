@@ -120,7 +120,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
     let mut nodes = String::new();
     let listed = eventually(Duration::from_secs(30), || {
         nodes = ros2(&domain, Duration::from_secs(15), &["node", "list"]).1;
-        rover::nodes::node_names().all(|node| nodes.lines().any(|line| line.trim() == format!("/{node}")))
+        rover::processes::nodes::node_names().all(|node| nodes.lines().any(|line| line.trim() == format!("/{node}")))
     });
     assert!(listed, "`ros2 node list` lacks nodes:\n{nodes}\ngraph log:\n{}", graph.log_text());
     eprintln!(

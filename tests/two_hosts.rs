@@ -10,7 +10,7 @@ use std::process::{Child, Command, Output, Stdio};
 use std::time::Duration;
 
 use nix::sys::signal::Signal;
-use rover::graph::send_signal;
+use rover::processes::graph::send_signal;
 
 const ONE_WAY_DELAY_MS: f64 = 10.0;
 

@@ -1,6 +1,6 @@
 //! `link_emulator`: joins two network namespaces by an impaired link, for kernels without `netem`.
 //! It opens a TUN device in each namespace and forwards every packet (multicast included, for DDS
-//! discovery) from one to the other with the delay, jitter and loss asked for ([`rover::link`]).
+//! discovery) from one to the other with the delay, jitter and loss asked for ([`rover::processes::link`]).
 //! `tools/two-hosts` starts it and gives the devices their addresses and routes.
 
 use std::fs::File;
@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::Parser;
-use rover::link::{Direction, Impairment, LinkCounts};
+use rover::processes::link::{Direction, Impairment, LinkCounts};
 use rover_runtime::{Shutdown, logging};
 
 /// Largest packet a TUN device hands over (its MTU is 1500; this leaves room).

@@ -10,7 +10,7 @@ use rover_sim::wire::client::{ClientConfig, ClientStats, Simulation, run_client}
 use rover_sim::wire::command::Command;
 use rover_sim::wire::telemetry::TelemetryValues;
 
-use rover::dataset::{RecordedFrame, read_log};
+use rover::tools::dataset::{RecordedFrame, read_log};
 
 use super::test_dataset_dir;
 

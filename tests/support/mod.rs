@@ -68,8 +68,8 @@ pub fn start_bridge(domain: &Domain, extra: &[&str]) -> Process {
 
 /// A graph of the test's `rover` binary on `domain` and its port, logging into `log_dir`, all on
 /// this host, without respawning.
-pub fn graph_config(domain: &Domain, log_dir: PathBuf) -> rover::graph::GraphConfig {
-    rover::graph::GraphConfig {
+pub fn graph_config(domain: &Domain, log_dir: PathBuf) -> rover::processes::graph::GraphConfig {
+    rover::processes::graph::GraphConfig {
         rover: rover(),
         domain_id: Some(domain.id),
         port: domain.port(),
@@ -114,7 +114,7 @@ impl Drop for Domain {
 }
 
 /// A child process of a test: interrupted (SIGINT) when dropped, its stderr in a log file.
-pub type Process = rover::graph::NodeProcess;
+pub type Process = rover::processes::graph::NodeProcess;
 
 /// How long a test process gets to exit after SIGINT.
 pub const STOP_TIMEOUT: Duration = Duration::from_secs(5);
@@ -228,7 +228,7 @@ pub fn python_with(modules: &[&str]) -> Option<PathBuf> {
 
 /// A free TCP port on the loopback.
 pub fn free_port() -> u16 {
-    rover::graph::free_port().expect("a free port")
+    rover::processes::graph::free_port().expect("a free port")
 }
 
 /// The official `ros2` command line (`ROVER_ROS2`, else `ros2` on the PATH: `.venv/bin/ros2` after

@@ -2,11 +2,11 @@
 //! ([`map`]) with pitch and roll corrected through the camera model ([`projection`]), the exact
 //! Udacity scores ([`score`]), the map inset image ([`image`]), the located rocks ([`rocks`]), the
 //! snapshot that a restarted node carries on from ([`snapshot`]) and what the node does with each
-//! message ([`mission`]), which the in-process mission runs too.
+//! message ([`mapper`]), which the in-process mission runs too.
 
 pub mod image;
 pub mod map;
-pub mod mission;
+pub mod mapper;
 pub mod node;
 pub mod params;
 pub mod projection;

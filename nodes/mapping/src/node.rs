@@ -17,7 +17,7 @@ use rover_runtime::{Publisher, Runtime, publish_or_warn, topics};
 use tracing::Instrument as _;
 
 use crate::image::{InsetStats, map_inset};
-use crate::mission::{MapPublication, MappingCore};
+use crate::mapper::{MapPublication, MappingCore};
 use crate::params::MappingParams;
 use crate::score::ground_truth_from_png;
 use crate::snapshot;
@@ -222,7 +222,7 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mission::test_scans::{rock_scan, with_samples};
+    use crate::mapper::test_scans::{rock_scan, with_samples};
 
     #[test]
     fn a_new_collected_count_is_on_disk_before_it_is_published() {

@@ -32,7 +32,7 @@ REPO_ROOT = os.path.abspath(os.path.join(HERE, '..', '..', '..'))
 DRIVER = os.path.join(HERE, 'drive_baseline.py')
 DEFAULT_ROVER = os.path.join(REPO_ROOT, 'target', 'release', 'rover')
 
-# The mission targets of `rover eval` (src/eval.rs, RunResult::complete), without its
+# The mission targets of `rover eval` (src/missions/eval.rs, RunResult::complete), without its
 # `final_mode == "done"` condition: the baseline has no such mode (see docs/mission.md).
 TARGET_MAPPED_PCT = 90.0
 TARGET_FIDELITY_PCT = 85.0

@@ -23,7 +23,7 @@ use serde::Serialize;
 use self::bands::BandTally;
 pub use self::bands::{BANDS, BandColours, ColourSummary, band_of};
 use self::squares::{SquareSummary, is_held_out, square_of, square_summaries};
-use crate::dataset::{ReadReport, RecordedFrame, read_log};
+use crate::tools::dataset::{ReadReport, RecordedFrame, read_log};
 
 /// Options of `rover sim-check`.
 #[derive(Debug, Clone, clap::Args)]

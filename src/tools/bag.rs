@@ -26,16 +26,16 @@ pub struct BagArgs {
 pub enum BagCommand {
     /// Record topics of the graph into a new rosbag2 bag (MCAP storage) until Ctrl-C or SIGTERM;
     /// a progress line every few seconds, the message count of each topic at the end.
-    #[command(after_help = crate::nodes::ROS_ARGS_HELP)]
+    #[command(after_help = crate::processes::nodes::ROS_ARGS_HELP)]
     Record(record::RecordArgs),
     /// Play a bag back: each message on its topic, with the topic table's QoS, at the bag's
     /// pace (the log times, divided by --rate), until the end or Ctrl-C.
-    #[command(after_help = crate::nodes::ROS_ARGS_HELP)]
+    #[command(after_help = crate::processes::nodes::ROS_ARGS_HELP)]
     Play(play::PlayArgs),
     /// Turn a recorded dataset (robot_log.csv + IMG/) into a bag of the topics the bridge
     /// publishes for each frame (camera image and info, telemetry, odom, /tf, and /tf_static
     /// once), stamped at the frame times of the image names.
-    #[command(name = "from-dataset", after_help = crate::nodes::ROS_ARGS_HELP)]
+    #[command(name = "from-dataset", after_help = crate::processes::nodes::ROS_ARGS_HELP)]
     FromDataset(from_dataset::FromDatasetArgs),
 }
 

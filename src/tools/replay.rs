@@ -12,7 +12,7 @@ use rover_perception::params::PerceptionParams;
 use rover_perception::scan::ScanGeometry;
 use serde::Serialize;
 
-use crate::dataset::{RecordedFrame, read_log};
+use crate::tools::dataset::{RecordedFrame, read_log};
 
 /// Options of `rover replay`.
 #[derive(Debug, Clone, clap::Args)]
@@ -157,7 +157,7 @@ pub fn run(args: &ReplayArgs, perception: &PerceptionParams, mapping: &MappingPa
 /// Runs `rover replay --via-dds` against the running nodes and prints the report.
 pub async fn run_via_dds(args: &ReplayArgs, runtime: &rover_runtime::Runtime) -> anyhow::Result<ReplayReport> {
     let frames = read_log(&args.dataset)?.frames;
-    let report = crate::replay_dds::replay_over_dds(&frames, runtime).await?;
+    let report = crate::tools::replay_dds::replay_over_dds(&frames, runtime).await?;
     print_report(args, &report)?;
     Ok(report)
 }

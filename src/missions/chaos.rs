@@ -3,8 +3,8 @@
 
 use rover_sim::random::SplitMix64;
 
-use crate::graph::Graph;
-use crate::nodes::Node;
+use crate::processes::graph::Graph;
+use crate::processes::nodes::Node;
 
 /// A node to kill at a moment of simulated time.
 #[derive(Debug, Clone, PartialEq)]

@@ -11,8 +11,8 @@ use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::msg::MapStats;
 use rover_runtime::{NoParams, Runtime, messages, topics};
 
-use crate::dataset::RecordedFrame;
-use crate::replay::ReplayReport;
+use crate::tools::dataset::RecordedFrame;
+use crate::tools::replay::ReplayReport;
 
 /// How long to wait for the terrain scan of a frame.
 const SCAN_TIMEOUT: Duration = Duration::from_secs(5);

@@ -11,7 +11,7 @@ use rover_imaging::text::{draw_text, text_height_px, text_width_px};
 use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_xy};
 use rover_sim::sim::Simulator;
 
-use crate::eval::RunResult;
+use crate::missions::eval::RunResult;
 
 /// Pixels along each side of a map cell.
 pub const PX_PER_CELL: usize = 4;

@@ -10,14 +10,14 @@ use rover_runtime::Runtime;
 use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 
-use crate::bag::record::Recorder;
-use crate::bag::summary;
-use crate::eval::{RunResult, table};
-use crate::graph::{GraphConfig, free_port};
-use crate::graph_mission::run_graph_mission;
-use crate::live_view::{self, LiveView, LiveViewArgs};
-use crate::mission::Progress;
-use crate::mission_map::write_mission_png;
+use crate::missions::eval::{RunResult, table};
+use crate::missions::in_graph::run_graph_mission;
+use crate::missions::in_process::Progress;
+use crate::missions::picture::write_mission_png;
+use crate::processes::graph::{GraphConfig, free_port};
+use crate::tools::bag::record::Recorder;
+use crate::tools::bag::summary;
+use crate::tools::live_view::{self, LiveView, LiveViewArgs};
 
 /// Without a terminal, a progress line is printed every this many simulated seconds.
 const LINE_EVERY_SIM_S: f64 = 50.0;

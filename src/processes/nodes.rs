@@ -1,5 +1,5 @@
 //! The nodes of the graph, each run by the `rover` subcommand of its name: the one list that
-//! `rover all`, the process graph of [`crate::graph`], the launchers (through `rover nodes`) and
+//! `rover all`, the process graph of [`crate::processes::graph`], the launchers (through `rover nodes`) and
 //! the tests take the nodes from.
 
 use futures::future::{FutureExt as _, LocalBoxFuture, try_join_all};

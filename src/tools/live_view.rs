@@ -14,7 +14,7 @@ use rover_runtime::topics::{self, Topic, TopicVisitor, visit_all};
 use rover_runtime::{MessageInfo, NoParams, RosNode, Runtime, spawn_subscriber_with_info};
 use tokio::task::JoinHandle;
 
-use crate::bag::record::message_time;
+use crate::tools::bag::record::message_time;
 
 /// Foxglove's default port for a live connection.
 pub const DEFAULT_PORT: u16 = 8765;

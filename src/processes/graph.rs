@@ -12,7 +12,7 @@ use anyhow::Context as _;
 use nix::sys::signal::Signal;
 use nix::unistd::Pid;
 
-use crate::nodes::node_names;
+use crate::processes::nodes::node_names;
 
 /// How a graph is started.
 #[derive(Debug, Clone)]
@@ -261,7 +261,7 @@ impl BackOff {
 }
 
 impl Graph {
-    /// Starts every node of [`crate::nodes::Node::ALL`].
+    /// Starts every node of [`crate::processes::nodes::Node::ALL`].
     pub fn start(config: GraphConfig) -> anyhow::Result<Self> {
         Self::start_nodes(config, &node_names().collect::<Vec<_>>())
     }

@@ -14,7 +14,7 @@ use rover_runtime::names::NodeIdentity;
 use rover_runtime::topics;
 
 use super::{add_topic, summary, write_message};
-use crate::dataset::{RecordedFrame, read_log};
+use crate::tools::dataset::{RecordedFrame, read_log};
 
 /// The node name the topics are resolved for (namespace and remaps as for a recorder).
 const CONVERTER_NODE: &str = "rosbag2_recorder";

@@ -12,15 +12,15 @@ use rover_runtime::{Runtime, Shutdown};
 use rover_sim::sim::{SimConfig, SimReport};
 use serde::Serialize;
 
-use crate::chaos::Chaos;
-use crate::cpu::{CpuMeter, ms_per_frame};
-use crate::graph::{GraphConfig, RemoteNodes, free_port, log_dir};
-use crate::graph_mission::run_graph_mission;
-use crate::mission::{NodeSettings, Progress, Replies, run_in_process};
-use crate::mission_map::{MissionMap, write_mission_png};
-use crate::nodes::Node;
-use crate::time_by_mode::{self, TimeByMode};
-use crate::timeline::Timeline;
+use crate::missions::chaos::Chaos;
+use crate::missions::in_graph::run_graph_mission;
+use crate::missions::in_process::{NodeSettings, Progress, Replies, run_in_process};
+use crate::missions::picture::{MissionMap, write_mission_png};
+use crate::missions::time_by_mode::{self, TimeByMode};
+use crate::missions::timeline::Timeline;
+use crate::processes::cpu::{CpuMeter, ms_per_frame};
+use crate::processes::graph::{GraphConfig, RemoteNodes, free_port, log_dir};
+use crate::processes::nodes::Node;
 
 /// Options of `rover eval`.
 #[derive(Debug, Clone, clap::Args)]

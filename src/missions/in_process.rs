@@ -15,7 +15,7 @@ use rover_decision::grid::Grid;
 use rover_decision::machine::{Machine, Mode};
 use rover_decision::params::DecisionParams;
 use rover_mapping::map::WorldMap;
-use rover_mapping::mission::{MapPublication, MappingCore};
+use rover_mapping::mapper::{MapPublication, MappingCore};
 use rover_mapping::params::MappingParams;
 use rover_mapping::score::{LocatedSamples, occupancy_scores};
 use rover_msgs::std_msgs::Header;
@@ -27,10 +27,10 @@ use rover_sim::wire::command::{Command, parse_command};
 use rover_sim::world::World;
 use serde::Serialize;
 
-use crate::mission_map::{DrivenPath, MissionMap, sample_marks};
-use crate::nodes::Node;
-use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
-use crate::timeline::Timeline;
+use crate::missions::picture::{DrivenPath, MissionMap, sample_marks};
+use crate::missions::time_by_mode::{ModeClock, TimeByMode, activity_of};
+use crate::missions::timeline::Timeline;
+use crate::processes::nodes::Node;
 
 /// Telemetry messages in flight, as between the simulator's client and the bridge: the client
 /// emits one when the websocket opens and one on the Engine.IO open packet, then one per command

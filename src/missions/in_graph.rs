@@ -1,4 +1,4 @@
-//! A mission with every node in its own process: the graph of [`crate::graph`] started from this
+//! A mission with every node in its own process: the graph of [`crate::processes::graph`] started from this
 //! executable, the simulator's Unity client running in this process, and an evaluator node that
 //! scores the published `map` against the simulator's true world. `rover demo` and `rover eval`
 //! run missions this way.
@@ -23,12 +23,12 @@ use rover_sim::wire::client::{ClientConfig, run_client};
 use rover_sim::world::World;
 use tokio::sync::Notify;
 
-use crate::cpu::CpuMeter;
-use crate::graph::{Graph, GraphConfig};
-use crate::mission::{Progress, Replies};
-use crate::mission_map::{MissionMap, sample_marks};
-use crate::time_by_mode::{ModeClock, TimeByMode, activity_of};
-use crate::timeline::Timeline;
+use crate::missions::in_process::{Progress, Replies};
+use crate::missions::picture::{MissionMap, sample_marks};
+use crate::missions::time_by_mode::{ModeClock, TimeByMode, activity_of};
+use crate::missions::timeline::Timeline;
+use crate::processes::cpu::CpuMeter;
+use crate::processes::graph::{Graph, GraphConfig};
 
 /// How often the progress callback runs, wall clock.
 const PROGRESS_PERIOD: Duration = Duration::from_millis(500);

@@ -1,0 +1,10 @@
+//! Tools around the graph: recorded datasets read as the simulator wrote them, replayed through
+//! perception and mapping, compared with the simulator (`rover sim-check`), rosbag2 bags, and the
+//! Foxglove live view.
+
+pub mod bag;
+pub mod dataset;
+pub mod live_view;
+pub mod replay;
+pub mod replay_dds;
+pub mod sim_check;
