@@ -1,0 +1,120 @@
+//! The explore mode: drive to the frontiers of the map; go for a sample when one is located within
+//! reach; widen the search when no frontier is left; then home.
+
+use super::{Machine, Observation, State};
+use crate::drive::Drive;
+use crate::route::PlanStart;
+
+/// With no frontier in reach because the map walls the rover in, it backs out up to this many
+/// times before it gives the frontiers up.
+const WALLED_IN_RECOVERIES: u32 = 3;
+/// With no frontier left (given-up ones and paths past obstacles included) while samples are
+/// missing, the explorer forgets the walls it has seen up close and looks again, up to this many
+/// times, before the rover goes home.
+const INSPECTION_RESETS: u32 = 2;
+
+/// How far the search has been widened when frontiers ran out.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Widening {
+    /// Recoveries started since the last frontier because the map walls the rover in.
+    walled_in_recoveries: u32,
+    /// Times the explorer forgot the cells seen up close because no frontier was left.
+    inspections_forgotten: u32,
+}
+
+impl Machine {
+    pub(super) fn explore(&mut self, obs: &Observation) -> Drive {
+        if let Some(reason) = self.time_to_go_home(obs) {
+            self.enter(State::ReturnHome(None), reason);
+            return self.return_home(obs, None);
+        }
+        if let Some(chase) = self.sample_to_chase(obs, self.params.sample_detour_cost) {
+            self.enter(State::Approach(chase.clone()), "sample located");
+            return self.approach(obs, chase);
+        }
+        let (p, home) = (&self.params, self.mission.status.home);
+        let from = PlanStart { map: &self.maps.planning, at: &obs.position, frame: obs.frame, params: p };
+        if let Some(waypoint) = self.explorer.waypoint(&from, home) {
+            self.widening.walled_in_recoveries = 0;
+            let bearing = obs.position.bearing_to(waypoint);
+            tracing::trace!(
+                bearing_deg = bearing.to_degrees(),
+                free_ahead = obs.free.toward(0.0),
+                best = ?obs.free.best_toward(bearing as f32, p.clearance_m as f32),
+                "explore"
+            );
+            return self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, p);
+        }
+        if self.maps.planning.version() == 0 {
+            return self.steering.around_obstacles(0.0, p.max_speed_mps, obs.speed_mps, &obs.free, p);
+        }
+        let brake = p.brake;
+        if self.explorer.walled_in() && self.widening.walled_in_recoveries < WALLED_IN_RECOVERIES {
+            self.widening.walled_in_recoveries += 1;
+            self.start_recovery(obs, "walled in by the map (a restart next to a rock?): backing out");
+            return Drive::stop(brake);
+        }
+        if self.maps.forget_stuck_marks_to_explore(&obs.position) {
+            tracing::info!("no frontier reachable: the cells where the rover got stuck are free again");
+            return Drive::stop(brake);
+        }
+        match self.widen_search(obs.samples_remaining) {
+            Some(step) => {
+                tracing::info!("no frontier left, {} samples not found: {step}", obs.samples_remaining);
+                Drive::stop(brake)
+            }
+            None => self.finish_exploring(obs),
+        }
+    }
+
+    /// With no frontier left and `samples_remaining` samples not found, widens the search by one
+    /// step: the frontiers given up, then planning past obstacle cells, then the walls seen before
+    /// (a few times); what it did, or `None` when nothing is left to widen.
+    fn widen_search(&mut self, samples_remaining: u8) -> Option<&'static str> {
+        if samples_remaining == 0 {
+            return None;
+        }
+        if self.explorer.forget_explored() {
+            return Some("trying given-up frontiers again");
+        }
+        if self.explorer.look_past_obstacles() {
+            return Some("planning past obstacle cells");
+        }
+        if self.widening.inspections_forgotten < INSPECTION_RESETS && self.explorer.forget_inspected() {
+            self.widening.inspections_forgotten += 1;
+            return Some("looking again at the walls seen before");
+        }
+        None
+    }
+
+    /// The end of exploring: a sample left on the map at any cost, else home.
+    fn finish_exploring(&mut self, obs: &Observation) -> Drive {
+        if let Some(chase) = self.sample_to_chase(obs, f64::INFINITY) {
+            self.enter(State::Approach(chase.clone()), "map explored, sample left");
+            return self.approach(obs, chase);
+        }
+        let (free_cells, obstacle_cells, unknown_cells) = self.maps.received.counts();
+        tracing::info!(
+            free_cells,
+            obstacle_cells,
+            unknown_cells,
+            map_version = self.maps.planning.version(),
+            at = ?(obs.position.x_m, obs.position.y_m),
+            rocks = ?self.samples.located(),
+            given_up = ?self.samples.ignored(),
+            "no frontier left"
+        );
+        self.enter(State::ReturnHome(None), "no frontier left");
+        self.return_home(obs, None)
+    }
+
+    /// Whether the way home, at the return speed, would end past the mission's deadline.
+    pub(super) fn time_to_go_home(&self, obs: &Observation) -> Option<&'static str> {
+        let p = &self.params;
+        let home = self.mission.status.home?;
+        let elapsed_s = obs.frame as f64 * p.frame_period_s;
+        let way_home_m = self.explorer.cost_to(home).unwrap_or_else(|| obs.position.distance_to(home));
+        let return_s = way_home_m / (p.max_speed_mps * p.return_speed_fraction);
+        (elapsed_s + return_s >= p.mission_deadline_s).then_some("mission deadline")
+    }
+}

@@ -1,0 +1,129 @@
+//! The recover mode: when the rover is tilted, stuck or stalled it backs off, stops, turns toward
+//! the most open side, and goes back to what it was doing.
+
+use rover_msgs::map_grid::cell_centre_m;
+
+use super::{Machine, Observation, State};
+use crate::drive::{Drive, STOPPED_MPS};
+use crate::params::DecisionParams;
+use crate::stuck::{DrivingWatch, ProgressWatch};
+
+/// Moving less than this while driving counts toward being stuck, metres...
+const STUCK_PROGRESS_M: f64 = 0.3;
+/// ...when the rover has come to a stop, m/s (a slow approach is not stuck).
+const STUCK_SPEED_MPS: f64 = 0.1;
+/// Moving less than this, whatever the rover is told, counts toward being stalled, metres.
+const STALL_PROGRESS_M: f64 = 1.0;
+
+/// What tells that the rover is stuck or stalled.
+#[derive(Debug, Clone)]
+pub(super) struct Watches {
+    stuck: DrivingWatch,
+    stall: ProgressWatch,
+    /// The drive command of the frame before.
+    pub(super) last_drive: Drive,
+}
+
+impl Default for Watches {
+    fn default() -> Self {
+        Watches { stuck: DrivingWatch::default(), stall: ProgressWatch::default(), last_drive: Drive::stop(0.0) }
+    }
+}
+
+impl Watches {
+    /// Starts watching afresh (a new mode).
+    pub(super) fn reset(&mut self) {
+        self.stuck.reset();
+        self.stall.reset();
+    }
+
+    /// Whether the rover, told to drive, has stopped at a spot where it was told to drive for a
+    /// while without getting anywhere (turns in place in between included).
+    pub(super) fn stuck(&mut self, obs: &Observation, params: &DecisionParams) -> bool {
+        let driving = self.last_drive.drives();
+        let frames = self.stuck.driving_frames_within(&obs.position, obs.frame, STUCK_PROGRESS_M, driving);
+        driving && frames >= params.frames(params.stuck_s) && obs.speed_mps.abs() < STUCK_SPEED_MPS
+    }
+
+    /// Whether the rover has stayed in one spot for long, turning or not (a goal that the camera
+    /// and the map disagree about can keep it turning back and forth).
+    fn stalled(&mut self, obs: &Observation, params: &DecisionParams) -> bool {
+        self.stall.frames_within(&obs.position, obs.frame, STALL_PROGRESS_M) >= params.frames(params.stall_s)
+    }
+}
+
+fn tilted(obs: &Observation, params: &DecisionParams) -> bool {
+    let limit = params.tilt_limit_deg.to_radians();
+    obs.pitch_rad.abs() > limit || obs.roll_rad.abs() > limit
+}
+
+impl Machine {
+    /// Starts a recovery when the rover is tilted, stuck or stalled; stuck and stalled mark the
+    /// cell ahead for planning.
+    pub(super) fn check_for_trouble(&mut self, obs: &Observation) {
+        if tilted(obs, &self.params) {
+            self.start_recovery(obs, "tilted");
+        } else if self.watches.stuck(obs, &self.params) {
+            self.mark_stuck_cell(obs);
+            self.start_recovery(obs, "stuck");
+        } else if self.watches.stalled(obs, &self.params) {
+            self.mark_stuck_cell(obs);
+            self.start_recovery(obs, "no progress");
+        }
+    }
+
+    /// Makes a cell at the stuck rover's front, or the next one of its plan, an obstacle for
+    /// planning for a while, so that the next plan leads around what the map did not show.
+    pub(super) fn mark_stuck_cell(&mut self, obs: &Observation) {
+        let path = self.path().to_vec();
+        let maps = &mut self.maps;
+        let (at, grid) = ((&obs.position, obs.frame), maps.planning.grid());
+        if let Some(cell) = maps.stuck_marks.note_stuck(at, grid, &path, &self.params) {
+            tracing::debug!(
+                cell = ?cell_centre_m(cell),
+                "stuck: a cell at the front or on the plan is an obstacle for a while"
+            );
+            maps.apply_stuck_marks();
+        }
+    }
+
+    pub(super) fn start_recovery(&mut self, obs: &Observation, reason: &str) {
+        match &self.state {
+            State::Explore => self.explorer.note_recovery(),
+            State::Approach(chase) => self.note_failed_approach(chase.at, obs),
+            _ => {}
+        }
+        let turn_left = obs.free.most_open() >= 0.0;
+        tracing::debug!(
+            at = ?(obs.position.x_m, obs.position.y_m),
+            yaw_deg = obs.position.yaw_rad.to_degrees(),
+            pitch_deg = obs.pitch_rad.to_degrees(),
+            roll_deg = obs.roll_rad.to_degrees(),
+            turn_left,
+            "recovering"
+        );
+        let then_home = matches!(self.state, State::ReturnHome(_));
+        self.enter(State::Recover { since_frame: obs.frame, turn_left, then_home }, reason);
+    }
+
+    /// Backs off, stops, turns; then back to exploring or on the way home.
+    pub(super) fn recover(&mut self, obs: &Observation, since_frame: u64, turn_left: bool, then_home: bool) -> Drive {
+        let p = &self.params;
+        let elapsed = obs.frame.saturating_sub(since_frame);
+        let back = p.frames(p.recover_back_s);
+        if elapsed < back {
+            return Drive { throttle: -p.recover_throttle, brake: 0.0, steering_deg: 0.0 };
+        }
+        if elapsed < back + p.frames(p.recover_turn_s) {
+            // Backing up ends in a full stop before the turn.
+            return if obs.speed_mps.abs() > STOPPED_MPS {
+                Drive::stop(p.brake)
+            } else {
+                Drive::turn_in_place(turn_left)
+            };
+        }
+        let brake = p.brake;
+        self.enter(if then_home { State::ReturnHome(None) } else { State::Explore }, "recovered");
+        Drive::stop(brake)
+    }
+}

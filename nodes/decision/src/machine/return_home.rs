@@ -1,0 +1,47 @@
+//! The return-home mode: follow a path on the map to the start, picking up a sample located on
+//! the way while there is time; done within `home_tolerance_m`.
+
+use super::{Machine, Observation, State};
+use crate::drive::Drive;
+use crate::route::{PlanStart, Route};
+
+impl Machine {
+    pub(super) fn return_home(&mut self, obs: &Observation, route: Option<Route>) -> Drive {
+        let brake = self.params.brake;
+        let Some(home) = self.mission.status.home else {
+            self.state = State::ReturnHome(route);
+            return Drive::stop(brake);
+        };
+        let distance_m = obs.position.distance_to(home);
+        if distance_m <= self.params.home_tolerance_m {
+            self.enter(State::Done, "home");
+            return Drive::stop(brake);
+        }
+        let detour =
+            self.time_to_go_home(obs).is_none().then(|| self.sample_to_chase(obs, self.params.sample_detour_cost));
+        if let Some(chase) = detour.flatten() {
+            self.enter(State::Approach(chase.clone()), "sample located on the way home");
+            return self.approach(obs, chase);
+        }
+        let mut route = route.or_else(|| Route::to(home));
+        let mut waypoint = self.waypoint_on(route.as_mut(), obs);
+        if waypoint.is_none() && self.maps.forget_stuck_marks() {
+            tracing::info!("home unreachable: the cells where the rover got stuck are free again");
+            waypoint = self.waypoint_on(route.as_mut(), obs);
+        }
+        let waypoint = waypoint.unwrap_or(home);
+        let bearing = obs.position.bearing_to(waypoint);
+        let p = &self.params;
+        let cruise = p.max_speed_mps.min(distance_m.max(p.approach_speed_mps));
+        let drive = self.steering.around_obstacles(bearing, cruise, obs.speed_mps, &obs.free, p);
+        self.state = State::ReturnHome(route);
+        drive
+    }
+
+    /// The point of `route` to steer toward from the rover's position on the planning map; none
+    /// without a route or when its goal cannot be reached.
+    fn waypoint_on(&self, route: Option<&mut Route>, obs: &Observation) -> Option<(f64, f64)> {
+        let start = PlanStart { map: &self.maps.planning, at: &obs.position, frame: obs.frame, params: &self.params };
+        route?.waypoint(&start)
+    }
+}
