@@ -7,11 +7,11 @@
 //! ([`schema`]). The messages are the CDR bytes as published, encapsulation header included.
 //! This crate deals in plain types and bytes; the `rover bag` command wires it to DDS.
 
-pub mod metadata;
-pub mod qos;
-pub mod reader;
+mod metadata;
+mod qos;
+mod reader;
 pub mod schema;
-pub mod writer;
+mod writer;
 
 use std::path::{Path, PathBuf};
 

@@ -5,7 +5,7 @@
 //! with the `png` crate. [`text`] and [`shapes`] draw on RGB images, for the map pictures;
 //! [`message`] turns them into `sensor_msgs/Image` messages and back.
 
-pub mod jpeg;
+mod jpeg;
 pub mod message;
 pub mod shapes;
 pub mod text;

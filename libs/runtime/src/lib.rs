@@ -16,7 +16,7 @@ pub mod params;
 pub mod qos;
 pub mod rejections;
 pub mod ros_args;
-pub mod shutdown;
+mod shutdown;
 pub mod snapshot;
 pub mod sync;
 pub mod topics;

@@ -5,14 +5,14 @@
 //! carries, [`convert`] builds the ROS messages, [`clock`] counts simulated time and [`node`] wires
 //! it all to the topics.
 
-pub mod clock;
+mod clock;
 pub mod convert;
-pub mod insets;
-pub mod lockstep;
+mod insets;
+mod lockstep;
 pub mod node;
 pub mod reply;
-pub mod server;
-pub mod sio;
+mod server;
+mod sio;
 pub mod stats;
 pub mod telemetry;
-pub mod teleop;
+mod teleop;

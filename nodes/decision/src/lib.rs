@@ -3,20 +3,20 @@
 //!
 //! The machine, its modes and its planning are plain types; [`node`] is the DDS wiring to the topics.
 
-pub mod approach;
-pub mod arrivals;
+mod approach;
+mod arrivals;
 pub mod drive;
-pub mod explore;
+mod explore;
 pub mod grid;
 pub mod local;
 pub mod machine;
 pub mod node;
 pub mod params;
-pub mod pose;
+mod pose;
 pub mod route;
-pub mod samples;
-pub mod snapshot;
-pub mod stuck;
+mod samples;
+mod snapshot;
+mod stuck;
 #[cfg(test)]
 mod test_maps;
 pub mod tour;

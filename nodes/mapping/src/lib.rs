@@ -4,12 +4,12 @@
 //! snapshot that a restarted node carries on from ([`snapshot`]) and what the node does with each
 //! message ([`mapper`]), which the in-process mission runs too.
 
-pub mod image;
+mod image;
 pub mod map;
 pub mod mapper;
 pub mod node;
 pub mod params;
 pub mod projection;
-pub mod rocks;
+mod rocks;
 pub mod score;
-pub mod snapshot;
+mod snapshot;

@@ -87,15 +87,15 @@ pub fn invert(m: &Matrix3) -> Option<Matrix3> {
     ])
 }
 
-/// Applies a homography to a point.
-pub fn apply(m: &Matrix3, x: f64, y: f64) -> (f64, f64) {
-    let w = m[6] * x + m[7] * y + m[8];
-    ((m[0] * x + m[1] * y + m[2]) / w, (m[3] * x + m[4] * y + m[5]) / w)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Applies a homography to a point.
+    fn apply(m: &Matrix3, x: f64, y: f64) -> (f64, f64) {
+        let w = m[6] * x + m[7] * y + m[8];
+        ((m[0] * x + m[1] * y + m[2]) / w, (m[3] * x + m[4] * y + m[5]) / w)
+    }
 
     const SOURCE: [[f32; 2]; 4] = [[14.0, 140.0], [301.0, 140.0], [200.0, 96.0], [118.0, 96.0]];
     const DESTINATION: [[f32; 2]; 4] = [[155.0, 154.0], [165.0, 154.0], [165.0, 144.0], [155.0, 144.0]];

@@ -7,11 +7,11 @@
 //! pixels where they decide it, else from its interpolated colour, and that is all.
 
 pub mod classify;
-pub mod homography;
+mod homography;
 pub mod node;
 pub mod params;
 pub mod scan;
-pub mod warp;
+mod warp;
 
 use rover_imaging::{ImageError, RgbImage};
 
