@@ -6,6 +6,7 @@
 //! parameter struct, and wires the node's [`topics`] to a plain library.
 
 pub mod cdr;
+pub mod graph;
 pub mod logging;
 mod matching;
 pub mod names;

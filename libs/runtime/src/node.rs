@@ -12,6 +12,7 @@ use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::std_msgs::Header;
 use tokio::sync::watch;
 
+use crate::graph::NodeTopics;
 use crate::matching::Matches;
 use crate::names::NodeIdentity;
 use crate::params::{self, Assignment, NodeParams, ParamValues, USE_SIM_TIME};
@@ -101,7 +102,8 @@ impl Runtime {
         crate::logging::register_rosout(&identity.fully_qualified(), node.logging_handle());
         let node = Arc::new(Mutex::new(node));
         crate::param_services::start(&node, P::specs())?;
-        let mut node = RosNode { node, identity, matches: self.matches.clone(), sim_time: None };
+        let topics = crate::graph::node_topics(default_name);
+        let mut node = RosNode { node, identity, topics, matches: self.matches.clone(), sim_time: None };
         if node.uses_sim_time() {
             node.follow_clock()?;
         }
@@ -142,6 +144,8 @@ pub fn resolve_params<P: NodeParams>(default_name: &str, ros_args: &RosArgs) -> 
 pub struct RosNode {
     node: Arc<Mutex<ros2_client::Node>>,
     identity: NodeIdentity,
+    /// What the graph table lets the node read and write; none for a tool outside the graph.
+    topics: Option<&'static NodeTopics>,
     matches: Matches,
     /// The latest `/clock` time, when the node uses simulated time.
     sim_time: Option<Arc<Mutex<Time>>>,
@@ -185,7 +189,7 @@ impl RosNode {
     fn follow_clock(&mut self) -> anyhow::Result<()> {
         let latest = Arc::new(Mutex::new(Time::default()));
         let clock = Arc::clone(&latest);
-        spawn_subscriber(self.subscription(&topics::CLOCK)?, self.span(), move |message| {
+        spawn_subscriber(self.subscribe(&topics::CLOCK)?, self.span(), move |message| {
             *lock(&clock) = message.clock;
         });
         self.sim_time = Some(latest);
@@ -194,6 +198,7 @@ impl RosNode {
 
     /// Creates a publisher on `topic`.
     pub fn publisher<M: RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<Publisher<M>> {
+        self.check_in_table(topic.name, "write", |t| t.writes)?;
         let dds_topic = self.dds_topic(topic)?;
         self.inner()
             .create_publisher(&dds_topic, None)
@@ -202,10 +207,31 @@ impl RosNode {
 
     /// Creates a subscription on `topic`.
     pub fn subscription<M: RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<Subscription<M>> {
+        self.check_in_table(topic.name, "read", |t| t.reads)?;
+        self.subscribe(topic)
+    }
+
+    fn subscribe<M: RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<Subscription<M>> {
         let dds_topic = self.dds_topic(topic)?;
         self.inner()
             .create_subscription(&dds_topic, Some(topic.reader_qos()))
             .with_context(|| format!("cannot create a subscription on {}", topic.name))
+    }
+
+    /// Refuses a topic that the graph table does not give a node of the graph to `verb`.
+    fn check_in_table(
+        &self,
+        topic: &str,
+        verb: &str,
+        listed: impl Fn(&NodeTopics) -> &'static [&'static str],
+    ) -> anyhow::Result<()> {
+        match self.topics {
+            Some(entry) if !listed(entry).contains(&topic) => anyhow::bail!(
+                "the graph table (libs/runtime/src/graph.rs) does not let node {} {verb} {topic}: add it there",
+                entry.node
+            ),
+            _ => Ok(()),
+        }
     }
 
     /// The messages of `topic` as a stream (see [`messages`]).

@@ -1,0 +1,114 @@
+//! The graph in one table: which topics of [`crate::topics`] each node reads and writes. A node
+//! of the table can open a publisher or a subscription only on a topic the table gives it, so the
+//! table is what the nodes do; the docs' picture of the graph is checked against it.
+
+use crate::topics::{
+    CAMERA_COMPRESSED, CAMERA_INFO, CAMERA_RAW, CLOCK, CMD_VEL, DIAGNOSTICS, DRIVE_CMD, MAP, MAP_IMAGE, MAP_STATS,
+    MODE, ODOM, PICKUP, PLAN, ROCKS, SAMPLE_TRUTH, TELEMETRY, TERRAIN, TF, TF_STATIC, VISION,
+};
+
+/// One node of the graph: its name and the topics it reads and writes (names as in the topic
+/// table, before namespacing and remapping).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NodeTopics {
+    /// The node's default name.
+    pub node: &'static str,
+    /// Topics it subscribes to.
+    pub reads: &'static [&'static str],
+    /// Topics it publishes.
+    pub writes: &'static [&'static str],
+}
+
+/// Every node of the graph, in start order. `/clock` is read by any node with `use_sim_time`
+/// (the runtime's business, not the node's) and `/rosout` written by all, so neither is listed
+/// as read or written by the nodes that do so only for that.
+pub const GRAPH: [NodeTopics; 5] = [
+    NodeTopics {
+        node: "bridge",
+        reads: &[DRIVE_CMD.name, PICKUP.name, CMD_VEL.name, MAP_IMAGE.name, VISION.name],
+        writes: &[
+            CAMERA_COMPRESSED.name,
+            CAMERA_RAW.name,
+            CAMERA_INFO.name,
+            TELEMETRY.name,
+            ODOM.name,
+            TF.name,
+            TF_STATIC.name,
+            SAMPLE_TRUTH.name,
+            CLOCK.name,
+            DIAGNOSTICS.name,
+        ],
+    },
+    NodeTopics {
+        node: "perception",
+        reads: &[CAMERA_COMPRESSED.name, TELEMETRY.name],
+        writes: &[TERRAIN.name, VISION.name],
+    },
+    NodeTopics {
+        node: "mapping",
+        reads: &[TERRAIN.name, SAMPLE_TRUTH.name],
+        writes: &[MAP.name, MAP_IMAGE.name, MAP_STATS.name, ROCKS.name],
+    },
+    NodeTopics {
+        node: "decision",
+        reads: &[TERRAIN.name, MAP.name, ROCKS.name, MAP_STATS.name],
+        writes: &[DRIVE_CMD.name, MODE.name, PLAN.name],
+    },
+    NodeTopics { node: "pickup", reads: &[TELEMETRY.name], writes: &[PICKUP.name] },
+];
+
+/// The table's entry of the node named `node`; none for a process outside the graph (a tool, a
+/// recorder).
+pub fn node_topics(node: &str) -> Option<&'static NodeTopics> {
+    GRAPH.iter().find(|entry| entry.node == node)
+}
+
+/// Topics that come into the graph from outside it: read by a node, written by none.
+pub fn inputs_from_outside() -> impl Iterator<Item = &'static str> {
+    let written = |topic: &str| GRAPH.iter().any(|n| n.writes.contains(&topic));
+    let mut inputs: Vec<&str> = GRAPH.iter().flat_map(|n| n.reads.iter().copied()).filter(|t| !written(t)).collect();
+    inputs.sort_unstable();
+    inputs.dedup();
+    inputs.into_iter()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::topics::{Topic, TopicVisitor, visit_all};
+
+    /// The names of every topic of the topic table.
+    struct Names(Vec<&'static str>);
+
+    impl TopicVisitor for Names {
+        fn visit<M: rover_msgs::RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<()> {
+            self.0.push(topic.name);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn every_topic_of_the_topic_table_is_written_by_a_node_or_comes_from_outside() {
+        let mut names = Names(Vec::new());
+        visit_all(&mut names).unwrap();
+        for topic in names.0 {
+            let written = GRAPH.iter().any(|n| n.writes.contains(&topic));
+            assert!(written || topic == CMD_VEL.name, "{topic}: in the topic table but written by no node");
+        }
+    }
+
+    #[test]
+    fn only_teleoperation_comes_from_outside_the_graph() {
+        assert_eq!(inputs_from_outside().collect::<Vec<_>>(), [CMD_VEL.name]);
+    }
+
+    #[test]
+    fn each_topic_has_one_writer_and_no_node_reads_what_it_writes() {
+        for topic in GRAPH.iter().flat_map(|n| n.writes.iter()) {
+            assert_eq!(GRAPH.iter().filter(|n| n.writes.contains(topic)).count(), 1, "{topic}: one writer");
+        }
+        for node in &GRAPH {
+            assert!(node.reads.iter().all(|t| !node.writes.contains(t)), "{} reads what it writes", node.node);
+        }
+    }
+}
