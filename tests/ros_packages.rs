@@ -63,7 +63,7 @@ fn library_crates_are_not_ros_packages() {
         .iter()
         .filter(|p| p["name"] != "rover")
         .map(|p| Path::new(p["manifest_path"].as_str().expect("manifest_path")).with_file_name("package.xml"))
-        .filter(|xml| xml.exists() && xml.parent() != Some(&Path::new(env!("CARGO_MANIFEST_DIR")).join("msgs")))
+        .filter(|xml| xml.exists() && xml.parent() != Some(&Path::new(env!("CARGO_MANIFEST_DIR")).join("libs/msgs")))
         .map(|xml| xml.display().to_string())
         .collect();
     assert!(
