@@ -11,7 +11,7 @@ use crate::camera::{BodyPose, CameraModel};
 use crate::physics::Rover;
 use crate::render::{RenderOptions, Renderer};
 use crate::wire::client::Simulation;
-use crate::wire::command::Command;
+use crate::wire::command::{Command, CommandError, parse_command};
 use crate::wire::telemetry::TelemetryValues;
 use crate::world::{Sample, World};
 
@@ -188,6 +188,16 @@ impl Simulator {
                 report.distance_m
             );
         }
+    }
+
+    /// Takes one event of the bridge as the Unity client takes it (`data`, `pickup`, `manual`,
+    /// `fixed_turn`, with its JSON argument) and steps once; an event the client ignores does
+    /// nothing.
+    pub fn receive_event(&mut self, name: &str, data: &serde_json::Value) -> Result<(), CommandError> {
+        if let Some(command) = parse_command(name, Some(data))? {
+            self.step(command);
+        }
+        Ok(())
     }
 
     /// The telemetry JSON object of the current state, with a freshly rendered camera JPEG.

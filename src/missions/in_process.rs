@@ -1,15 +1,11 @@
-//! A whole mission in one thread, without DDS or sockets: the simulator, the bridge's telemetry
-//! parsing, and the library code the perception, mapping, decision and pickup nodes run, called in
-//! the order the graph runs them. It is the fast loop for developing the decision logic and for
+//! A whole mission in one thread, without DDS or sockets: the simulator linked as the bridge links
+//! it ([`DirectLink`]), and the library code the perception, mapping, decision and pickup nodes
+//! run, called in the order the graph runs them. It is the fast loop for developing the decision logic and for
 //! tests of it; `rover eval` runs the same mission with every node in its own process.
 
-use std::collections::VecDeque;
 use std::time::Instant;
 
-use rover_bridge::convert::telemetry_message;
-use rover_bridge::node::BridgeParams;
-use rover_bridge::reply::{DataEvent, DriveValues};
-use rover_bridge::telemetry::{SimTelemetry, parse_telemetry};
+use rover_bridge::direct::{DirectLink, Frame, UnityPeer};
 use rover_decision::drive::Drive;
 use rover_decision::grid::Grid;
 use rover_decision::machine::{Machine, Mode};
@@ -23,7 +19,6 @@ use rover_perception::params::PerceptionParams;
 use rover_pickup::{Pickup, PickupParams, checked_arm_input};
 use rover_runtime::{Rejections, RosArgs, Shutdown, resolve_params};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
-use rover_sim::wire::command::{Command, parse_command};
 use rover_sim::world::World;
 use serde::Serialize;
 
@@ -31,12 +26,6 @@ use crate::missions::picture::{DrivenPath, MissionMap, sample_marks};
 use crate::missions::time_by_mode::{ModeClock, TimeByMode, activity_of};
 use crate::missions::timeline::Timeline;
 use crate::processes::nodes::Node;
-
-/// Telemetry messages in flight, as between the simulator's client and the bridge: the client
-/// emits one when the websocket opens and one on the Engine.IO open packet, then one per command
-/// (unity-sim-spec 1.5), so two request/reply loops circulate and each command is applied one
-/// step after the state it was decided on.
-const LOOPS_IN_FLIGHT: usize = 2;
 
 /// The parameters of every node of the mission.
 #[derive(Debug, Clone, Default)]
@@ -125,7 +114,7 @@ pub fn run_in_process(
     let samples: Vec<(f64, f64)> = world.samples.iter().map(|s| (s.x_m, s.y_m)).collect();
     tracing::debug!("samples at {samples:.1?}");
     let config = SimConfig { step_s: settings.decision.frame_period_s, ..SimConfig::default() };
-    let mut sim = Simulator::new(world, config);
+    let mut link = DirectLink::open(SimulatorPeer(Simulator::new(world, config)))?;
     let (mut perception, geometry) = settings.perception.pipeline()?;
     let mut mapping = MappingCore::new(settings.mapping.clone(), None);
     let mut machine = Machine::new(settings.decision.clone());
@@ -155,21 +144,15 @@ pub fn run_in_process(
             replies: Replies::default(),
         }
     };
-    let max_payload_bytes = BridgeParams::default().max_payload_bytes as usize;
     let started = Instant::now();
-    let mut in_flight = VecDeque::with_capacity(LOOPS_IN_FLIGHT);
-    for _ in 0..LOOPS_IN_FLIGHT {
-        in_flight.push_back(read_telemetry(&mut sim, max_payload_bytes)?);
-    }
     for frame in 1.. {
         if shutdown.is_requested() {
-            anyhow::bail!("interrupted at {:.1} sim s", sim.report().sim_seconds);
+            anyhow::bail!("interrupted at {:.1} sim s", link.peer().0.report().sim_seconds);
         }
-        let telemetry = in_flight.pop_front().expect("a telemetry is in flight for each loop");
-        let message = telemetry_message(&telemetry, frame, Header::default());
+        let Frame { telemetry: message, image_jpeg } = link.next_frame(frame);
         path.record(message.x_m, message.y_m);
         clock.on_frame(frame, activity_of(machine.status().mode.name(), &message), config.step_s);
-        let classes = perception.process_jpeg(&telemetry.image_jpeg)?;
+        let classes = perception.process_jpeg(&image_jpeg)?;
         let scan = geometry.terrain_scan(classes, &message, Header::default());
         mapping.add_scan(&scan);
         if mapping.publication_due() {
@@ -187,67 +170,49 @@ pub fn run_in_process(
         // that check decisions to the metre go through the plans it makes ahead.
         machine.prepare_next_frame(&observation.position);
         let arm = checked_arm_input(&message, &mut pickup_rejections);
-        let command = if arm.is_some_and(|arm| pickup.on_telemetry(&arm, &settings.pickup)) {
-            Command::Pickup
+        if arm.is_some_and(|arm| pickup.on_telemetry(&arm, &settings.pickup)) {
+            link.send_pickup()?;
         } else {
-            drive_as_sent(&drive, settings.decision.brake)
-        };
-        sim.step(command);
-        in_flight.push_back(read_telemetry(&mut sim, max_payload_bytes)?);
+            send_drive(&mut link, &drive, settings.decision.brake)?;
+        }
+        let sim = &link.peer().0;
         timeline.note(sim.report().sim_seconds, mapped_pct, sim.report().samples_collected);
         let mode = machine.status().mode;
         if frame % progress_every_frames.max(1) == 0 {
-            on_progress(&snapshot(&sim, mapping.map(), &located, mode, &clock, &timeline));
+            on_progress(&snapshot(sim, mapping.map(), &located, mode, &clock, &timeline));
         }
         if mode == Mode::Done || sim.report().sim_seconds >= max_sim_seconds {
             break;
         }
     }
     tracing::debug!("mission took {:.1} s", started.elapsed().as_secs_f64());
-    let progress = snapshot(&sim, mapping.map(), &located, machine.status().mode, &clock, &timeline);
+    let sim = &link.peer().0;
+    let progress = snapshot(sim, mapping.map(), &located, machine.status().mode, &clock, &timeline);
     let start = sim.world().start;
     let mission_map = MissionMap {
         occupancy: mapping.map().occupancy(),
         ground_truth: truth,
         path,
         home_m: (start.x_m, start.y_m),
-        samples: sample_marks(&sim),
+        samples: sample_marks(sim),
     };
     Ok(MissionOutcome { report: sim.report(), progress, mission_map })
 }
 
-/// The drive command as the simulator gets it through the graph: in the `f32` of
-/// `rover/drive_cmd`, checked and clamped by the bridge (a non-finite one brakes), written as the
-/// text of a `data` event and read back by the simulator.
-fn drive_as_sent(drive: &Drive, brake: f64) -> Command {
-    let values = DriveValues::checked(drive.throttle as f32, drive.brake as f32, drive.steering_deg as f32)
-        .unwrap_or_else(|_| DriveValues::brake(brake as f32));
-    let event = serde_json::to_value(DataEvent::new(values, "", "")).expect("a data event is JSON");
-    parse_command("data", Some(&event)).ok().flatten().expect("the simulator reads the bridge's data event")
-}
+/// The simulator as the bridge's peer in this process.
+struct SimulatorPeer(Simulator);
 
-/// The simulator's next telemetry, parsed as the bridge parses it, refused beyond `max_bytes`.
-fn read_telemetry(sim: &mut Simulator, max_bytes: usize) -> anyhow::Result<SimTelemetry> {
-    parse_telemetry(&sim.telemetry(), max_bytes)?.ok_or_else(|| anyhow::anyhow!("the simulator sent empty telemetry"))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_drive_is_sent_as_the_graph_sends_it() {
-        let drive = Drive { throttle: 0.3, brake: 0.713_479_546_953_064_8, steering_deg: 5.0 };
-        let Command::Drive { steering_deg, throttle, brake } = drive_as_sent(&drive, 10.0) else {
-            panic!("a drive command")
-        };
-        assert_eq!(brake, 0.713_479_5, "the shortest text of the f32 of rover/drive_cmd");
-        assert_eq!((throttle, steering_deg), (0.3, 5.0));
-        let backwards = Drive { throttle: 0.0, brake: -1.0, steering_deg: 0.0 };
-        assert!(matches!(drive_as_sent(&backwards, 10.0), Command::Drive { brake: 0.0, .. }), "clamped at zero");
-        let wild = Drive { throttle: 2.0, brake: 0.0, steering_deg: -40.0 };
-        assert!(matches!(drive_as_sent(&wild, 10.0), Command::Drive { throttle: 1.0, steering_deg: -15.0, .. }));
-        let broken = Drive { throttle: f64::NAN, brake: 0.0, steering_deg: 0.0 };
-        assert!(matches!(drive_as_sent(&broken, 10.0), Command::Drive { throttle: 0.0, brake: 10.0, .. }));
+impl UnityPeer for SimulatorPeer {
+    fn telemetry_json(&mut self) -> String {
+        self.0.telemetry()
     }
+
+    fn receive(&mut self, event: &str, data: &serde_json::Value) -> anyhow::Result<()> {
+        Ok(self.0.receive_event(event, data)?)
+    }
+}
+
+/// Sends `drive` as the decision node publishes it: in the `f32` of `rover/drive_cmd`.
+fn send_drive(link: &mut DirectLink<SimulatorPeer>, drive: &Drive, brake: f64) -> anyhow::Result<()> {
+    link.send_drive(drive.throttle as f32, drive.brake as f32, drive.steering_deg as f32, brake as f32)
 }

@@ -3,14 +3,15 @@
 //! [`telemetry`] parses the simulator's dialect, [`lockstep`] answers every frame exactly once,
 //! [`server`] speaks Socket.IO to the simulator, [`insets`] says which inset images a reply
 //! carries, [`convert`] builds the ROS messages, [`clock`] counts simulated time and [`node`] wires
-//! it all to the topics.
+//! it all to the topics; [`direct`] is the same link to a simulator in the same process.
 
 mod clock;
 pub mod convert;
+pub mod direct;
 mod insets;
 mod lockstep;
 pub mod node;
-pub mod reply;
+mod reply;
 mod server;
 mod sio;
 pub mod stats;

@@ -1,0 +1,155 @@
+//! The bridge's side of a simulator in the same process, without a socket: each telemetry read as
+//! the bridge reads it off the wire and numbered as the bridge numbers it, each command written as
+//! the bridge writes its events, and two telemetries in flight as with the Unity client (one on
+//! open, one on the Engine.IO open, then one per command). The in-process mission runs the graph's
+//! libraries over it.
+
+use std::collections::VecDeque;
+
+use rover_msgs::msg::Telemetry;
+use rover_msgs::std_msgs::Header;
+use serde_json::Value;
+
+use crate::convert::telemetry_message;
+use crate::node::BridgeParams;
+use crate::reply::{DataEvent, DriveValues};
+use crate::telemetry::{SimTelemetry, parse_telemetry};
+
+/// Telemetry messages in flight between the Unity client and the bridge (unity-sim-spec 1.5), so
+/// that each command is applied one step after the state it was decided on.
+const LOOPS_IN_FLIGHT: usize = 2;
+
+/// A simulator in the same process that speaks the Unity client's messages.
+pub trait UnityPeer {
+    /// The telemetry JSON object of its current state.
+    fn telemetry_json(&mut self) -> String;
+    /// Takes one event of the bridge, its name and JSON argument, and steps once.
+    fn receive(&mut self, event: &str, data: &Value) -> anyhow::Result<()>;
+}
+
+/// One frame as the graph gets it.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    /// The telemetry message, numbered.
+    pub telemetry: Telemetry,
+    /// The camera JPEG.
+    pub image_jpeg: Vec<u8>,
+}
+
+/// A simulator linked to the graph's libraries as the bridge links it over the socket.
+pub struct DirectLink<P> {
+    peer: P,
+    in_flight: VecDeque<SimTelemetry>,
+    max_payload_bytes: usize,
+}
+
+impl<P: UnityPeer> DirectLink<P> {
+    /// Opens the link: the peer's first telemetries go in flight.
+    pub fn open(peer: P) -> anyhow::Result<Self> {
+        let max_payload_bytes = BridgeParams::default().max_payload_bytes as usize;
+        let mut link = DirectLink { peer, in_flight: VecDeque::with_capacity(LOOPS_IN_FLIGHT), max_payload_bytes };
+        for _ in 0..LOOPS_IN_FLIGHT {
+            link.read_telemetry()?;
+        }
+        Ok(link)
+    }
+
+    /// The simulator.
+    pub fn peer(&self) -> &P {
+        &self.peer
+    }
+
+    /// The next telemetry in flight, as frame `frame` of the graph.
+    pub fn next_frame(&mut self, frame: u64) -> Frame {
+        let telemetry = self.in_flight.pop_front().expect("a telemetry is in flight for each command sent");
+        Frame { telemetry: telemetry_message(&telemetry, frame, Header::default()), image_jpeg: telemetry.image_jpeg }
+    }
+
+    /// Sends a drive command as the bridge answers with one: checked and clamped in the `f32` of
+    /// `rover/drive_cmd` (a non-finite one brakes with `brake`), as the text of a `data` event.
+    pub fn send_drive(
+        &mut self,
+        throttle: f32,
+        brake: f32,
+        steering_deg: f32,
+        fallback_brake: f32,
+    ) -> anyhow::Result<()> {
+        let values =
+            DriveValues::checked(throttle, brake, steering_deg).unwrap_or_else(|_| DriveValues::brake(fallback_brake));
+        self.send("data", serde_json::to_value(DataEvent::new(values, "", ""))?)
+    }
+
+    /// Sends a pickup, as the bridge does for a pending `rover/pickup`.
+    pub fn send_pickup(&mut self) -> anyhow::Result<()> {
+        self.send("pickup", Value::Object(serde_json::Map::new()))
+    }
+
+    fn send(&mut self, event: &str, data: Value) -> anyhow::Result<()> {
+        self.peer.receive(event, &data)?;
+        self.read_telemetry()
+    }
+
+    /// Reads the peer's telemetry as the bridge parses it, refused beyond its payload limit.
+    fn read_telemetry(&mut self) -> anyhow::Result<()> {
+        let telemetry = parse_telemetry(&self.peer.telemetry_json(), self.max_payload_bytes)?
+            .ok_or_else(|| anyhow::anyhow!("the simulator sent empty telemetry"))?;
+        self.in_flight.push_back(telemetry);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A peer that answers with telemetry numbered by the events it got, and keeps the events.
+    #[derive(Default)]
+    struct Recorder {
+        events: Vec<(String, Value)>,
+    }
+
+    impl UnityPeer for Recorder {
+        fn telemetry_json(&mut self) -> String {
+            let x = 100.0 + self.events.len() as f64;
+            format!(
+                r#"{{"steering_angle":"0","throttle":"0","brake":"0","speed":"0","position":"{x};50","pitch":"0","yaw":"90","roll":"0","near_sample":"0","picking_up":"0","sample_count":"6","samples_x":"1","samples_y":"2","image":"/9j/4AAQ"}}"#
+            )
+        }
+
+        fn receive(&mut self, event: &str, data: &Value) -> anyhow::Result<()> {
+            self.events.push((event.to_string(), data.clone()));
+            Ok(())
+        }
+    }
+
+    fn field<'a>(event: &'a (String, Value), name: &str) -> &'a str {
+        event.1[name].as_str().expect("a string value")
+    }
+
+    #[test]
+    fn each_command_is_applied_two_frames_after_the_state_it_answers() {
+        let mut link = DirectLink::open(Recorder::default()).unwrap();
+        let first = link.next_frame(1);
+        assert_eq!((first.telemetry.frame, first.telemetry.x_m), (1, 100.0));
+        link.send_drive(0.3, 0.0, 5.0, 10.0).unwrap();
+        assert_eq!(link.next_frame(2).telemetry.x_m, 100.0, "the second telemetry of the open");
+        link.send_pickup().unwrap();
+        assert_eq!(link.next_frame(3).telemetry.x_m, 101.0, "the state after the first command");
+        assert_eq!(link.peer().events[1], ("pickup".to_string(), Value::Object(serde_json::Map::new())));
+    }
+
+    #[test]
+    fn a_drive_is_sent_as_the_bridge_sends_it() {
+        let mut link = DirectLink::open(Recorder::default()).unwrap();
+        link.send_drive(0.3, 0.713_479_546_953_064_8_f64 as f32, 5.0, 10.0).unwrap();
+        link.send_drive(2.0, -1.0, -40.0, 10.0).unwrap();
+        link.send_drive(f32::NAN, 0.0, 0.0, 10.0).unwrap();
+        let events = &link.peer().events;
+        assert!(events.iter().all(|(name, _)| name == "data"));
+        assert_eq!(field(&events[0], "brake"), "0.7134795", "the shortest text of the f32");
+        assert_eq!((field(&events[0], "throttle"), field(&events[0], "steering_angle")), ("0.3", "5"));
+        let clamped = (field(&events[1], "throttle"), field(&events[1], "brake"), field(&events[1], "steering_angle"));
+        assert_eq!(clamped, ("1", "0", "-15"));
+        assert_eq!((field(&events[2], "throttle"), field(&events[2], "brake")), ("0", "10"), "NaN brakes");
+    }
+}
