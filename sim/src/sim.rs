@@ -191,13 +191,12 @@ impl Simulator {
     }
 
     /// Takes one event of the bridge as the Unity client takes it (`data`, `pickup`, `manual`,
-    /// `fixed_turn`, with its JSON argument) and steps once; an event the client ignores does
-    /// nothing.
-    pub fn receive_event(&mut self, name: &str, data: &serde_json::Value) -> Result<(), CommandError> {
-        if let Some(command) = parse_command(name, Some(data))? {
-            self.step(command);
-        }
-        Ok(())
+    /// `fixed_turn`, with its JSON argument) and steps once; whether it stepped (an event the
+    /// client ignores does nothing).
+    pub fn receive_event(&mut self, name: &str, data: &serde_json::Value) -> Result<bool, CommandError> {
+        let Some(command) = parse_command(name, Some(data))? else { return Ok(false) };
+        self.step(command);
+        Ok(true)
     }
 
     /// The telemetry JSON object of the current state, with a freshly rendered camera JPEG.
@@ -262,6 +261,22 @@ mod tests {
         let first = run(3);
         assert_eq!(first, run(3));
         assert_ne!(first, run(4));
+    }
+
+    #[test]
+    fn an_event_of_the_bridge_steps_as_its_command() {
+        let world = || crate::procgen::procedural_world(5);
+        let event = |name: &str, data: serde_json::Value| {
+            let mut simulator = Simulator::new(world(), SimConfig::default());
+            let stepped = simulator.receive_event(name, &data);
+            (stepped, simulator.telemetry())
+        };
+        let mut by_command = Simulator::new(world(), SimConfig::default());
+        by_command.step(Command::Drive { steering_deg: 5.0, throttle: 0.3, brake: 0.7134795 });
+        let data = serde_json::json!({"throttle": "0.3", "brake": "0.7134795", "steering_angle": "5"});
+        assert_eq!(event("data", data), (Ok(true), by_command.telemetry()));
+        assert_eq!(event("get_samples", serde_json::json!({})).0, Ok(false), "ignored, as the Unity client does");
+        assert!(event("data", serde_json::json!({"throttle": "fast"})).0.is_err());
     }
 
     #[test]

@@ -14,6 +14,7 @@ use rover_mapping::map::WorldMap;
 use rover_mapping::mapper::{MapPublication, MappingCore};
 use rover_mapping::params::MappingParams;
 use rover_mapping::score::{LocatedSamples, occupancy_scores};
+use rover_msgs::msg::DriveCommand;
 use rover_msgs::std_msgs::Header;
 use rover_perception::params::PerceptionParams;
 use rover_pickup::{Pickup, PickupParams, checked_arm_input};
@@ -149,7 +150,8 @@ pub fn run_in_process(
         if shutdown.is_requested() {
             anyhow::bail!("interrupted at {:.1} sim s", link.peer().0.report().sim_seconds);
         }
-        let Frame { telemetry: message, image_jpeg } = link.next_frame(frame);
+        let Frame { telemetry: message, image_jpeg } =
+            link.next_frame(frame).expect("each command sent brings the telemetry of a frame");
         path.record(message.x_m, message.y_m);
         clock.on_frame(frame, activity_of(machine.status().mode.name(), &message), config.step_s);
         let classes = perception.process_jpeg(&image_jpeg)?;
@@ -173,7 +175,7 @@ pub fn run_in_process(
         if arm.is_some_and(|arm| pickup.on_telemetry(&arm, &settings.pickup)) {
             link.send_pickup()?;
         } else {
-            send_drive(&mut link, &drive, settings.decision.brake)?;
+            send_drive(&mut link, frame, &drive, settings.decision.brake)?;
         }
         let sim = &link.peer().0;
         timeline.note(sim.report().sim_seconds, mapped_pct, sim.report().samples_collected);
@@ -207,12 +209,19 @@ impl UnityPeer for SimulatorPeer {
         self.0.telemetry()
     }
 
-    fn receive(&mut self, event: &str, data: &serde_json::Value) -> anyhow::Result<()> {
+    fn receive(&mut self, event: &str, data: &serde_json::Value) -> anyhow::Result<bool> {
         Ok(self.0.receive_event(event, data)?)
     }
 }
 
-/// Sends `drive` as the decision node publishes it: in the `f32` of `rover/drive_cmd`.
-fn send_drive(link: &mut DirectLink<SimulatorPeer>, drive: &Drive, brake: f64) -> anyhow::Result<()> {
-    link.send_drive(drive.throttle as f32, drive.brake as f32, drive.steering_deg as f32, brake as f32)
+/// Sends `drive` as the decision node publishes it for `frame`: in the `f32` of `rover/drive_cmd`.
+fn send_drive(link: &mut DirectLink<SimulatorPeer>, frame: u64, drive: &Drive, brake: f64) -> anyhow::Result<()> {
+    let command = DriveCommand {
+        header: Header::default(),
+        frame,
+        throttle: drive.throttle as f32,
+        brake: drive.brake as f32,
+        steering_angle_deg: drive.steering_deg as f32,
+    };
+    link.send_drive(&command, brake as f32)
 }

@@ -6,7 +6,7 @@
 
 use std::collections::VecDeque;
 
-use rover_msgs::msg::Telemetry;
+use rover_msgs::msg::{DriveCommand, Telemetry};
 use rover_msgs::std_msgs::Header;
 use serde_json::Value;
 
@@ -23,8 +23,9 @@ const LOOPS_IN_FLIGHT: usize = 2;
 pub trait UnityPeer {
     /// The telemetry JSON object of its current state.
     fn telemetry_json(&mut self) -> String;
-    /// Takes one event of the bridge, its name and JSON argument, and steps once.
-    fn receive(&mut self, event: &str, data: &Value) -> anyhow::Result<()>;
+    /// Takes one event of the bridge, its name and JSON argument; whether it stepped (and so
+    /// has a telemetry to send), as the Unity client answers only the commands it applies.
+    fn receive(&mut self, event: &str, data: &Value) -> anyhow::Result<bool>;
 }
 
 /// One frame as the graph gets it.
@@ -59,23 +60,20 @@ impl<P: UnityPeer> DirectLink<P> {
         &self.peer
     }
 
-    /// The next telemetry in flight, as frame `frame` of the graph.
-    pub fn next_frame(&mut self, frame: u64) -> Frame {
-        let telemetry = self.in_flight.pop_front().expect("a telemetry is in flight for each command sent");
-        Frame { telemetry: telemetry_message(&telemetry, frame, Header::default()), image_jpeg: telemetry.image_jpeg }
+    /// The next telemetry in flight, as frame `frame` of the graph; none when every telemetry has
+    /// been taken and no command sent since.
+    pub fn next_frame(&mut self, frame: u64) -> Option<Frame> {
+        let telemetry = self.in_flight.pop_front()?;
+        let message = telemetry_message(&telemetry, frame, Header::default());
+        Some(Frame { telemetry: message, image_jpeg: telemetry.image_jpeg })
     }
 
-    /// Sends a drive command as the bridge answers with one: checked and clamped in the `f32` of
-    /// `rover/drive_cmd` (a non-finite one brakes with `brake`), as the text of a `data` event.
-    pub fn send_drive(
-        &mut self,
-        throttle: f32,
-        brake: f32,
-        steering_deg: f32,
-        fallback_brake: f32,
-    ) -> anyhow::Result<()> {
-        let values =
-            DriveValues::checked(throttle, brake, steering_deg).unwrap_or_else(|_| DriveValues::brake(fallback_brake));
+    /// Sends a drive command as the bridge answers with one: clamped, as the text of a `data`
+    /// event. A command the bridge refuses (not finite) is a brake of `refused_brake` here: one
+    /// thread has no last command to hold.
+    pub fn send_drive(&mut self, command: &DriveCommand, refused_brake: f32) -> anyhow::Result<()> {
+        let values = DriveValues::checked(command.throttle, command.brake, command.steering_angle_deg)
+            .unwrap_or_else(|_| DriveValues::brake(refused_brake));
         self.send("data", serde_json::to_value(DataEvent::new(values, "", ""))?)
     }
 
@@ -85,7 +83,9 @@ impl<P: UnityPeer> DirectLink<P> {
     }
 
     fn send(&mut self, event: &str, data: Value) -> anyhow::Result<()> {
-        self.peer.receive(event, &data)?;
+        if !self.peer.receive(event, &data)? {
+            anyhow::bail!("the simulator ignored the {event} event");
+        }
         self.read_telemetry()
     }
 
@@ -116,9 +116,9 @@ mod tests {
             )
         }
 
-        fn receive(&mut self, event: &str, data: &Value) -> anyhow::Result<()> {
+        fn receive(&mut self, event: &str, data: &Value) -> anyhow::Result<bool> {
             self.events.push((event.to_string(), data.clone()));
-            Ok(())
+            Ok(event != "ignored")
         }
     }
 
@@ -126,30 +126,43 @@ mod tests {
         event.1[name].as_str().expect("a string value")
     }
 
+    fn drive(throttle: f32, brake: f32, steering_angle_deg: f32) -> DriveCommand {
+        DriveCommand { header: Header::default(), frame: 1, throttle, brake, steering_angle_deg }
+    }
+
     #[test]
     fn each_command_is_applied_two_frames_after_the_state_it_answers() {
         let mut link = DirectLink::open(Recorder::default()).unwrap();
-        let first = link.next_frame(1);
+        let first = link.next_frame(1).unwrap();
         assert_eq!((first.telemetry.frame, first.telemetry.x_m), (1, 100.0));
-        link.send_drive(0.3, 0.0, 5.0, 10.0).unwrap();
-        assert_eq!(link.next_frame(2).telemetry.x_m, 100.0, "the second telemetry of the open");
+        link.send_drive(&drive(0.3, 0.0, 5.0), 10.0).unwrap();
+        assert_eq!(link.next_frame(2).unwrap().telemetry.x_m, 100.0, "the second telemetry of the open");
         link.send_pickup().unwrap();
-        assert_eq!(link.next_frame(3).telemetry.x_m, 101.0, "the state after the first command");
+        assert_eq!(link.next_frame(3).unwrap().telemetry.x_m, 101.0, "the state after the first command");
         assert_eq!(link.peer().events[1], ("pickup".to_string(), Value::Object(serde_json::Map::new())));
+        assert_eq!(link.next_frame(4).unwrap().telemetry.x_m, 102.0);
+        assert!(link.next_frame(5).is_none(), "nothing in flight until the next command");
+    }
+
+    #[test]
+    fn an_event_the_simulator_ignores_is_an_error_not_a_lost_loop() {
+        let mut link = DirectLink::open(Recorder::default()).unwrap();
+        let error = link.send("ignored", Value::Null).unwrap_err();
+        assert!(error.to_string().contains("ignored the ignored event"), "{error}");
     }
 
     #[test]
     fn a_drive_is_sent_as_the_bridge_sends_it() {
         let mut link = DirectLink::open(Recorder::default()).unwrap();
-        link.send_drive(0.3, 0.713_479_546_953_064_8_f64 as f32, 5.0, 10.0).unwrap();
-        link.send_drive(2.0, -1.0, -40.0, 10.0).unwrap();
-        link.send_drive(f32::NAN, 0.0, 0.0, 10.0).unwrap();
+        link.send_drive(&drive(0.3, 0.713_479_546_953_064_8_f64 as f32, 5.0), 10.0).unwrap();
+        link.send_drive(&drive(2.0, -1.0, -40.0), 10.0).unwrap();
+        link.send_drive(&drive(f32::NAN, 0.0, 0.0), 10.0).unwrap();
         let events = &link.peer().events;
         assert!(events.iter().all(|(name, _)| name == "data"));
         assert_eq!(field(&events[0], "brake"), "0.7134795", "the shortest text of the f32");
         assert_eq!((field(&events[0], "throttle"), field(&events[0], "steering_angle")), ("0.3", "5"));
         let clamped = (field(&events[1], "throttle"), field(&events[1], "brake"), field(&events[1], "steering_angle"));
         assert_eq!(clamped, ("1", "0", "-15"));
-        assert_eq!((field(&events[2], "throttle"), field(&events[2], "brake")), ("0", "10"), "NaN brakes");
+        assert_eq!((field(&events[2], "throttle"), field(&events[2], "brake")), ("0", "10"), "refused: a brake");
     }
 }
