@@ -160,6 +160,20 @@ enum State {
     Done,
 }
 
+impl State {
+    /// The mode this state is published as.
+    fn mode(&self) -> Mode {
+        match self {
+            State::Explore => Mode::Explore,
+            State::Approach(_) => Mode::ApproachSample,
+            State::Pickup { .. } => Mode::Pickup,
+            State::Recover { .. } => Mode::Recover,
+            State::ReturnHome(_) => Mode::ReturnHome,
+            State::Done => Mode::Done,
+        }
+    }
+}
+
 /// Where the mission stands: what the machine reports, the samples collected, and home.
 #[derive(Debug, Clone)]
 struct Mission {
@@ -304,7 +318,6 @@ impl Machine {
         if let Some(rocks) = self.maps.take_arrivals(obs.frame) {
             self.set_rocks(rocks);
         }
-        self.maps.next_planning = None;
         self.explorer.inspect(&obs.position, &self.params);
         self.mission.tally.update(obs.samples_remaining);
         self.mission.status.samples_collected = self.mission.tally.collected();
@@ -333,6 +346,7 @@ impl Machine {
         self.maps.prepare_next_frame(self.frame, at, &self.params);
     }
 
+    /// The goal of the current mode in the world, if it has one.
     fn target(&self) -> Option<(f64, f64)> {
         match &self.state {
             State::Explore => self.explorer.target(),
@@ -342,15 +356,10 @@ impl Machine {
         }
     }
 
+    /// Switches to `state` for `reason`: logged, reported, and the watches and steering start
+    /// afresh.
     fn enter(&mut self, state: State, reason: &str) {
-        let mode = match state {
-            State::Explore => Mode::Explore,
-            State::Approach(_) => Mode::ApproachSample,
-            State::Pickup { .. } => Mode::Pickup,
-            State::Recover { .. } => Mode::Recover,
-            State::ReturnHome(_) => Mode::ReturnHome,
-            State::Done => Mode::Done,
-        };
+        let mode = state.mode();
         let status = &mut self.mission.status;
         tracing::info!("mode {} -> {}: {reason}", status.mode.name(), mode.name());
         if mode == Mode::Explore && matches!(status.mode, Mode::ApproachSample | Mode::Pickup) {
@@ -377,22 +386,23 @@ impl Machine {
         } else if !pickup && !done && !matches!(self.state, State::Recover { .. }) {
             self.check_for_trouble(obs);
         }
-        match std::mem::replace(&mut self.state, State::Explore) {
-            State::Explore => self.explore(obs),
-            State::Approach(chase) => self.approach(obs, chase),
-            State::Pickup { since_frame, arm_seen } => {
-                self.state = State::Pickup { since_frame, arm_seen };
-                self.pickup(obs, since_frame, arm_seen)
-            }
+        let drive = match self.state {
+            State::Pickup { since_frame, arm_seen } => self.pickup(obs, since_frame, arm_seen),
             State::Recover { since_frame, turn_left, then_home } => {
-                self.state = State::Recover { since_frame, turn_left, then_home };
                 self.recover(obs, since_frame, turn_left, then_home)
             }
-            State::ReturnHome(route) => self.return_home(obs, route),
-            State::Done => {
-                self.state = State::Done;
-                Drive::stop(self.params.brake)
+            State::Done => Drive::stop(self.params.brake),
+            // The modes that carry a plan take it out while they step and put it back (or enter
+            // another mode); meanwhile `status.mode` says which mode runs.
+            State::Explore | State::Approach(_) | State::ReturnHome(_) => {
+                match std::mem::replace(&mut self.state, State::Explore) {
+                    State::Approach(chase) => self.approach(obs, chase),
+                    State::ReturnHome(route) => self.return_home(obs, route),
+                    _ => self.explore(obs),
+                }
             }
-        }
+        };
+        debug_assert_eq!(self.state.mode(), self.mission.status.mode, "a mode put its state back");
+        drive
     }
 }

@@ -13,6 +13,9 @@ use crate::route::PlanStart;
 const OUT_OF_THE_WAY_S: f64 = 10.0;
 
 impl Machine {
+    /// Steps the approach of `chase`: the sample's place from the camera when in sight, a slow
+    /// drive to it, or back to exploring when it is not reached in time, not where remembered, or
+    /// out of the way.
     pub(super) fn approach(&mut self, obs: &Observation, mut chase: Chase) -> Drive {
         let brake = self.params.brake;
         if let Some(seen) = obs.rock.filter(|s| s.distance_m <= self.params.sample_sight_m) {
@@ -86,6 +89,7 @@ impl Machine {
         .map(new)
     }
 
+    /// Notes an approach of `sample` that failed where the rover stands.
     pub(super) fn note_failed_approach(&mut self, sample: (f64, f64), obs: &Observation) {
         self.samples.note_failed_approach(sample, obs.frame, (obs.position.x_m, obs.position.y_m));
     }

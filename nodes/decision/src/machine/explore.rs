@@ -23,6 +23,8 @@ pub(super) struct Widening {
 }
 
 impl Machine {
+    /// Steps the explore mode: home at the deadline, a located sample within reach, else the next
+    /// frontier; with none left, the search widens, then the rover goes home.
     pub(super) fn explore(&mut self, obs: &Observation) -> Drive {
         if let Some(reason) = self.time_to_go_home(obs) {
             self.enter(State::ReturnHome(None), reason);

@@ -108,13 +108,28 @@ impl Maps {
         self.arriving_rocks.push(made_at_frame, rocks);
     }
 
-    /// Puts the map due at `frame` into effect; the rocks due then, if any.
+    /// Puts the map due at `frame` into effect (the planning map made ahead for it, if any, is
+    /// taken or dropped then); the rocks due then, if any.
     pub(super) fn take_arrivals(&mut self, frame: u64) -> Option<Vec<(f64, f64)>> {
         if let Some((made_at, map)) = self.arriving_maps.take_due(frame) {
             self.cadence.record(made_at);
             self.set_map(map, frame);
         }
+        self.next_planning = None;
         self.arriving_rocks.take_due(frame).map(|(_, rocks)| rocks)
+    }
+
+    /// Marks a cell at the front of the rover stuck `at` (or the next one of `path`) as an
+    /// obstacle for planning for a while; the cell marked, if any.
+    pub(super) fn mark_stuck(
+        &mut self,
+        at: (&Position, u64),
+        path: &[usize],
+        params: &DecisionParams,
+    ) -> Option<usize> {
+        let cell = self.stuck_marks.note_stuck(at, self.planning.grid(), path, params)?;
+        self.apply_stuck_marks();
+        Some(cell)
     }
 
     /// Between frames, after `frame`'s drive command went out: makes ahead the path costs the next

@@ -7,6 +7,8 @@ use super::{Machine, Observation, State};
 use crate::drive::{Drive, STOPPED_MPS};
 
 impl Machine {
+    /// Steps the pickup begun at `since_frame` (`arm_seen`: the arm has been seen busy): stopped
+    /// until the arm is done, the sample is out of reach or no pickup came.
     pub(super) fn pickup(&mut self, obs: &Observation, since_frame: u64, arm_seen: bool) -> Drive {
         let p = &self.params;
         let (brake, waited) = (p.brake, obs.frame.saturating_sub(since_frame));

@@ -52,6 +52,7 @@ impl Watches {
     }
 }
 
+/// Whether the body pitches or rolls beyond `tilt_limit_deg`.
 fn tilted(obs: &Observation, params: &DecisionParams) -> bool {
     let limit = params.tilt_limit_deg.to_radians();
     obs.pitch_rad.abs() > limit || obs.roll_rad.abs() > limit
@@ -76,17 +77,16 @@ impl Machine {
     /// planning for a while, so that the next plan leads around what the map did not show.
     pub(super) fn mark_stuck_cell(&mut self, obs: &Observation) {
         let path = self.path().to_vec();
-        let maps = &mut self.maps;
-        let (at, grid) = ((&obs.position, obs.frame), maps.planning.grid());
-        if let Some(cell) = maps.stuck_marks.note_stuck(at, grid, &path, &self.params) {
+        if let Some(cell) = self.maps.mark_stuck((&obs.position, obs.frame), &path, &self.params) {
             tracing::debug!(
                 cell = ?cell_centre_m(cell),
                 "stuck: a cell at the front or on the plan is an obstacle for a while"
             );
-            maps.apply_stuck_marks();
         }
     }
 
+    /// Enters recover for `reason`: a failed approach or a recovery of the exploration is noted,
+    /// and the turn goes toward the most open side.
     pub(super) fn start_recovery(&mut self, obs: &Observation, reason: &str) {
         match &self.state {
             State::Explore => self.explorer.note_recovery(),

@@ -6,6 +6,8 @@ use crate::drive::Drive;
 use crate::route::{PlanStart, Route};
 
 impl Machine {
+    /// Steps the way home along `route`: done within `home_tolerance_m`, a sample on the way while
+    /// there is time, else the route's next waypoint.
     pub(super) fn return_home(&mut self, obs: &Observation, route: Option<Route>) -> Drive {
         let brake = self.params.brake;
         let Some(home) = self.mission.status.home else {
