@@ -6,5 +6,5 @@ pub mod bag;
 pub mod dataset;
 pub mod live_view;
 pub mod replay;
-pub mod replay_dds;
+mod replay_dds;
 pub mod sim_check;

@@ -22,7 +22,7 @@ pub struct NodeTopics {
 /// Every node of the graph, in start order. `/clock` is read by any node with `use_sim_time`
 /// (the runtime's business, not the node's) and `/rosout` written by all, so neither is listed
 /// as read or written by the nodes that do so only for that.
-pub const GRAPH: [NodeTopics; 5] = [
+pub static GRAPH: [NodeTopics; 5] = [
     NodeTopics {
         node: "bridge",
         reads: &[DRIVE_CMD.name, PICKUP.name, CMD_VEL.name, MAP_IMAGE.name, VISION.name],
@@ -75,23 +75,11 @@ pub fn inputs_from_outside() -> impl Iterator<Item = &'static str> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::topics::{Topic, TopicVisitor, visit_all};
-
-    /// The names of every topic of the topic table.
-    struct Names(Vec<&'static str>);
-
-    impl TopicVisitor for Names {
-        fn visit<M: rover_msgs::RosMessage>(&mut self, topic: &Topic<M>) -> anyhow::Result<()> {
-            self.0.push(topic.name);
-            Ok(())
-        }
-    }
+    use crate::topics::all_names;
 
     #[test]
     fn every_topic_of_the_topic_table_is_written_by_a_node_or_comes_from_outside() {
-        let mut names = Names(Vec::new());
-        visit_all(&mut names).unwrap();
-        for topic in names.0 {
+        for topic in all_names() {
             let written = GRAPH.iter().any(|n| n.writes.contains(&topic));
             assert!(written || topic == CMD_VEL.name, "{topic}: in the topic table but written by no node");
         }

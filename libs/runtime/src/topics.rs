@@ -130,10 +130,9 @@ pub const CLOCK: Topic<Clock> = Topic::new("/clock", reliable(1));
 /// Bridge health.
 pub const DIAGNOSTICS: Topic<DiagnosticArray> = Topic::new("/diagnostics", reliable(10));
 
+/// The name of every topic of the table, in its order.
 #[cfg(test)]
-mod tests {
-    use super::*;
-
+pub(crate) fn all_names() -> Vec<&'static str> {
     /// Collects the name of every topic visited.
     struct Names(Vec<&'static str>);
 
@@ -144,16 +143,24 @@ mod tests {
         }
     }
 
+    let mut names = Names(Vec::new());
+    visit_all(&mut names).expect("collecting names cannot fail");
+    names.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
     #[test]
     fn every_topic_constant_of_this_file_is_visited_once() {
-        let mut names = Names(Vec::new());
-        visit_all(&mut names).unwrap();
+        let names = all_names();
         let source = include_str!("topics.rs");
         let declared = source.lines().filter(|line| line.starts_with("pub const ") && line.contains("Topic<")).count();
-        assert_eq!(names.0.len(), declared);
-        let mut unique = names.0.clone();
+        assert_eq!(names.len(), declared);
+        let mut unique = names.clone();
         unique.sort();
         unique.dedup();
-        assert_eq!(unique.len(), names.0.len(), "{:?}", names.0);
+        assert_eq!(unique.len(), names.len(), "{names:?}");
     }
 }
