@@ -11,7 +11,7 @@ use crate::camera::{BodyPose, CameraModel};
 use crate::physics::Rover;
 use crate::render::{RenderOptions, Renderer};
 use crate::wire::client::Simulation;
-use crate::wire::command::{Command, CommandError, parse_command};
+use crate::wire::command::Command;
 use crate::wire::telemetry::TelemetryValues;
 use crate::world::{Sample, World};
 
@@ -190,15 +190,6 @@ impl Simulator {
         }
     }
 
-    /// Takes one event of the bridge as the Unity client takes it (`data`, `pickup`, `manual`,
-    /// `fixed_turn`, with its JSON argument) and steps once; whether it stepped (an event the
-    /// client ignores does nothing).
-    pub fn receive_event(&mut self, name: &str, data: &serde_json::Value) -> Result<bool, CommandError> {
-        let Some(command) = parse_command(name, Some(data))? else { return Ok(false) };
-        self.step(command);
-        Ok(true)
-    }
-
     /// The telemetry JSON object of the current state, with a freshly rendered camera JPEG.
     pub fn telemetry(&mut self) -> String {
         self.render();
@@ -268,7 +259,7 @@ mod tests {
         let world = || crate::procgen::procedural_world(5);
         let event = |name: &str, data: serde_json::Value| {
             let mut simulator = Simulator::new(world(), SimConfig::default());
-            let stepped = simulator.receive_event(name, &data);
+            let stepped = simulator.receive_event(name, Some(&data));
             (stepped, simulator.telemetry())
         };
         let mut by_command = Simulator::new(world(), SimConfig::default());

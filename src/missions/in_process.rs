@@ -20,6 +20,7 @@ use rover_perception::params::PerceptionParams;
 use rover_pickup::{Pickup, PickupParams, checked_arm_input};
 use rover_runtime::{Rejections, RosArgs, Shutdown, resolve_params};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
+use rover_sim::wire::client::Simulation as _;
 use rover_sim::world::World;
 use serde::Serialize;
 
@@ -210,7 +211,7 @@ impl UnityPeer for SimulatorPeer {
     }
 
     fn receive(&mut self, event: &str, data: &serde_json::Value) -> anyhow::Result<bool> {
-        Ok(self.0.receive_event(event, data)?)
+        Ok(self.0.receive_event(event, Some(data))?)
     }
 }
 

@@ -15,7 +15,7 @@ use tokio_tungstenite::tungstenite::protocol::frame::coding::{Data, OpCode};
 use tokio_tungstenite::tungstenite::{self, Message};
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
-use super::command::{Command, parse_command};
+use super::command::{Command, CommandError, parse_command};
 use super::packet::{self, Inbound};
 
 /// websocket-sharp splits outgoing messages into frames of this many bytes.
@@ -123,6 +123,14 @@ pub trait Simulation {
     /// When running in real time: the wall-clock instant the next telemetry is due.
     fn due_at(&self) -> Option<std::time::Instant> {
         None
+    }
+    /// Takes one event of the bridge, its name and JSON argument, as the Unity client does: a
+    /// command (`data`, `pickup`, `manual`, `fixed_turn`) is applied, one step; whether it stepped
+    /// (an event the client ignores does nothing).
+    fn receive_event(&mut self, name: &str, data: Option<&serde_json::Value>) -> Result<bool, CommandError> {
+        let Some(command) = parse_command(name, data)? else { return Ok(false) };
+        self.apply(command);
+        Ok(true)
     }
 }
 
@@ -242,16 +250,15 @@ async fn serve_connection<S: Simulation>(
                 Ok(())
             }
             Inbound::Close => return false,
-            Inbound::Event { name, data } => match parse_command(&name, data.as_ref()) {
-                Ok(Some(command)) => {
-                    simulation.apply(command);
+            Inbound::Event { name, data } => match simulation.receive_event(&name, data.as_ref()) {
+                Ok(true) => {
                     stats.commands_applied += 1;
                     if let Some(due) = simulation.due_at() {
                         tokio::time::sleep_until(due.into()).await;
                     }
                     emit_telemetry(connection, simulation, stats).await
                 }
-                Ok(None) => {
+                Ok(false) => {
                     stats.events_ignored += 1;
                     Ok(())
                 }
