@@ -141,26 +141,30 @@ pub fn decode_png_gray16(bytes: &[u8]) -> Result<Gray16Image, ImageError> {
 
 /// Encodes a 16-bit greyscale image as a PNG.
 pub fn encode_png_gray16(image: &Gray16Image) -> Result<Vec<u8>, ImageError> {
-    let mut out = Vec::new();
-    let mut encoder = png::Encoder::new(&mut out, image.width as u32, image.height as u32);
-    encoder.set_color(png::ColorType::Grayscale);
-    encoder.set_depth(png::BitDepth::Sixteen);
-    let mut writer = encoder.write_header().map_err(|e| ImageError::Encode(e.to_string()))?;
     let bytes: Vec<u8> = image.data.iter().flat_map(|v| v.to_be_bytes()).collect();
-    writer.write_image_data(&bytes).map_err(|e| ImageError::Encode(e.to_string()))?;
-    writer.finish().map_err(|e| ImageError::Encode(e.to_string()))?;
-    Ok(out)
+    encode_png_samples((image.width, image.height), png::ColorType::Grayscale, png::BitDepth::Sixteen, &bytes)
 }
 
 /// Encodes RGB as a PNG.
 pub fn encode_png(image: &RgbImage) -> Result<Vec<u8>, ImageError> {
+    encode_png_samples((image.width, image.height), png::ColorType::Rgb, png::BitDepth::Eight, &image.data)
+}
+
+/// A PNG of `width` x `height` pixels whose samples, in PNG byte order, are `bytes`.
+fn encode_png_samples(
+    (width, height): (usize, usize),
+    color: png::ColorType,
+    depth: png::BitDepth,
+    bytes: &[u8],
+) -> Result<Vec<u8>, ImageError> {
+    let encode_error = |e: png::EncodingError| ImageError::Encode(e.to_string());
     let mut out = Vec::new();
-    let mut encoder = png::Encoder::new(&mut out, image.width as u32, image.height as u32);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().map_err(|e| ImageError::Encode(e.to_string()))?;
-    writer.write_image_data(&image.data).map_err(|e| ImageError::Encode(e.to_string()))?;
-    writer.finish().map_err(|e| ImageError::Encode(e.to_string()))?;
+    let mut encoder = png::Encoder::new(&mut out, width as u32, height as u32);
+    encoder.set_color(color);
+    encoder.set_depth(depth);
+    let mut writer = encoder.write_header().map_err(encode_error)?;
+    writer.write_image_data(bytes).map_err(encode_error)?;
+    writer.finish().map_err(encode_error)?;
     Ok(out)
 }
 
