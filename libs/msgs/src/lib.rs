@@ -108,6 +108,24 @@ pub mod builtin_interfaces {
         "builtin_interfaces" / Time { sec: i32, nanosec: u32 }
     }
 
+    ros_message! {
+        /// A span of time: seconds and nanoseconds.
+        "builtin_interfaces" / Duration { sec: i32, nanosec: u32 }
+    }
+
+    impl Duration {
+        /// The duration of `seconds` (negative or not finite: zero).
+        pub fn from_secs_f64(seconds: f64) -> Self {
+            let seconds = if seconds.is_finite() { seconds.clamp(0.0, i32::MAX as f64) } else { 0.0 };
+            Duration { sec: seconds.trunc() as i32, nanosec: (seconds.fract() * 1e9) as u32 }
+        }
+
+        /// The duration in seconds.
+        pub fn as_secs_f64(&self) -> f64 {
+            self.sec as f64 + self.nanosec as f64 * 1e-9
+        }
+    }
+
     impl Time {
         /// The current wall-clock time.
         pub fn now() -> Self {
@@ -119,6 +137,11 @@ pub mod builtin_interfaces {
         pub fn from_nanos(nanos: i64) -> Self {
             let nanos = nanos.max(0);
             Time { sec: (nanos / 1_000_000_000) as i32, nanosec: (nanos % 1_000_000_000) as u32 }
+        }
+
+        /// Seconds since the epoch.
+        pub fn as_secs_f64(&self) -> f64 {
+            self.sec as f64 + self.nanosec as f64 * 1e-9
         }
     }
 }
@@ -261,6 +284,108 @@ pub mod tf2_msgs {
 pub mod rosgraph_msgs {
     ros_message! { /// The simulated time, published on `/clock`.
     "rosgraph_msgs" / Clock { clock: crate::builtin_interfaces::Time } }
+}
+
+/// `lifecycle_msgs` messages and the request and response types of its services: the interface
+/// of managed nodes.
+pub mod lifecycle_msgs {
+    ros_message! { /// A state of the lifecycle: its id and label.
+    "lifecycle_msgs" / State { id: u8, label: String } }
+    ros_message! { /// A transition of the lifecycle: its id and label.
+    "lifecycle_msgs" / Transition { id: u8, label: String } }
+    ros_message! { /// A transition with the states it goes from and to.
+    "lifecycle_msgs" / TransitionDescription { transition: Transition, start_state: State, goal_state: State } }
+    ros_message! { /// A transition that happened, on `<node>/transition_event`.
+    "lifecycle_msgs" / TransitionEvent {
+        timestamp: u64, transition: Transition, start_state: State, goal_state: State,
+    } }
+    ros_message! { /// `change_state` request.
+    "lifecycle_msgs" / ChangeStateRequest { transition: Transition } }
+    ros_message! { /// `change_state` response.
+    "lifecycle_msgs" / ChangeStateResponse { success: bool } }
+    ros_message! { /// The request of a lifecycle service that takes no argument.
+    "lifecycle_msgs" / EmptyRequest { structure_needs_at_least_one_member: u8 } }
+    ros_message! { /// `get_state` response.
+    "lifecycle_msgs" / GetStateResponse { current_state: State } }
+    ros_message! { /// `get_available_states` response.
+    "lifecycle_msgs" / GetAvailableStatesResponse { available_states: Vec<State> } }
+    ros_message! { /// `get_available_transitions` and `get_transition_graph` response.
+    "lifecycle_msgs" / GetAvailableTransitionsResponse { available_transitions: Vec<TransitionDescription> } }
+}
+
+/// The goal, result and feedback of `rover_msgs/action/SampleReturn` (`action/SampleReturn.action`):
+/// the sample-return mission as one action.
+pub mod sample_return {
+    ros_message! { /// The goal: nothing to give; the mission starts where the rover stands.
+    "rover_msgs" / SampleReturnGoal { structure_needs_at_least_one_member: u8 } }
+    ros_message! { /// The result: the mission's score at its end.
+    "rover_msgs" / SampleReturnResult {
+        complete: bool, mapped_pct: f32, fidelity_pct: f32, samples_located: u32, samples_collected: u32,
+        samples_remaining: u8, home_distance_m: f32, mission_time_s: f64, message: String,
+    } }
+    ros_message! { /// The feedback: how the mission goes.
+    "rover_msgs" / SampleReturnFeedback {
+        mode: String, mapped_pct: f32, fidelity_pct: f32, samples_located: u32, samples_collected: u32,
+        mission_time_s: f64,
+    } }
+
+    impl SampleReturnResult {
+        /// The result of a goal that ended before the mission did (refused, preempted, canceled),
+        /// for the reason `message`: no score.
+        pub fn ended_early(message: impl Into<String>) -> Self {
+            SampleReturnResult { message: message.into(), ..SampleReturnResult::default() }
+        }
+    }
+}
+
+/// `std_srvs` service types.
+pub mod std_srvs {
+    ros_message! { /// `std_srvs/srv/Trigger` request: no argument.
+    "std_srvs" / TriggerRequest { structure_needs_at_least_one_member: u8 } }
+    ros_message! { /// `std_srvs/srv/Trigger` response: whether it worked, and a message for the caller.
+    "std_srvs" / TriggerResponse { success: bool, message: String } }
+}
+
+/// `nav2_msgs/action/NavigateToPose` of Nav2 Kilted (1.4), field for field, so that Nav2's tools
+/// and scripts written for Nav2 talk to the rover unchanged.
+pub mod nav2_msgs {
+    use crate::builtin_interfaces::Duration;
+    use crate::geometry_msgs::PoseStamped;
+
+    ros_message! { /// The goal: a pose, and a behaviour tree (ignored by the rover).
+    "nav2_msgs" / NavigateToPoseGoal { pose: PoseStamped, behavior_tree: String } }
+    ros_message! { /// The result: an error code (0: none) and its message.
+    "nav2_msgs" / NavigateToPoseResult { error_code: u16, error_msg: String } }
+    ros_message! { /// The feedback while driving to the goal.
+    "nav2_msgs" / NavigateToPoseFeedback {
+        current_pose: PoseStamped, navigation_time: Duration, estimated_time_remaining: Duration,
+        number_of_recoveries: i16, distance_remaining: f32,
+    } }
+
+    impl NavigateToPoseResult {
+        /// No error: the goal was reached.
+        pub const NONE: u16 = 0;
+        /// Any other error (Nav2's navigator code).
+        pub const UNKNOWN: u16 = 9000;
+        /// The goal is in a frame the rover cannot transform (Nav2's navigator code).
+        pub const TF_ERROR: u16 = 9002;
+        /// The goal lies outside the map (Nav2's planner code).
+        pub const GOAL_OUTSIDE_MAP: u16 = 204;
+        /// The goal lies on an obstacle (Nav2's planner code).
+        pub const GOAL_OCCUPIED: u16 = 206;
+        /// No path leads to the goal (Nav2's planner code).
+        pub const NO_VALID_PATH: u16 = 208;
+
+        /// The result of a goal given up because `what` came in its place.
+        pub fn preempted_by(what: &str) -> Self {
+            NavigateToPoseResult::error(NavigateToPoseResult::UNKNOWN, format!("preempted by {what}"))
+        }
+
+        /// The result of a goal that failed with `error_code` for the reason `error_msg`.
+        pub fn error(error_code: u16, error_msg: impl Into<String>) -> Self {
+            NavigateToPoseResult { error_code, error_msg: error_msg.into() }
+        }
+    }
 }
 
 /// `diagnostic_msgs` messages.

@@ -113,3 +113,19 @@ fn points_become_poses_without_rotation_and_back() {
     assert!(poses.poses.iter().all(|pose| pose.orientation == Quaternion::IDENTITY && pose.position.z == 0.0));
     assert_eq!(poses.points(), [(97.4, 74.6), (122.3, 51.7)]);
 }
+
+#[test]
+fn the_sample_return_types_match_the_action_file() {
+    use crate::sample_return::{SampleReturnFeedback, SampleReturnResult};
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/action/SampleReturn.action");
+    let text = std::fs::read_to_string(path).unwrap();
+    let parts: Vec<&str> = text.split("\n---\n").collect();
+    assert_eq!(parts.len(), 3, "goal, result and feedback");
+    let fields = |part: &str| -> Vec<(String, String)> {
+        let spec = crate::idl::parse_msg("rover_msgs", part).unwrap();
+        spec.fields.into_iter().map(|f| (f.name, f.ros_type)).collect()
+    };
+    assert!(fields(parts[0]).is_empty(), "a goal without fields");
+    assert_eq!(rust_fields::<SampleReturnResult>(), fields(parts[1]));
+    assert_eq!(rust_fields::<SampleReturnFeedback>(), fields(parts[2]));
+}

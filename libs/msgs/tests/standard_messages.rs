@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use rover_msgs::RosMessage;
-use rover_msgs::builtin_interfaces::Time;
+use rover_msgs::builtin_interfaces::{Duration, Time};
 use rover_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
 use rover_msgs::geometry_msgs::*;
 use rover_msgs::nav_msgs::{MapMetaData, OccupancyGrid, Odometry};
@@ -46,6 +46,7 @@ fn standard_messages_match_the_installed_definitions() {
     }
     let mut checked = Vec::new();
     check::<Time>(&mut checked);
+    check::<Duration>(&mut checked);
     check::<Header>(&mut checked);
     check::<Point>(&mut checked);
     check::<Vector3>(&mut checked);

@@ -2,9 +2,10 @@
 //! of the table can open a publisher or a subscription only on a topic the table gives it, so the
 //! table is what the nodes do; the docs' picture of the graph is checked against it.
 
+use crate::commands::{NAVIGATE_TO_POSE, PAUSE_MISSION, RESUME_MISSION, RETURN_HOME, SAMPLE_RETURN, START_MISSION};
 use crate::topics::{
-    CAMERA_COMPRESSED, CAMERA_INFO, CAMERA_RAW, CLOCK, CMD_VEL, DIAGNOSTICS, DRIVE_CMD, MAP, MAP_IMAGE, MAP_STATS,
-    MODE, ODOM, PICKUP, PLAN, ROCKS, SAMPLE_TRUTH, TELEMETRY, TERRAIN, TF, TF_STATIC, VISION,
+    CAMERA_COMPRESSED, CAMERA_INFO, CAMERA_RAW, CLOCK, CMD_VEL, DIAGNOSTICS, DRIVE_CMD, GOAL_POSE, MAP, MAP_IMAGE,
+    MAP_STATS, MODE, ODOM, PICKUP, PLAN, ROCKS, SAMPLE_TRUTH, TELEMETRY, TERRAIN, TF, TF_STATIC, VISION,
 };
 
 /// One node of the graph: its name and the topics it reads and writes (names as in the topic
@@ -17,6 +18,8 @@ pub struct NodeTopics {
     pub reads: &'static [&'static str],
     /// Topics it publishes.
     pub writes: &'static [&'static str],
+    /// Services and actions of [`crate::commands`] it serves.
+    pub serves: &'static [&'static str],
 }
 
 /// Every node of the graph, in start order. `/clock` is read by any node with `use_sim_time`
@@ -38,23 +41,34 @@ pub static GRAPH: [NodeTopics; 5] = [
             CLOCK.name,
             DIAGNOSTICS.name,
         ],
+        serves: &[],
     },
     NodeTopics {
         node: "perception",
         reads: &[CAMERA_COMPRESSED.name, TELEMETRY.name],
         writes: &[TERRAIN.name, VISION.name],
+        serves: &[],
     },
     NodeTopics {
         node: "mapping",
         reads: &[TERRAIN.name, SAMPLE_TRUTH.name],
         writes: &[MAP.name, MAP_IMAGE.name, MAP_STATS.name, ROCKS.name],
+        serves: &[],
     },
     NodeTopics {
         node: "decision",
-        reads: &[TERRAIN.name, MAP.name, ROCKS.name, MAP_STATS.name],
+        reads: &[TERRAIN.name, MAP.name, ROCKS.name, MAP_STATS.name, GOAL_POSE.name],
         writes: &[DRIVE_CMD.name, MODE.name, PLAN.name],
+        serves: &[
+            NAVIGATE_TO_POSE.name,
+            SAMPLE_RETURN.name,
+            START_MISSION.name,
+            PAUSE_MISSION.name,
+            RESUME_MISSION.name,
+            RETURN_HOME.name,
+        ],
     },
-    NodeTopics { node: "pickup", reads: &[TELEMETRY.name], writes: &[PICKUP.name] },
+    NodeTopics { node: "pickup", reads: &[TELEMETRY.name], writes: &[PICKUP.name], serves: &[] },
 ];
 
 /// The table's entry of the node named `node`; none for a process outside the graph (a tool, a
@@ -77,17 +91,27 @@ mod tests {
     use super::*;
     use crate::topics::all_names;
 
+    /// What users and their tools send the graph: teleoperation and goals.
+    const FROM_USERS: [&str; 2] = [CMD_VEL.name, GOAL_POSE.name];
+
     #[test]
-    fn every_topic_of_the_topic_table_is_written_by_a_node_or_comes_from_outside() {
+    fn every_topic_of_the_topic_table_is_written_by_a_node_or_comes_from_users() {
         for topic in all_names() {
             let written = GRAPH.iter().any(|n| n.writes.contains(&topic));
-            assert!(written || topic == CMD_VEL.name, "{topic}: in the topic table but written by no node");
+            assert!(written || FROM_USERS.contains(&topic), "{topic}: in the topic table but written by no node");
         }
     }
 
     #[test]
-    fn only_teleoperation_comes_from_outside_the_graph() {
-        assert_eq!(inputs_from_outside().collect::<Vec<_>>(), [CMD_VEL.name]);
+    fn only_teleoperation_and_goals_come_from_outside_the_graph() {
+        assert_eq!(inputs_from_outside().collect::<Vec<_>>(), FROM_USERS);
+    }
+
+    #[test]
+    fn every_command_of_the_command_table_is_served_by_one_node() {
+        for command in crate::commands::all_names() {
+            assert_eq!(GRAPH.iter().filter(|n| n.serves.contains(&command)).count(), 1, "{command}: one server");
+        }
     }
 
     #[test]

@@ -5,23 +5,36 @@
 //! A node binary creates a [`Runtime`] once per process, asks it for a [`RosNode`] with its
 //! parameter struct, and wires the node's [`topics`] to a plain library.
 
+mod adapter;
 pub mod cdr;
+mod command_servers;
+pub mod commands;
+mod discovery;
+pub mod executor;
 pub mod graph;
+mod ip_network;
+pub mod lifecycle;
 pub mod logging;
 mod matching;
 pub mod names;
 mod node;
+pub mod node_core;
 pub mod pairing;
 mod param_services;
 pub mod params;
 pub mod qos;
 pub mod rejections;
 pub mod ros_args;
+pub mod rtps_ports;
+mod services;
 mod shutdown;
 pub mod snapshot;
+mod static_peers;
 pub mod sync;
 pub mod topics;
 
+pub use adapter::run_node;
+pub use ip_network::IpNetwork;
 pub use node::{
     Params, RosNode, Runtime, domain_id_from_env, messages, publish_or_warn, resolve_params, spawn_subscriber,
     spawn_subscriber_with_info,
@@ -31,3 +44,4 @@ pub use rejections::Rejections;
 pub use ros_args::{RosArgs, split_ros_args};
 pub use ros2_client::{MessageInfo, Publisher, Subscription};
 pub use shutdown::Shutdown;
+pub use static_peers::StaticPeers;

@@ -1,6 +1,9 @@
-//! Logging through `tracing`: console output filtered by `RUST_LOG` (or `--log-level`), and every
-//! event of the project's own crates also published on `/rosout` by the node it belongs to.
+//! Logging through `tracing`: console output filtered by `RUST_LOG` (or `--log-level`) and capped
+//! in size, and every event of the project's own crates also published on `/rosout` by the node it
+//! belongs to.
 
+use std::io::Write;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, OnceLock};
 
 use ros2_client::log::LogLevel;
@@ -19,6 +22,50 @@ use crate::sync::lock;
 pub const QUIET_DEPENDENCIES: &str = "rustdds=warn,rustdds::network::udp_sender=error,rustdds::rtps=error,\
 rustdds::dds::participant=error,ros2_client=warn,ros2_client::rosout=off,ros2_client::distributions=error,\
 socketioxide=warn,engineioxide=warn";
+
+/// Most bytes a process writes to its console (which launchers keep in log files): past it one
+/// line says so and the rest are dropped, so that no flood of lines fills a disk. `/rosout` still
+/// gets every event.
+const MAX_CONSOLE_BYTES: u64 = 64 << 20;
+
+/// What the console of this process has written so far.
+static CONSOLE_WRITTEN: LogBudget = LogBudget::new(MAX_CONSOLE_BYTES);
+
+/// Bytes a log may still take.
+struct LogBudget {
+    max_bytes: u64,
+    written_bytes: AtomicU64,
+}
+
+impl LogBudget {
+    const fn new(max_bytes: u64) -> Self {
+        LogBudget { max_bytes, written_bytes: AtomicU64::new(0) }
+    }
+}
+
+/// A writer that passes lines on to `inner` while `budget` lasts; the line that exhausts it is
+/// replaced by a notice, and later ones are dropped.
+struct Capped<'a, W> {
+    inner: W,
+    budget: &'a LogBudget,
+}
+
+impl<W: Write> Write for Capped<'_, W> {
+    fn write(&mut self, line: &[u8]) -> std::io::Result<usize> {
+        let before = self.budget.written_bytes.fetch_add(line.len() as u64, Ordering::Relaxed);
+        let max_bytes = self.budget.max_bytes;
+        if before + line.len() as u64 <= max_bytes {
+            self.inner.write_all(line)?;
+        } else if before <= max_bytes {
+            writeln!(self.inner, "log output reached {max_bytes} bytes: further lines are dropped (/rosout has them)")?;
+        }
+        Ok(line.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
 
 /// Name of the span that tags events with the node they belong to (field `name`).
 pub const NODE_SPAN: &str = "node";
@@ -40,10 +87,14 @@ pub fn init(log_level: Option<&str>) {
     });
     let ansi = std::io::IsTerminal::is_terminal(&std::io::stderr());
     let _ = tracing_subscriber::registry()
-        .with(tracing_subscriber::fmt::layer().with_writer(std::io::stderr).with_target(false).with_ansi(ansi))
+        .with(tracing_subscriber::fmt::layer().with_writer(capped_stderr).with_target(false).with_ansi(ansi))
         .with(RosoutLayer)
         .with(filter)
         .try_init();
+}
+
+fn capped_stderr() -> Capped<'static, std::io::Stderr> {
+    Capped { inner: std::io::stderr(), budget: &CONSOLE_WRITTEN }
 }
 
 /// Registers the `/rosout` publisher of the node with fully qualified name `node`.
@@ -141,5 +192,24 @@ impl Visit for MessageVisitor {
         } else {
             self.fields.push((field.name().to_string(), format!("{value:?}")));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_console_log_stops_with_a_notice_once_its_budget_is_spent() {
+        let budget = LogBudget::new(30);
+        let mut console = Capped { inner: Vec::new(), budget: &budget };
+        for line in ["first line\n", "second line\n", "third line!\n", "fourth line\n"] {
+            assert_eq!(console.write(line.as_bytes()).unwrap(), line.len(), "every line is taken");
+        }
+        let written = String::from_utf8(console.inner).unwrap();
+        assert_eq!(
+            written,
+            "first line\nsecond line\nlog output reached 30 bytes: further lines are dropped (/rosout has them)\n"
+        );
     }
 }

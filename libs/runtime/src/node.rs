@@ -5,24 +5,22 @@ use std::time::Duration;
 
 use anyhow::Context as _;
 use futures::StreamExt;
-use ros2_client::dds::rustdds::DomainParticipant;
 use ros2_client::{Context, MessageInfo, MessageTypeName, Name, NodeName, NodeOptions, Publisher, Subscription};
 use rover_msgs::RosMessage;
 use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::std_msgs::Header;
 use tokio::sync::watch;
 
+use crate::discovery::Discovery;
 use crate::graph::NodeTopics;
 use crate::matching::Matches;
 use crate::names::NodeIdentity;
-use crate::params::{self, Assignment, NodeParams, ParamValues, USE_SIM_TIME};
+use crate::params::{self, AUTOSTART, Assignment, NodeParams, ParamSpec, ParamValues, USE_SIM_TIME};
 use crate::ros_args::RosArgs;
+use crate::rtps_ports::MAX_DOMAIN_ID;
 use crate::shutdown::Shutdown;
 use crate::sync::lock;
 use crate::topics::{self, Topic};
-
-/// Highest domain id for which the DDS port numbers stay valid.
-const MAX_DOMAIN_ID: u16 = 232;
 
 /// How long a new participant waits before it creates any endpoint. RustDDS 0.15.1 sends its first
 /// SPDP announcement 100 ms after the participant is created, but already answers the SPDP of peers
@@ -67,11 +65,16 @@ impl Runtime {
         Self::on_domain(domain_id_from_env()?, ros_args, shutdown)
     }
 
-    /// Creates the DDS context on `domain_id`, ignoring `ROS_DOMAIN_ID`. Blocks for
+    /// Creates the DDS context on `domain_id`, ignoring `ROS_DOMAIN_ID`, discovering others as far
+    /// as `ROS_AUTOMATIC_DISCOVERY_RANGE` and `ROS_STATIC_PEERS` (or `ROS_LOCALHOST_ONLY`) say. Blocks for
     /// [`FIRST_ANNOUNCEMENT_WAIT`] so that the participant has announced itself before its first
     /// endpoint exists.
     pub fn on_domain(domain_id: u16, ros_args: RosArgs, shutdown: Shutdown) -> anyhow::Result<Self> {
-        let participant = DomainParticipant::new(domain_id)
+        let discovery = Discovery::from_env()?;
+        discovery.spawn_relay(domain_id);
+        let participant = discovery
+            .participant(domain_id)
+            .build()
             .with_context(|| format!("cannot create the DDS participant on domain {domain_id}"))?;
         std::thread::sleep(FIRST_ANNOUNCEMENT_WAIT);
         let matches = Matches::follow(&participant);
@@ -91,7 +94,8 @@ impl Runtime {
     /// with `use_sim_time`, its clock following `/clock`.
     pub fn node<P: NodeParams>(&self, default_name: &str) -> anyhow::Result<(RosNode, Params<P>)> {
         let identity = NodeIdentity::resolve(default_name, &self.ros_args)?;
-        let values = resolve_param_values::<P>(default_name, &identity, &self.ros_args)?;
+        let specs = declared_specs::<P>(default_name);
+        let values = resolve_param_values(default_name, &specs, &identity, &self.ros_args)?;
         let (params, options) = Params::<P>::with_values(values);
         let node_name = NodeName::new(&identity.namespace, &identity.name)
             .map_err(|e| anyhow::anyhow!("node name {}: {e}", identity.fully_qualified()))?;
@@ -101,7 +105,7 @@ impl Runtime {
             .with_context(|| format!("cannot create node {}", identity.fully_qualified()))?;
         crate::logging::register_rosout(&identity.fully_qualified(), node.logging_handle());
         let node = Arc::new(Mutex::new(node));
-        crate::param_services::start(&node, P::specs())?;
+        crate::param_services::start(&node, specs)?;
         let topics = crate::graph::node_topics(default_name);
         let mut node = RosNode { node, identity, topics, matches: self.matches.clone(), sim_time: None };
         if node.uses_sim_time() {
@@ -111,8 +115,16 @@ impl Runtime {
     }
 }
 
-fn resolve_param_values<P: NodeParams>(
+/// The parameters node `default_name` declares: those of `P`, and `autostart` for a managed node
+/// (a node of the graph).
+fn declared_specs<P: NodeParams>(default_name: &str) -> Vec<ParamSpec> {
+    let managed = crate::graph::node_topics(default_name).map(|_| params::autostart_spec());
+    P::specs().into_iter().chain(managed).collect()
+}
+
+fn resolve_param_values(
     default_name: &str,
+    specs: &[ParamSpec],
     identity: &NodeIdentity,
     ros_args: &RosArgs,
 ) -> anyhow::Result<ParamValues> {
@@ -129,14 +141,15 @@ fn resolve_param_values<P: NodeParams>(
             source_name: format!("-p {}:={}", p.name, p.value),
         });
     }
-    Ok(params::resolve_values(&identity.fully_qualified(), &P::specs(), &assignments)?)
+    Ok(params::resolve_values(&identity.fully_qualified(), specs, &assignments)?)
 }
 
 /// The parameters of the node whose default name is `default_name`, from the ROS arguments alone
 /// (no DDS), for tools that run a node's library offline.
 pub fn resolve_params<P: NodeParams>(default_name: &str, ros_args: &RosArgs) -> anyhow::Result<P> {
     let identity = NodeIdentity::resolve(default_name, ros_args)?;
-    Ok(P::from_values(&resolve_param_values::<P>(default_name, &identity, ros_args)?))
+    let specs = declared_specs::<P>(default_name);
+    Ok(P::from_values(&resolve_param_values(default_name, &specs, &identity, ros_args)?))
 }
 
 /// A ROS 2 node: creates publishers and subscriptions for the graph's [`Topic`]s, with the node's
@@ -176,9 +189,20 @@ impl RosNode {
         Header::at(frame_id, self.now())
     }
 
+    /// Whether the node configures and activates itself at start: its `autostart` parameter, true
+    /// unless set false.
+    pub fn autostarts(&self) -> bool {
+        self.inner().get_parameter(AUTOSTART) != Some(ros2_client::ParameterValue::Boolean(false))
+    }
+
     /// Whether the node's `use_sim_time` parameter is true.
     pub fn uses_sim_time(&self) -> bool {
         self.inner().get_parameter(USE_SIM_TIME) == Some(ros2_client::ParameterValue::Boolean(true))
+    }
+
+    /// Runs `act` on the ros2-client node, e.g. to create a server.
+    pub(crate) fn with_inner<T>(&self, act: impl FnOnce(&mut ros2_client::Node) -> T) -> T {
+        act(&mut self.inner())
     }
 
     fn inner(&self) -> std::sync::MutexGuard<'_, ros2_client::Node> {
@@ -194,6 +218,16 @@ impl RosNode {
         });
         self.sim_time = Some(latest);
         Ok(())
+    }
+
+    /// Serves the node's lifecycle services; the node starts unconfigured.
+    pub fn lifecycle(&self) -> anyhow::Result<crate::lifecycle::Lifecycle> {
+        crate::lifecycle::Lifecycle::serve(&self.node)
+    }
+
+    /// A client of the lifecycle services of the managed node `node` (fully qualified).
+    pub fn lifecycle_client(&self, node: &str) -> anyhow::Result<crate::lifecycle::LifecycleClient> {
+        crate::lifecycle::LifecycleClient::new(&mut self.inner(), node)
     }
 
     /// Creates a publisher on `topic`.
@@ -258,11 +292,16 @@ impl RosNode {
     }
 
     fn dds_topic<M: RosMessage>(&self, topic: &Topic<M>) -> anyhow::Result<ros2_client::dds::rustdds::Topic> {
-        let resolved = self.identity.resolve_topic(topic.name)?;
-        let name = Name::parse(&resolved).map_err(|e| anyhow::anyhow!("topic {resolved}: {e}"))?;
+        let name = self.resolved_name(topic.name)?;
         self.inner()
             .create_topic(&name, MessageTypeName::new(M::PACKAGE, M::NAME), &topic.qos)
-            .with_context(|| format!("cannot create topic {resolved}"))
+            .with_context(|| format!("cannot create topic {name}"))
+    }
+
+    /// The absolute name of this node's topic, service or action `name`, namespaced and remapped.
+    pub(crate) fn resolved_name(&self, name: &str) -> anyhow::Result<Name> {
+        let resolved = self.identity.resolve_topic(name)?;
+        Name::parse(&resolved).map_err(|e| anyhow::anyhow!("{resolved}: {e}"))
     }
 }
 
@@ -376,5 +415,28 @@ impl<P: NodeParams> Params<P> {
             Ok(())
         }));
         (Params { current }, options)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn values_of(node: &str, args: &[&str]) -> Result<ParamValues, String> {
+        let argv = std::iter::once("rover").chain(args.iter().copied()).map(String::from).collect();
+        let (_, ros_args) = crate::split_ros_args(argv).map_err(|e| e.to_string())?;
+        let identity = NodeIdentity::resolve(node, &ros_args).map_err(|e| e.to_string())?;
+        resolve_param_values(node, &declared_specs::<crate::NoParams>(node), &identity, &ros_args)
+            .map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn every_node_of_the_graph_and_no_tool_has_autostart_true_unless_set() {
+        assert_eq!(values_of("pickup", &[]).unwrap().get(AUTOSTART), Some(&ros2_client::ParameterValue::Boolean(true)));
+        let off = values_of("pickup", &["--ros-args", "-p", "autostart:=false"]).unwrap();
+        assert_eq!(off.get(AUTOSTART), Some(&ros2_client::ParameterValue::Boolean(false)));
+        assert_eq!(values_of("evaluator", &[]).unwrap().get(AUTOSTART), None, "a tool is not a managed node");
+        let wrong = values_of("pickup", &["--ros-args", "-p", "autostart:=1"]).unwrap_err();
+        assert!(wrong.contains("`autostart`") && wrong.contains("a boolean"), "{wrong}");
     }
 }

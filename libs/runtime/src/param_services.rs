@@ -5,14 +5,14 @@
 
 use std::sync::{Arc, Mutex};
 
-use anyhow::Context as _;
 use futures::StreamExt;
 use ros2_client::parameters::raw;
 use ros2_client::rcl_interfaces as rcl;
 use ros2_client::service::Server;
-use ros2_client::{Message, Name, Node, Parameter, ParameterValue, RmwRequestId, ServiceMapping, ServiceTypeName};
+use ros2_client::{Node, Parameter, ParameterValue};
 
 use crate::params::{self, ParamSpec};
+use crate::services;
 use crate::sync::lock;
 
 /// Separator of the parts of a parameter name (`a.b.c`).
@@ -34,32 +34,23 @@ pub(crate) fn start(node: &Arc<Mutex<Node>>, specs: Vec<ParamSpec>) -> anyhow::R
     let servers = {
         let node = &mut lock(node);
         Servers {
-            get: server(node, "get_parameters", "GetParameters")?,
-            types: server(node, "get_parameter_types", "GetParameterTypes")?,
-            set: server(node, "set_parameters", "SetParameters")?,
-            set_atomically: server(node, "set_parameters_atomically", "SetParametersAtomically")?,
-            list: server(node, "list_parameters", "ListParameters")?,
-            describe: server(node, "describe_parameters", "DescribeParameters")?,
+            get: services::server(node, "get_parameters", "rcl_interfaces", "GetParameters")?,
+            types: services::server(node, "get_parameter_types", "rcl_interfaces", "GetParameterTypes")?,
+            set: services::server(node, "set_parameters", "rcl_interfaces", "SetParameters")?,
+            set_atomically: services::server(
+                node,
+                "set_parameters_atomically",
+                "rcl_interfaces",
+                "SetParametersAtomically",
+            )?,
+            list: services::server(node, "list_parameters", "rcl_interfaces", "ListParameters")?,
+            describe: services::server(node, "describe_parameters", "rcl_interfaces", "DescribeParameters")?,
         }
     };
     let table =
         Table { node: Arc::clone(node), specs: std::iter::once(params::use_sim_time_spec()).chain(specs).collect() };
     tokio::spawn(async move { serve(&servers, &table).await });
     Ok(())
-}
-
-/// The server of `node`'s parameter service `service` (e.g. `get_parameters`), whose type is
-/// `rcl_interfaces/srv/<type_name>`.
-fn server<Req, Resp>(node: &mut Node, service: &str, type_name: &str) -> anyhow::Result<Server<Req, Resp>>
-where
-    Req: Message + Clone + 'static,
-    Resp: Message + 'static,
-{
-    let node_name = node.fully_qualified_name();
-    let name = Name::new(&node_name, service).map_err(|e| anyhow::anyhow!("{node_name}/{service}: {e}"))?;
-    let (qos, type_name) = (crate::qos::services(), ServiceTypeName::new("rcl_interfaces", type_name));
-    node.create_server(ServiceMapping::Enhanced, &name, &type_name, qos.clone(), qos)
-        .with_context(|| format!("cannot create the parameter service {node_name}/{service}"))
 }
 
 /// Answers the requests of `servers` from `table` until every request stream ends.
@@ -72,35 +63,16 @@ async fn serve(servers: &Servers, table: &Table) {
     let mut describe = servers.describe.receive_request_stream();
     loop {
         tokio::select! {
-            Some(request) = get.next() => answer(&servers.get, request, |r| table.get(r)).await,
-            Some(request) = types.next() => answer(&servers.types, request, |r| table.types(r)).await,
-            Some(request) = set.next() => answer(&servers.set, request, |r| table.set(r)).await,
+            Some(request) = get.next() => services::answer(&servers.get, request, |r| table.get(r)).await,
+            Some(request) = types.next() => services::answer(&servers.types, request, |r| table.types(r)).await,
+            Some(request) = set.next() => services::answer(&servers.set, request, |r| table.set(r)).await,
             Some(request) = set_atomically.next() => {
-                answer(&servers.set_atomically, request, |r| table.set_atomically(r)).await
+                services::answer(&servers.set_atomically, request, |r| table.set_atomically(r)).await
             }
-            Some(request) = list.next() => answer(&servers.list, request, |r| table.list(r)).await,
-            Some(request) = describe.next() => answer(&servers.describe, request, |r| table.describe(r)).await,
+            Some(request) = list.next() => services::answer(&servers.list, request, |r| table.list(r)).await,
+            Some(request) = describe.next() => services::answer(&servers.describe, request, |r| table.describe(r)).await,
             else => return,
         }
-    }
-}
-
-/// Sends `handle`'s response to a request; a request that could not be read is logged.
-async fn answer<Req, Resp>(
-    server: &Server<Req, Resp>,
-    request: ros2_client::ReadResult<(RmwRequestId, Req)>,
-    handle: impl FnOnce(Req) -> Resp,
-) where
-    Req: Message + Clone + 'static,
-    Resp: Message + 'static,
-{
-    match request {
-        Ok((id, request)) => {
-            if let Err(e) = server.async_send_response(id, handle(request)).await {
-                tracing::warn!("cannot answer a parameter request: {e:?}");
-            }
-        }
-        Err(e) => tracing::warn!("dropped a malformed parameter request: {e:?}"),
     }
 }
 
@@ -279,5 +251,52 @@ mod tests {
         let rule = describe(&specs, "rule");
         assert!(rule.integer_range.is_empty() && rule.floating_point_range.is_empty());
         assert_eq!(describe(&specs, "missing").r#type, raw::ParameterType::NOT_SET);
+    }
+
+    /// Fuzz target: parameters as a peer sends them (any type code, any fields) are set or
+    /// refused with a reason, never a panic, and a value set is within its declared range.
+    mod fuzz {
+        use proptest::prelude::*;
+
+        use super::*;
+
+        fn raw_value() -> impl Strategy<Value = raw::ParameterValue> {
+            let scalars = (any::<u8>(), any::<bool>(), any::<i64>(), any::<f64>(), "\\PC{0,12}");
+            let arrays = proptest::collection::vec(any::<f64>(), 0..4);
+            (scalars, arrays).prop_map(|((ptype, boolean_value, int_value, double_value, string_value), doubles)| {
+                raw::ParameterValue {
+                    ptype: ptype % 12,
+                    boolean_value,
+                    int_value,
+                    double_value,
+                    string_value,
+                    byte_array: vec![ptype],
+                    bool_array: vec![boolean_value],
+                    int_array: vec![int_value],
+                    double_array: doubles,
+                    string_array: vec!["x".into()],
+                }
+            })
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_param_service_raw_requests(name in "(deadline_ms|every|rule|\\PC{0,8})", value in raw_value()) {
+                let specs = [
+                    spec("deadline_ms", ParameterValue::Double(50.0), Some((0.0, 250.0))),
+                    spec("every", ParameterValue::Integer(10), Some((0.0, 100.0))),
+                    spec("rule", ParameterValue::String("rgb".into()), None),
+                ];
+                let parameter = Parameter::from(raw::Parameter { name: name.clone(), value });
+                match settable_value(&specs, &parameter) {
+                    Ok(ParameterValue::Double(v)) => prop_assert!((0.0..=250.0).contains(&v), "{name} = {v}"),
+                    Ok(ParameterValue::Integer(v)) => prop_assert!((0..=100).contains(&v), "{name} = {v}"),
+                    Ok(other) => prop_assert!(matches!(other, ParameterValue::String(_)), "{name} = {other:?}"),
+                    Err(reason) => prop_assert!(!reason.is_empty()),
+                }
+                let _ = describe(&specs, &name);
+                let _ = list(&["deadline_ms", "every", "rule"], &[name], u64::from(parameter.name.len() as u8));
+            }
+        }
     }
 }

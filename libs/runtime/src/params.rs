@@ -120,6 +120,21 @@ pub(crate) fn use_sim_time_spec() -> ParamSpec {
     }
 }
 
+/// Name of the parameter every node of the graph has: configure and activate itself at start.
+pub const AUTOSTART: &str = "autostart";
+
+/// The parameter every node of the graph (a managed node) has.
+pub(crate) fn autostart_spec() -> ParamSpec {
+    ParamSpec {
+        name: AUTOSTART,
+        description: "Configure and activate the node at start; false leaves it unconfigured for a \
+                      lifecycle manager or `ros2 lifecycle set`.",
+        default: ParameterValue::Boolean(true),
+        range: None,
+        read_at_start: true,
+    }
+}
+
 /// Checks `value` against `spec` and returns it with integers widened to doubles where needed.
 pub fn check_value(spec: &ParamSpec, value: &ParameterValue) -> Result<ParameterValue, String> {
     let value = coerce(&spec.default, value)

@@ -5,6 +5,7 @@
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::fmt;
+use std::sync::Mutex;
 
 use rover_msgs::validate::Validate;
 
@@ -15,6 +16,11 @@ pub struct Rejections {
 }
 
 impl Rejections {
+    /// No rejection yet.
+    pub const fn new() -> Self {
+        Rejections { counts: BTreeMap::new() }
+    }
+
     /// Whether `message`, received on `topic`, passes its checks; one that does not is counted
     /// under the topic's name and logged with the field and value that failed.
     pub fn accept<M: Validate>(&mut self, topic: &'static str, message: &M) -> bool {
@@ -52,6 +58,17 @@ impl fmt::Display for Rejections {
     }
 }
 
+/// Problems with requests from peers on the network (malformed or unanswerable service calls,
+/// goals and cancels, refused calls and transitions), counted by kind for the whole process: a
+/// peer that floods a node with them costs a few log lines.
+static REQUEST_PROBLEMS: Mutex<Rejections> = Mutex::new(Rejections::new());
+
+/// Counts a problem of `kind` with a peer's request and logs `problem` when it is the 1st, 2nd,
+/// 4th... of its kind in this process.
+pub(crate) fn request_problem(kind: &'static str, problem: &dyn fmt::Display) {
+    crate::sync::lock(&REQUEST_PROBLEMS).reject(kind, problem);
+}
+
 /// Whether the `count`-th occurrence of a repeated problem is worth a log line: the 1st, 2nd,
 /// 4th, 8th... are.
 pub fn worth_logging(count: u64) -> bool {
@@ -74,6 +91,16 @@ pub fn clipped(text: &str) -> Cow<'_, str> {
 mod tests {
     use super::*;
     use rover_msgs::msg::TerrainScan;
+
+    #[test]
+    fn problems_with_peers_requests_are_counted_for_the_whole_process() {
+        let before = crate::sync::lock(&REQUEST_PROBLEMS).count("test_flood");
+        let threads: Vec<_> = (0..4)
+            .map(|_| std::thread::spawn(|| (0..250).for_each(|_| request_problem("test_flood", &"a flood"))))
+            .collect();
+        threads.into_iter().for_each(|thread| thread.join().unwrap());
+        assert_eq!(crate::sync::lock(&REQUEST_PROBLEMS).count("test_flood") - before, 1000);
+    }
 
     #[test]
     fn long_quotes_are_clipped_on_a_character_boundary() {

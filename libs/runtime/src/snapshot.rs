@@ -30,16 +30,21 @@ pub fn path_in(state_dir: &str, name: &str) -> Option<PathBuf> {
     (!state_dir.is_empty()).then(|| Path::new(state_dir).join(name))
 }
 
-/// Writes `bytes` to `path` atomically: into `path` with `.tmp` appended, then renamed over
-/// `path` (atomic against a crash of the process; the folder is created if need be).
+/// Writes `bytes` to `path` atomically: into `path` with `.tmp` appended, synced to disk, then
+/// renamed over `path` and the rename synced (atomic against a crash of the process or of the
+/// machine; the folder is created if need be).
 pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     if let Some(folder) = path.parent() {
         std::fs::create_dir_all(folder)?;
     }
     let mut temporary = path.as_os_str().to_owned();
     temporary.push(".tmp");
-    std::fs::write(&temporary, bytes)?;
-    std::fs::rename(&temporary, path)
+    let mut file = std::fs::File::create(&temporary)?;
+    std::io::Write::write_all(&mut file, bytes)?;
+    file.sync_data()?;
+    std::fs::rename(&temporary, path)?;
+    let folder = path.parent().filter(|folder| !folder.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::File::open(folder)?.sync_all()
 }
 
 /// The bytes of the snapshot at `path`, `None` when there is none yet; an unreadable file is an

@@ -6,7 +6,7 @@ use ros2_client::QosProfile;
 use ros2_client::qos::History;
 use rover_msgs::RosMessage;
 use rover_msgs::diagnostic_msgs::DiagnosticArray;
-use rover_msgs::geometry_msgs::{PoseArray, Twist};
+use rover_msgs::geometry_msgs::{PoseArray, PoseStamped, Twist};
 use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, PickupRequest, Telemetry, TerrainScan};
 use rover_msgs::nav_msgs::{OccupancyGrid, Odometry, Path};
 use rover_msgs::rosgraph_msgs::Clock;
@@ -82,6 +82,7 @@ pub fn visit_all(visitor: &mut impl TopicVisitor) -> anyhow::Result<()> {
     visitor.visit(&MODE)?;
     visitor.visit(&PLAN)?;
     visitor.visit(&CMD_VEL)?;
+    visitor.visit(&GOAL_POSE)?;
     visitor.visit(&CLOCK)?;
     visitor.visit(&DIAGNOSTICS)
 }
@@ -125,14 +126,15 @@ pub const MODE: Topic<DecisionState> = Topic::new("rover/mode", latched());
 pub const PLAN: Topic<Path> = Topic::new("rover/plan", latched());
 /// Teleoperation velocity (overrides the decision node while fresh).
 pub const CMD_VEL: Topic<Twist> = Topic::new("cmd_vel", reliable(10));
+/// A goal to drive to, in `map` (what RViz's and Foxglove's "2D goal pose" tools publish).
+pub const GOAL_POSE: Topic<PoseStamped> = Topic::new("goal_pose", reliable(10));
 /// Simulated time, from the bridge (nodes with `use_sim_time` stamp with it).
 pub const CLOCK: Topic<Clock> = Topic::new("/clock", reliable(1));
 /// Bridge health.
 pub const DIAGNOSTICS: Topic<DiagnosticArray> = Topic::new("/diagnostics", reliable(10));
 
 /// The name of every topic of the table, in its order.
-#[cfg(test)]
-pub(crate) fn all_names() -> Vec<&'static str> {
+pub fn all_names() -> Vec<&'static str> {
     /// Collects the name of every topic visited.
     struct Names(Vec<&'static str>);
 
