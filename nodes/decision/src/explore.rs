@@ -8,16 +8,13 @@ use rover_msgs::map_grid::{CELLS, SIDE_CELLS, cell_at, cell_centre_m, cell_of_po
 use crate::grid::{Cell, CostMap, Costs, Grid};
 use crate::params::DecisionParams;
 use crate::pose::Position;
-use crate::route::{GOAL_SLACK_CELLS, PlanStart, PlanningMap, lookahead, path_costs};
+use crate::route::{GOAL_SLACK_CELLS, OBSTACLE_CROSSING_COST, PlanStart, PlanningMap, lookahead, path_costs};
 use crate::tour;
 
 /// A frontier needs enough unknown cells within this many cells.
 const FRONTIER_RADIUS_CELLS: usize = 2;
 /// Cells within this distance of a reached or abandoned target stop being frontier candidates.
 const EXPLORED_RADIUS_CELLS: usize = 3;
-/// Extra path cost of an obstacle cell once the explorer looks past obstacles (a narrow canyon
-/// whose floor the map got wrong).
-const OBSTACLE_CROSSING_COST: f32 = 50.0;
 /// Recoveries on the way to one target before it is abandoned.
 const RECOVERIES_PER_TARGET: u32 = 2;
 /// A plan that reaches fewer cells than this is walled in by the map.

@@ -7,6 +7,7 @@ mod approach;
 mod arrivals;
 pub mod drive;
 mod explore;
+mod goals;
 pub mod grid;
 pub mod local;
 pub mod machine;

@@ -15,16 +15,21 @@ use crate::route::Route;
 use crate::samples::SampleMemory;
 
 mod approach;
+mod commands;
 mod explore;
 mod maps;
+mod navigate;
 mod pickup;
 mod recover;
 mod return_home;
 #[cfg(test)]
 mod tests;
 
+pub use commands::CommandAnswer;
 use explore::Widening;
 use maps::Maps;
+use navigate::Navigation;
+pub use navigate::{GoalFailure, NavigationEnd, NavigationProgress};
 use recover::Watches;
 
 /// The modes of the state machine, as published on `rover/mode`.
@@ -42,6 +47,12 @@ pub enum Mode {
     ReturnHome,
     /// Stopped at the start.
     Done,
+    /// Holding still until the mission is started.
+    Idle,
+    /// Holding still until the mission is resumed.
+    Paused,
+    /// Driving to a goal given from outside; the mission waits.
+    Navigate,
 }
 
 impl Mode {
@@ -54,6 +65,9 @@ impl Mode {
             Mode::Recover => "recover",
             Mode::ReturnHome => "return_home",
             Mode::Done => "done",
+            Mode::Idle => "idle",
+            Mode::Paused => "paused",
+            Mode::Navigate => "navigate",
         }
     }
 }
@@ -201,14 +215,33 @@ pub struct Machine {
     steering: Steering,
     watches: Watches,
     widening: Widening,
+    /// The mission has started (at once unless `start_mission` is false).
+    started: bool,
+    /// Held by a pause.
+    paused: bool,
+    /// Asked to return home now: no more exploring or detours for samples.
+    sent_home: bool,
+    /// A goal given from outside, driven to in place of the mission.
+    navigation: Option<Navigation>,
+    /// How the last navigation ended, until taken.
+    navigation_end: Option<NavigationEnd>,
+    /// Where the rover was at the last frame.
+    last_position: Option<Position>,
 }
 
 impl Machine {
     /// A machine at the start of a mission.
     pub fn new(params: DecisionParams) -> Self {
-        let status =
-            Status { mode: Mode::Explore, reason: "start".to_string(), target: None, samples_collected: 0, home: None };
+        let started = params.start_mission;
+        let mode = if started { Mode::Explore } else { Mode::Idle };
+        let status = Status { mode, reason: "start".to_string(), target: None, samples_collected: 0, home: None };
         Machine {
+            started,
+            paused: false,
+            sent_home: false,
+            navigation: None,
+            navigation_end: None,
+            last_position: None,
             params,
             state: State::Explore,
             mission: Mission { status, changed: true, tally: SampleTally::default(), awaits_home: false },
@@ -296,6 +329,9 @@ impl Machine {
     /// The cells of the path on the map that the rover follows now: to the frontier, the sample or
     /// home (empty when it follows none: turning, picking up, recovering, done).
     pub fn path(&self) -> &[usize] {
+        if let Some(path) = self.navigation_path() {
+            return path;
+        }
         match &self.state {
             State::Explore => self.explorer.path(),
             State::Approach(chase) => chase.path(),
@@ -322,6 +358,7 @@ impl Machine {
         self.mission.tally.update(obs.samples_remaining);
         self.mission.status.samples_collected = self.mission.tally.collected();
         let drive = self.decide(obs);
+        self.last_position = Some(obs.position);
         self.mission.status.target = self.target();
         tracing::trace!(
             frame = obs.frame,
@@ -339,6 +376,14 @@ impl Machine {
         drive
     }
 
+    /// The stuck and stall watches and the steering start afresh: after the rover was held still
+    /// from outside (the node inactive), so that the held frames do not count as stuck, and
+    /// whenever what the rover does changes.
+    pub fn start_afresh(&mut self) {
+        self.steering.reset();
+        self.watches.reset();
+    }
+
     /// Between frames, after the drive command of the last one went out, the rover now at `at`:
     /// makes ahead the path costs the next frame will likely ask for. What the machine decides
     /// does not change, only when the search runs.
@@ -348,6 +393,9 @@ impl Machine {
 
     /// The goal of the current mode in the world, if it has one.
     fn target(&self) -> Option<(f64, f64)> {
+        if let Some(progress) = self.navigation_progress() {
+            return Some(progress.goal);
+        }
         match &self.state {
             State::Explore => self.explorer.target(),
             State::Approach(chase) => Some(chase.at),
@@ -369,14 +417,47 @@ impl Machine {
         status.mode = mode;
         status.reason = reason.to_string();
         self.mission.changed = true;
-        self.steering.reset();
-        self.watches.reset();
+        self.start_afresh();
     }
 
-    /// Enters pickup when the arm is busy or a sample is in reach, recovers when in trouble, and
-    /// runs the mode's step.
+    /// The mode shown: a command's hold or navigation over the mission, else the mission's mode.
+    fn shown_mode(&self) -> Mode {
+        if self.paused {
+            Mode::Paused
+        } else if self.navigation.is_some() {
+            Mode::Navigate
+        } else if !self.started {
+            Mode::Idle
+        } else {
+            self.state.mode()
+        }
+    }
+
+    /// Reports the mode shown when a command changed it, for `reason`; the watches and steering
+    /// start afresh (the rover held still or drove elsewhere meanwhile).
+    fn show_mode(&mut self, reason: &str) {
+        let mode = self.shown_mode();
+        let status = &mut self.mission.status;
+        if status.mode != mode {
+            tracing::info!("mode {} -> {}: {reason}", status.mode.name(), mode.name());
+            status.mode = mode;
+            status.reason = reason.to_string();
+            self.mission.changed = true;
+        }
+        self.start_afresh();
+    }
+
+    /// Holds still while paused, not started or recalled without home yet; drives a navigation;
+    /// else enters pickup when the arm is busy or a sample is in reach, recovers when in trouble,
+    /// and runs the mode's step.
     fn decide(&mut self, obs: &Observation) -> Drive {
-        if self.mission.awaits_home {
+        if self.mission.awaits_home || self.paused {
+            return Drive::stop(self.params.brake);
+        }
+        if let Some(navigation) = self.navigation.take() {
+            return self.navigate(obs, navigation);
+        }
+        if !self.started {
             return Drive::stop(self.params.brake);
         }
         let (pickup, done) = (matches!(self.state, State::Pickup { .. }), matches!(self.state, State::Done));

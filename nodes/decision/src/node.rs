@@ -1,9 +1,9 @@
 //! The decision node (`rover decision`): terrain scans (each with its frame's telemetry), the map
-//! and the located rocks in; one drive command per frame and the state machine's mode out.
+//! and the located rocks in; one drive command per frame and the state machine's mode out. It
+//! serves the mission's commands and `navigate_to_pose`, and takes goals on `goal_pose`.
 
 use std::collections::VecDeque;
 
-use futures::StreamExt;
 use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::frame_ids;
 use rover_msgs::frames::MissionFrames;
@@ -11,16 +11,21 @@ use rover_msgs::geometry_msgs::{Point, Pose, PoseArray, PoseStamped, Quaternion}
 use rover_msgs::map_grid::{SIDE_CELLS, cell_centre_m};
 use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, Telemetry, TerrainScan};
 use rover_msgs::nav_msgs::{OccupancyGrid, Path};
+use rover_msgs::nav2_msgs::{NavigateToPoseGoal, NavigateToPoseResult};
+use rover_msgs::sample_return::{SampleReturnGoal, SampleReturnResult};
 use rover_msgs::std_msgs::Header;
+use rover_msgs::std_srvs::{TriggerRequest, TriggerResponse};
+use rover_runtime::commands::{self, Commands, GoalEnd, GoalId};
+use rover_runtime::node_core::{Inputs, NodeCore, Outbox};
 use rover_runtime::snapshot::SnapshotFile;
-use rover_runtime::{Publisher, Rejections, Runtime, publish_or_warn, topics};
-use tracing::Instrument as _;
+use rover_runtime::{Rejections, topics};
 
 use crate::checked_observation;
 use crate::drive::Drive;
+use crate::goals;
 use crate::grid::Grid;
 use crate::local::FreeSpaceRays;
-use crate::machine::{Machine, Memory, Observation};
+use crate::machine::{CommandAnswer, Machine, Memory, Mode, NavigationEnd, Observation};
 use crate::params::DecisionParams;
 use crate::snapshot::{self, Snapshot};
 
@@ -28,6 +33,16 @@ use crate::snapshot::{self, Snapshot};
 const STATUS_EVERY_FRAMES: u64 = 25;
 /// How many scans' frames are remembered by stamp, to date the maps and rocks that come in.
 const STAMPS_KEPT: usize = 64;
+/// A running goal gets feedback every this many frames.
+const FEEDBACK_EVERY_FRAMES: u64 = 10;
+/// The mission's action gets feedback every this many frames.
+const MISSION_FEEDBACK_EVERY_FRAMES: u64 = 25;
+
+/// A goal the machine drives to: from `navigate_to_pose` (its id) or from `goal_pose` (none).
+struct RunningGoal {
+    id: Option<GoalId>,
+    point: (f64, f64),
+}
 
 /// The bridge's frame numbers of the last scans, by stamp. The mapping node stamps a map with its
 /// last scan, so that the machine can put the map into effect at a fixed frame after it
@@ -50,12 +65,11 @@ impl FrameStamps {
     }
 }
 
-struct Decision {
+/// The decision node: one drive command for each terrain scan, decided by the [`Machine`] on the
+/// latest map and rocks; the mode and the planned path for whoever watches.
+pub struct DecisionNode {
     machine: Machine,
     rays: FreeSpaceRays,
-    drive: Publisher<DriveCommand>,
-    mode: Publisher<DecisionState>,
-    plan: Publisher<Path>,
     /// The cells of the path last published on `rover/plan`.
     planned: Vec<usize>,
     first_frame: Option<u64>,
@@ -64,12 +78,245 @@ struct Decision {
     resumed: bool,
     frames: u64,
     rejections: Rejections,
+    snapshot_file: SnapshotFile,
+    goal: Option<RunningGoal>,
+    /// The goal of `sample_return` that follows the mission.
+    mission_goal: Option<GoalId>,
+    /// The mapping node's latest statistics.
+    map_stats: MapStats,
+    /// The node braked frames while inactive since the machine last decided.
+    held: bool,
 }
 
-impl Decision {
+impl NodeCore for DecisionNode {
+    type Params = DecisionParams;
+    const NAME: &'static str = "decision";
+
+    fn new(settings: DecisionParams) -> anyhow::Result<Self> {
+        let snapshot_file = SnapshotFile::new(&settings.state_dir, snapshot::FILE_NAME);
+        Ok(DecisionNode {
+            rays: settings.free_space_rays(),
+            machine: Machine::new(settings),
+            planned: Vec::new(),
+            first_frame: None,
+            mission_frames: MissionFrames::default(),
+            stamps: FrameStamps::default(),
+            resumed: false,
+            frames: 0,
+            rejections: Rejections::default(),
+            snapshot_file,
+            goal: None,
+            mission_goal: None,
+            map_stats: MapStats::default(),
+            held: false,
+        })
+    }
+
+    fn inputs() -> Inputs<Self> {
+        Inputs::new()
+            .on(&topics::TERRAIN, Self::on_scan)
+            .on(&topics::MAP, |node, map, _| node.set_map(map))
+            .on(&topics::ROCKS, |node, rocks, _| node.set_rocks(rocks))
+            .on(&topics::MAP_STATS, Self::on_map_stats)
+            .on(&topics::GOAL_POSE, Self::on_goal_pose)
+    }
+
+    fn commands() -> Commands<Self> {
+        Commands::new()
+            .action(&commands::NAVIGATE_TO_POSE, Self::on_navigate_goal, Self::on_navigate_cancel)
+            .action(&commands::SAMPLE_RETURN, Self::on_mission_goal, Self::on_mission_cancel)
+            .service(&commands::START_MISSION, |node, _, _| answer(node.machine.start_mission()))
+            .service(&commands::PAUSE_MISSION, |node, _, _| answer(node.machine.pause()))
+            .service(&commands::RESUME_MISSION, |node, _, _| answer(node.machine.resume_after_pause()))
+            .service(&commands::RETURN_HOME, Self::on_return_home)
+    }
+
+    fn inactive_inputs() -> Inputs<Self> {
+        Inputs::new().on(&topics::TERRAIN, Self::brake_for)
+    }
+
+    fn start(&mut self, _out: &mut Outbox) {
+        self.recall();
+    }
+
+    fn set_params(&mut self, params: DecisionParams) {
+        self.rays = params.free_space_rays();
+        self.machine.set_params(params);
+    }
+
+    fn stop(&mut self, out: &mut Outbox) {
+        let stopping = NavigateToPoseResult::error(NavigateToPoseResult::UNKNOWN, "the decision node stopped");
+        self.end_goal(GoalEnd::Aborted, stopping, out);
+        if let Some(id) = self.mission_goal.take() {
+            let stopping = SampleReturnResult::ended_early("the decision node stopped");
+            out.finish(&commands::SAMPLE_RETURN, id, GoalEnd::Aborted, stopping);
+        }
+        self.save();
+        tracing::info!(
+            "decision: {} frames decided, rejected {}, final mode {}",
+            self.frames,
+            self.rejections,
+            self.machine.status().mode.name()
+        );
+    }
+}
+
+impl DecisionNode {
+    /// While inactive: the brake for each frame, so that the rover stops and holds where it is
+    /// until the node is active again and the machine goes on from where it was.
+    fn brake_for(&mut self, scan: &TerrainScan, out: &mut Outbox) {
+        let brake = Drive::stop(self.machine.params().brake);
+        out.publish(&topics::DRIVE_CMD, drive_command(&scan.telemetry, &brake));
+        self.held = true;
+    }
+
+    fn on_scan(&mut self, scan: &TerrainScan, out: &mut Outbox) {
+        if std::mem::take(&mut self.held) {
+            self.machine.start_afresh();
+        }
+        self.stamps.note(&scan.header.stamp, scan.telemetry.frame);
+        self.decide(scan, out);
+        self.report_on_goal(&scan.telemetry, out);
+        self.report_on_mission(&scan.telemetry, out);
+        self.save_if_due();
+    }
+
+    /// Keeps the mapping node's statistics for the mission's feedback, and takes over a mission
+    /// under way from them.
+    fn on_map_stats(&mut self, stats: &MapStats, _out: &mut Outbox) {
+        if self.rejections.accept(topics::MAP_STATS.name, stats) {
+            self.map_stats = stats.clone();
+            self.resume_from(stats);
+        }
+    }
+
+    /// A goal of `sample_return`: the mission starts (or goes on, from a pause too) and the goal
+    /// follows it to its end, in place of an earlier one.
+    fn on_mission_goal(&mut self, id: GoalId, _goal: &SampleReturnGoal, out: &mut Outbox) {
+        if let Some(earlier) = self.mission_goal.replace(id) {
+            let preempted = SampleReturnResult::ended_early("preempted by a new goal");
+            out.finish(&commands::SAMPLE_RETURN, earlier, GoalEnd::Aborted, preempted);
+        }
+        let _ = self.machine.start_mission();
+        let _ = self.machine.resume_after_pause();
+        tracing::info!("sample_return: following the mission");
+    }
+
+    /// The client cancels the mission's goal: the mission pauses (the rover brakes and holds).
+    fn on_mission_cancel(&mut self, id: GoalId, out: &mut Outbox) {
+        if self.mission_goal == Some(id) {
+            self.mission_goal = None;
+            let _ = self.machine.pause();
+        }
+        let canceled = SampleReturnResult::ended_early("canceled: the mission is paused");
+        out.finish(&commands::SAMPLE_RETURN, id, GoalEnd::Canceled, canceled);
+    }
+
+    /// Ends the mission's goal with the score once the rover is done, else gives feedback every
+    /// second.
+    fn report_on_mission(&mut self, telemetry: &Telemetry, out: &mut Outbox) {
+        let Some(id) = self.mission_goal else { return };
+        let status = self.machine.status();
+        let time_s =
+            self.mission_frames.last().map_or(0, |(_, mission)| mission) as f64 * self.machine.params().frame_period_s;
+        if status.mode == Mode::Done {
+            self.mission_goal = None;
+            let result = goals::mission_result(status, &self.map_stats, telemetry, time_s);
+            tracing::info!("sample_return: {}", result.message);
+            out.finish(&commands::SAMPLE_RETURN, id, GoalEnd::Succeeded, result);
+        } else if telemetry.frame.is_multiple_of(MISSION_FEEDBACK_EVERY_FRAMES) {
+            out.feedback(&commands::SAMPLE_RETURN, id, goals::mission_feedback(status, &self.map_stats, time_s));
+        }
+    }
+
+    /// A new goal of `navigate_to_pose`, in place of the goal that runs.
+    fn on_navigate_goal(&mut self, id: GoalId, goal: &NavigateToPoseGoal, out: &mut Outbox) {
+        self.start_goal(Some(id), &goal.pose, out);
+    }
+
+    /// A goal on `goal_pose`, in place of the goal that runs.
+    fn on_goal_pose(&mut self, pose: &PoseStamped, out: &mut Outbox) {
+        self.start_goal(None, pose, out);
+    }
+
+    /// The client cancels goal `id`: the rover brakes if it was the running one.
+    fn on_navigate_cancel(&mut self, id: GoalId, out: &mut Outbox) {
+        if self.goal.as_ref().is_some_and(|goal| goal.id == Some(id)) {
+            self.goal = None;
+            self.machine.cancel_navigation();
+            tracing::info!("navigate_to_pose: goal canceled");
+        }
+        out.finish(&commands::NAVIGATE_TO_POSE, id, GoalEnd::Canceled, NavigateToPoseResult::default());
+    }
+
+    /// Ends a running goal, then drives home.
+    fn on_return_home(&mut self, _request: &TriggerRequest, out: &mut Outbox) -> TriggerResponse {
+        let answer = answer(self.machine.return_home_now());
+        if answer.success {
+            self.end_goal(GoalEnd::Aborted, NavigateToPoseResult::preempted_by("return_home"), out);
+        }
+        answer
+    }
+
+    /// Drives to the goal `pose` (preempting the running goal) for the action goal `id`, or for
+    /// `goal_pose` without one; a goal that is refused ends at once, or is logged.
+    fn start_goal(&mut self, id: Option<GoalId>, pose: &PoseStamped, out: &mut Outbox) {
+        let started = goals::goal_point(pose).and_then(|point| {
+            self.machine.navigate_to(point).map(|()| point).map_err(|failure| goals::failure_result(failure, point))
+        });
+        match started {
+            Ok(point) => {
+                self.end_goal(GoalEnd::Aborted, NavigateToPoseResult::preempted_by("a new goal"), out);
+                tracing::info!("navigating to ({:.2}, {:.2})", point.0, point.1);
+                self.goal = Some(RunningGoal { id, point });
+            }
+            Err(result) => match id {
+                Some(id) => {
+                    tracing::warn!("navigate_to_pose: refused a goal: {}", result.error_msg);
+                    out.finish(&commands::NAVIGATE_TO_POSE, id, GoalEnd::Aborted, result);
+                }
+                None => self.rejections.reject(topics::GOAL_POSE.name, &result.error_msg),
+            },
+        }
+    }
+
+    /// Ends the running goal, if any, as `end` with `result` (nothing to tell for a `goal_pose`).
+    fn end_goal(&mut self, end: GoalEnd, result: NavigateToPoseResult, out: &mut Outbox) {
+        if let Some(RunningGoal { id: Some(id), .. }) = self.goal.take() {
+            out.finish(&commands::NAVIGATE_TO_POSE, id, end, result);
+        }
+    }
+
+    /// Ends the running goal when the machine's navigation ended, else gives feedback on it now
+    /// and then.
+    fn report_on_goal(&mut self, telemetry: &Telemetry, out: &mut Outbox) {
+        let Some(goal) = &self.goal else { return };
+        let point = goal.point;
+        match self.machine.take_navigation_end() {
+            Some(NavigationEnd::Reached) => {
+                tracing::info!("navigation: goal ({:.2}, {:.2}) reached", point.0, point.1);
+                self.end_goal(GoalEnd::Succeeded, NavigateToPoseResult::default(), out);
+            }
+            Some(NavigationEnd::Failed(failure)) => {
+                let result = goals::failure_result(failure, point);
+                tracing::warn!("navigation given up: {}", result.error_msg);
+                self.end_goal(GoalEnd::Aborted, result, out);
+            }
+            None => {
+                let Some(id) = goal.id.filter(|_| telemetry.frame.is_multiple_of(FEEDBACK_EVERY_FRAMES)) else {
+                    return;
+                };
+                let Some(progress) = self.machine.navigation_progress() else { return };
+                let p = self.machine.params();
+                let feedback = goals::feedback(&progress, telemetry, p.frame_period_s, p.approach_speed_mps);
+                out.feedback(&commands::NAVIGATE_TO_POSE, id, feedback);
+            }
+        }
+    }
+
     /// Decides the frame's drive command and publishes it, then prepares the next frame's plan
     /// while the simulator and the other nodes work on that frame.
-    fn decide(&mut self, scan: &TerrainScan) {
+    fn decide(&mut self, scan: &TerrainScan, out: &mut Outbox) {
         let telemetry = &scan.telemetry;
         let observation = checked_observation(scan, &mut self.rays, &mut self.rejections);
         let position = observation.as_ref().map(|o| o.position);
@@ -81,32 +328,25 @@ impl Decision {
             }
             None => Drive::stop(self.machine.params().brake),
         };
-        let command = DriveCommand {
-            header: Header { frame_id: frame_ids::BASE_LINK.to_string(), ..telemetry.header.clone() },
-            frame: telemetry.frame,
-            throttle: drive.throttle as f32,
-            brake: drive.brake as f32,
-            steering_angle_deg: drive.steering_deg as f32,
-        };
-        publish_or_warn(&self.drive, &topics::DRIVE_CMD, command);
+        out.publish(&topics::DRIVE_CMD, drive_command(telemetry, &drive));
         if self.machine.take_change() || telemetry.frame.is_multiple_of(STATUS_EVERY_FRAMES) {
-            self.publish_status(telemetry);
+            self.publish_status(telemetry, out);
         }
         if self.machine.path() != self.planned {
             self.planned = self.machine.path().to_vec();
-            self.publish_plan(telemetry);
+            self.publish_plan(telemetry, out);
         }
         if let Some(position) = position {
             self.machine.prepare_next_frame(&position);
         }
     }
 
-    fn publish_plan(&mut self, telemetry: &Telemetry) {
+    fn publish_plan(&self, telemetry: &Telemetry, out: &mut Outbox) {
         let header = Header { frame_id: frame_ids::MAP.to_string(), ..telemetry.header.clone() };
-        publish_or_warn(&self.plan, &topics::PLAN, path_message(&self.planned, header));
+        out.publish(&topics::PLAN, path_message(&self.planned, header));
     }
 
-    fn publish_status(&mut self, telemetry: &Telemetry) {
+    fn publish_status(&self, telemetry: &Telemetry, out: &mut Outbox) {
         let status = self.machine.status();
         let (target_x_m, target_y_m) = status.target.unwrap_or((f64::NAN, f64::NAN));
         let (home_x_m, home_y_m) = status.home.unwrap_or((f64::NAN, f64::NAN));
@@ -121,7 +361,7 @@ impl Decision {
             home_x_m,
             home_y_m,
         };
-        publish_or_warn(&self.mode, &topics::MODE, state);
+        out.publish(&topics::MODE, state);
     }
 
     fn set_map(&mut self, map: &OccupancyGrid) {
@@ -159,7 +399,8 @@ impl Decision {
     }
 
     /// Carries on from the snapshot of an earlier decision node, if there is one.
-    fn recall(&mut self, file: &SnapshotFile) {
+    fn recall(&mut self) {
+        let file = &self.snapshot_file;
         if let Some(snapshot) = file.load(snapshot::decode) {
             tracing::info!(
                 "recalled the exploration from {}: {} cells inspected, {} rocks given up, {:?}",
@@ -174,23 +415,24 @@ impl Decision {
     }
 
     /// Writes the snapshot if `snapshot_every_ms` has passed since the last one.
-    fn save_if_due(&self, file: &mut SnapshotFile) {
-        if file.due(std::time::Duration::from_secs_f64(self.machine.params().snapshot_every_ms / 1000.0)) {
-            self.save(file);
+    fn save_if_due(&mut self) {
+        if self.snapshot_file.due(std::time::Duration::from_secs_f64(self.machine.params().snapshot_every_ms / 1000.0))
+        {
+            self.save();
         }
     }
 
     /// Writes the snapshot.
-    fn save(&self, file: &mut SnapshotFile) {
+    fn save(&mut self) {
         let snapshot = Snapshot { recollection: self.machine.recollection(), mission_frames: self.mission_frames };
-        file.save(&snapshot::encode(&snapshot));
+        self.snapshot_file.save(&snapshot::encode(&snapshot));
     }
 
     /// Takes over home and collected samples from the mapping node when its mission started
     /// before this node's first frame: the mission was already under way (this node was restarted).
     fn resume_from(&mut self, stats: &MapStats) {
         let earlier = stats.home_frame > 0 && self.first_frame.is_none_or(|first| stats.home_frame < first);
-        if !self.rejections.accept(topics::MAP_STATS.name, stats) || self.resumed || !earlier {
+        if self.resumed || !earlier {
             return;
         }
         self.resumed = true;
@@ -205,63 +447,23 @@ impl Decision {
     }
 }
 
-/// Runs the decision node until shutdown.
-pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
-    let (mut node, params) = runtime.node::<DecisionParams>("decision")?;
-    let span = node.span();
-    let settings = params.get();
-    let mut decision = Decision {
-        rays: settings.free_space_rays(),
-        machine: Machine::new(settings),
-        drive: node.publisher(&topics::DRIVE_CMD)?,
-        mode: node.publisher(&topics::MODE)?,
-        plan: node.publisher(&topics::PLAN)?,
-        planned: Vec::new(),
-        first_frame: None,
-        mission_frames: MissionFrames::default(),
-        stamps: FrameStamps::default(),
-        resumed: false,
-        frames: 0,
-        rejections: Rejections::default(),
-    };
-    let mut scans = std::pin::pin!(node.messages(&topics::TERRAIN)?);
-    let mut maps = std::pin::pin!(node.messages(&topics::MAP)?);
-    let mut rocks = std::pin::pin!(node.messages(&topics::ROCKS)?);
-    let mut stats = std::pin::pin!(node.messages(&topics::MAP_STATS)?);
-    let mut snapshot_file = SnapshotFile::new(&decision.machine.params().state_dir, snapshot::FILE_NAME);
-    decision.recall(&snapshot_file);
-    let mut changes = params.watch();
-    let shutdown = runtime.shutdown();
-    async {
-        loop {
-            tokio::select! {
-                () = shutdown.wait() => break,
-                Some(scan) = scans.next() => {
-                    decision.stamps.note(&scan.header.stamp, scan.telemetry.frame);
-                    decision.decide(&scan);
-                    decision.save_if_due(&mut snapshot_file);
-                }
-                Some(map) = maps.next() => decision.set_map(&map),
-                Some(located) = rocks.next() => decision.set_rocks(&located),
-                Some(s) = stats.next() => decision.resume_from(&s),
-                Ok(()) = changes.changed() => {
-                    let updated = changes.borrow_and_update().clone();
-                    decision.rays = updated.free_space_rays();
-                    decision.machine.set_params(updated);
-                }
-            }
-        }
-        decision.save(&mut snapshot_file);
-        tracing::info!(
-            "decision: {} frames decided, rejected {}, final mode {}",
-            decision.frames,
-            decision.rejections,
-            decision.machine.status().mode.name()
-        );
+/// The answer of a mission command as `std_srvs/Trigger` gives it.
+fn answer(answer: CommandAnswer) -> TriggerResponse {
+    match answer {
+        Ok(message) => TriggerResponse { success: true, message: message.to_string() },
+        Err(message) => TriggerResponse { success: false, message: message.to_string() },
     }
-    .instrument(span)
-    .await;
-    Ok(())
+}
+
+/// The drive command `drive` for the frame of `telemetry`, in `rover/drive_cmd`'s `f32`.
+fn drive_command(telemetry: &Telemetry, drive: &Drive) -> DriveCommand {
+    DriveCommand {
+        header: Header { frame_id: frame_ids::BASE_LINK.to_string(), ..telemetry.header.clone() },
+        frame: telemetry.frame,
+        throttle: drive.throttle as f32,
+        brake: drive.brake as f32,
+        steering_angle_deg: drive.steering_deg as f32,
+    }
 }
 
 /// The path through the centres of `cells`, in the map frame of `header`.

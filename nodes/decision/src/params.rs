@@ -94,6 +94,18 @@ rover_runtime::node_params! {
         pickup_wait_s: f64 [0.5, 100.0] = 4.0,
         /// Stop at home within this distance of the start, metres.
         home_tolerance_m: f64 [0.2, 10.0] = 1.5,
+        /// A goal of `navigate_to_pose` or `goal_pose` counts as reached within this distance,
+        /// metres.
+        goal_tolerance_m: f64 [0.2, 10.0] = 1.0,
+        /// A goal that the map shows inside an obstacle is given up once the rover is this close
+        /// to it, metres (from farther off the map may be wrong there).
+        goal_seen_m: f64 [0.5, 20.0] = 3.0,
+        /// A goal of `navigate_to_pose` or `goal_pose` is given up (aborted) after this many
+        /// recoveries on the way.
+        goal_max_recoveries: f64 [0.0, 100.0] = 6.0,
+        /// Start the sample-return mission at the first frame (false: the rover holds still
+        /// until the `start_mission` service, and takes goals meanwhile).
+        start_mission: bool = true,
         /// Be home by this mission time even if not done, seconds.
         mission_deadline_s: f64 [10.0, 100000.0] = 1150.0,
         /// Speed assumed when estimating the way home, as a fraction of the cruising speed.

@@ -12,6 +12,9 @@ use crate::pose::Position;
 
 /// A goal on an obstacle cell is reached through the cheapest reachable cell this close, cells.
 pub(crate) const GOAL_SLACK_CELLS: usize = 3;
+/// Path cost of crossing an obstacle cell when a plan goes past obstacles (the map may be wrong,
+/// e.g. an exit mapped as rock).
+pub(crate) const OBSTACLE_CROSSING_COST: f32 = 50.0;
 
 /// The path costs of `params`.
 pub fn path_costs(params: &DecisionParams) -> Costs {
@@ -240,12 +243,14 @@ pub struct Route {
     path: Vec<usize>,
     cost: Option<f64>,
     planned: Option<(u64, u64)>,
+    past_obstacles: bool,
 }
 
 impl Route {
     /// A route to the cell containing `goal`, or `None` when that is off the map.
     pub fn to(goal: (f64, f64)) -> Option<Self> {
-        Some(Route { goal: cell_of_point(goal.0, goal.1)?, path: Vec::new(), cost: None, planned: None })
+        let goal = cell_of_point(goal.0, goal.1)?;
+        Some(Route { goal, path: Vec::new(), cost: None, planned: None, past_obstacles: false })
     }
 
     /// The cells of the latest plan, from the rover's cell on (empty before the first plan or when
@@ -260,6 +265,12 @@ impl Route {
         self.cost
     }
 
+    /// Plans past obstacle cells from now on, at a high cost; whether it did not already.
+    pub fn plan_past_obstacles(&mut self) -> bool {
+        self.planned = None;
+        !std::mem::replace(&mut self.past_obstacles, true)
+    }
+
     /// The point to steer toward on the way from `at`, replanning when the route is older than
     /// `replan_frames` or the map changed; the goal itself once the path's end is within the
     /// lookahead (a path that ends next to a goal on an obstacle cell would otherwise leave the
@@ -268,7 +279,8 @@ impl Route {
         let PlanStart { map, at, frame, params } = *from;
         let (grid, start) = (map.grid(), cell_of_point(at.x_m, at.y_m)?);
         if from.replan_due(self.planned) {
-            let costs = map.costs_from(start, &path_costs(params), frame);
+            let obstacle = self.past_obstacles.then_some(OBSTACLE_CROSSING_COST);
+            let costs = map.costs_from(start, &Costs { obstacle, ..path_costs(params) }, frame);
             let end = costs.reachable_near(self.goal, GOAL_SLACK_CELLS);
             self.path = end.and_then(|cell| costs.path_to(cell)).unwrap_or_default();
             self.cost = end.map(|cell| costs.distance(cell) as f64);

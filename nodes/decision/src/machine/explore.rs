@@ -110,8 +110,12 @@ impl Machine {
         self.return_home(obs, None)
     }
 
-    /// Whether the way home, at the return speed, would end past the mission's deadline.
+    /// Whether the rover was asked to return home, or the way home, at the return speed, would end
+    /// past the mission's deadline.
     pub(super) fn time_to_go_home(&self, obs: &Observation) -> Option<&'static str> {
+        if self.sent_home {
+            return Some("asked to return home");
+        }
         let p = &self.params;
         let home = self.mission.status.home?;
         let elapsed_s = obs.frame as f64 * p.frame_period_s;

@@ -62,14 +62,24 @@ impl Machine {
     /// Starts a recovery when the rover is tilted, stuck or stalled; stuck and stalled mark the
     /// cell ahead for planning.
     pub(super) fn check_for_trouble(&mut self, obs: &Observation) {
+        if let Some(trouble) = self.trouble(obs) {
+            if trouble != "tilted" {
+                self.mark_stuck_cell(obs);
+            }
+            self.start_recovery(obs, trouble);
+        }
+    }
+
+    /// What is wrong, if the rover is tilted, stuck or stalled.
+    pub(super) fn trouble(&mut self, obs: &Observation) -> Option<&'static str> {
         if tilted(obs, &self.params) {
-            self.start_recovery(obs, "tilted");
+            Some("tilted")
         } else if self.watches.stuck(obs, &self.params) {
-            self.mark_stuck_cell(obs);
-            self.start_recovery(obs, "stuck");
+            Some("stuck")
         } else if self.watches.stalled(obs, &self.params) {
-            self.mark_stuck_cell(obs);
-            self.start_recovery(obs, "no progress");
+            Some("no progress")
+        } else {
+            None
         }
     }
 
@@ -108,22 +118,30 @@ impl Machine {
 
     /// Backs off, stops, turns; then back to exploring or on the way home.
     pub(super) fn recover(&mut self, obs: &Observation, since_frame: u64, turn_left: bool, then_home: bool) -> Drive {
+        if let Some(drive) = self.recovery_drive(obs, since_frame, turn_left) {
+            return drive;
+        }
+        let brake = self.params.brake;
+        self.enter(if then_home { State::ReturnHome(None) } else { State::Explore }, "recovered");
+        Drive::stop(brake)
+    }
+
+    /// The drive of a recovery started at `since_frame`: back off, stop, turn; `None` once over.
+    pub(super) fn recovery_drive(&self, obs: &Observation, since_frame: u64, turn_left: bool) -> Option<Drive> {
         let p = &self.params;
         let elapsed = obs.frame.saturating_sub(since_frame);
         let back = p.frames(p.recover_back_s);
         if elapsed < back {
-            return Drive { throttle: -p.recover_throttle, brake: 0.0, steering_deg: 0.0 };
+            return Some(Drive { throttle: -p.recover_throttle, brake: 0.0, steering_deg: 0.0 });
         }
         if elapsed < back + p.frames(p.recover_turn_s) {
             // Backing up ends in a full stop before the turn.
-            return if obs.speed_mps.abs() > STOPPED_MPS {
+            return Some(if obs.speed_mps.abs() > STOPPED_MPS {
                 Drive::stop(p.brake)
             } else {
                 Drive::turn_in_place(turn_left)
-            };
+            });
         }
-        let brake = p.brake;
-        self.enter(if then_home { State::ReturnHome(None) } else { State::Explore }, "recovered");
-        Drive::stop(brake)
+        None
     }
 }

@@ -26,18 +26,28 @@ impl Machine {
             return self.approach(obs, chase);
         }
         let mut route = route.or_else(|| Route::to(home));
-        let mut waypoint = self.waypoint_on(route.as_mut(), obs);
-        if waypoint.is_none() && self.maps.forget_stuck_marks() {
-            tracing::info!("home unreachable: the cells where the rover got stuck are free again");
-            waypoint = self.waypoint_on(route.as_mut(), obs);
-        }
-        let waypoint = waypoint.unwrap_or(home);
+        let waypoint = self.reachable_waypoint_on(route.as_mut(), obs).unwrap_or(home);
         let bearing = obs.position.bearing_to(waypoint);
         let p = &self.params;
         let cruise = p.max_speed_mps.min(distance_m.max(p.approach_speed_mps));
         let drive = self.steering.around_obstacles(bearing, cruise, obs.speed_mps, &obs.free, p);
         self.state = State::ReturnHome(route);
         drive
+    }
+
+    /// The point of `route` to steer toward, as [`Machine::waypoint_on`]; when the goal cannot be
+    /// reached, the cells where the rover got stuck are freed and the route tried again.
+    pub(super) fn reachable_waypoint_on(
+        &mut self,
+        mut route: Option<&mut Route>,
+        obs: &Observation,
+    ) -> Option<(f64, f64)> {
+        let waypoint = self.waypoint_on(route.as_deref_mut(), obs);
+        if waypoint.is_some() || !self.maps.forget_stuck_marks() {
+            return waypoint;
+        }
+        tracing::info!("goal unreachable: the cells where the rover got stuck are free again");
+        self.waypoint_on(route, obs)
     }
 
     /// The point of `route` to steer toward from the rover's position on the planning map; none

@@ -493,3 +493,154 @@ fn at_the_deadline_the_rover_goes_home_without_detours_and_stops_there() {
     assert_eq!(machine.status().mode, Mode::Done);
     assert_eq!(machine.step(&observation(late + 2, 101.0, 100.5)).throttle, 0.0);
 }
+
+/// A machine on the corridor map that has seen the rover at (100.5, 100.5).
+fn machine_in_the_corridor(params: DecisionParams) -> Machine {
+    let mut machine = machine_on_with(corridor(), params);
+    machine.step(&observation(1, 100.5, 100.5));
+    machine
+}
+
+#[test]
+fn a_goal_off_the_map_or_on_a_mapped_obstacle_is_refused() {
+    let mut machine = machine_in_the_corridor(DecisionParams { goal_seen_m: 5.0, ..DecisionParams::default() });
+    assert_eq!(machine.navigate_to((-3.0, 100.0)), Err(GoalFailure::OutsideMap));
+    assert_eq!(machine.navigate_to((100.5, 250.0)), Err(GoalFailure::OutsideMap));
+    assert_eq!(machine.navigate_to((102.5, 104.5)), Err(GoalFailure::Occupied), "a wall of the corridor, close by");
+    assert_eq!(machine.status().mode, Mode::Explore, "the mission goes on");
+    assert_eq!(machine.navigate_to((110.5, 110.5)), Ok(()), "a wall far off: the map may be wrong there");
+}
+
+#[test]
+fn a_navigation_drives_along_its_path_and_ends_at_the_goal_where_the_mission_goes_on() {
+    let mut machine = machine_in_the_corridor(DecisionParams::default());
+    machine.navigate_to((120.5, 100.5)).unwrap();
+    let drive = machine.step(&observation(2, 100.5, 100.5));
+    assert_eq!(machine.status().mode, Mode::Navigate);
+    assert!(drive.throttle > 0.0, "drives toward the goal ahead: {drive:?}");
+    assert_eq!(machine.status().target, Some((120.5, 100.5)));
+    let progress = machine.navigation_progress().unwrap();
+    assert!((19.0..21.5).contains(&progress.distance_remaining_m), "{progress:?}");
+    assert!(!machine.path().is_empty());
+    machine.step(&observation(3, 110.5, 100.5));
+    let closer = machine.navigation_progress().unwrap().distance_remaining_m;
+    assert!(closer < progress.distance_remaining_m - 9.0, "{closer}");
+    let drive = machine.step(&observation(4, 120.2, 100.6));
+    assert!(drive.brake > 0.0 && drive.throttle == 0.0, "{drive:?}");
+    assert_eq!(machine.take_navigation_end(), Some(NavigationEnd::Reached));
+    assert_eq!(machine.take_navigation_end(), None, "taken once");
+    assert_eq!(machine.status().mode, Mode::Explore);
+}
+
+#[test]
+fn a_goal_walled_off_on_the_map_is_tried_past_the_walls_and_given_up_when_stuck_there() {
+    let mut data = vec![100i8; CELLS];
+    for y in 98..103 {
+        for x in 90..130 {
+            data[cell_at(x, y)] = 0;
+        }
+    }
+    data[cell_at(150, 100)] = 0;
+    let params = DecisionParams { goal_max_recoveries: 0.0, ..DecisionParams::default() };
+    let mut machine = machine_on_with(Grid::from_occupancy(&data).unwrap(), params.clone());
+    machine.step(&observation(1, 100.5, 100.5));
+    machine.navigate_to((150.5, 100.5)).unwrap();
+    assert!(machine.step(&observation(2, 100.5, 100.5)).throttle > 0.0, "the map may be wrong: it tries");
+    let stuck_frames = params.frames(params.stuck_s) + 2;
+    for frame in 3..3 + stuck_frames {
+        machine.step(&observation(frame, 100.5, 100.5));
+    }
+    assert_eq!(machine.take_navigation_end(), Some(NavigationEnd::Failed(GoalFailure::NoProgress)));
+}
+
+#[test]
+fn a_goal_that_turns_out_inside_an_obstacle_is_given_up() {
+    let mut machine = machine_in_the_corridor(DecisionParams::default());
+    machine.navigate_to((135.5, 100.5)).unwrap();
+    machine.step(&observation(2, 100.5, 100.5));
+    assert_eq!(machine.status().mode, Mode::Navigate, "unknown ground may be free");
+    let mut data = vec![100i8; CELLS];
+    for y in 98..103 {
+        for x in 90..140 {
+            let rock = (134..=136).contains(&x) && (99..=101).contains(&y);
+            data[cell_at(x, y)] = if x < 130 {
+                0
+            } else if rock {
+                100
+            } else {
+                -1
+            };
+        }
+    }
+    machine.set_map(Grid::from_occupancy(&data).unwrap());
+    machine.step(&observation(3, 101.5, 100.5));
+    assert_eq!(machine.take_navigation_end(), None, "blocked on the map, seen from afar: the rover looks");
+    machine.step(&observation(4, 132.5, 100.5));
+    assert_eq!(machine.take_navigation_end(), Some(NavigationEnd::Failed(GoalFailure::Occupied)));
+}
+
+#[test]
+fn a_canceled_navigation_brakes_and_gives_the_rover_back_to_the_mission() {
+    let params = DecisionParams { start_mission: false, ..DecisionParams::default() };
+    let mut machine = machine_in_the_corridor(params);
+    assert_eq!(machine.status().mode, Mode::Idle);
+    machine.navigate_to((120.5, 100.5)).unwrap();
+    assert!(machine.step(&observation(2, 100.5, 100.5)).throttle > 0.0);
+    assert!(machine.cancel_navigation());
+    assert!(!machine.cancel_navigation(), "nothing left to cancel");
+    let drive = machine.step(&observation(3, 101.5, 100.5));
+    assert!(drive.brake > 0.0 && drive.throttle == 0.0, "{drive:?}");
+    assert_eq!(machine.status().mode, Mode::Idle);
+    assert_eq!(machine.take_navigation_end(), None, "a cancel is no end of the machine's own");
+}
+
+#[test]
+fn the_mission_waits_for_its_start_and_holds_while_paused() {
+    let params = DecisionParams { start_mission: false, ..DecisionParams::default() };
+    let mut machine = machine_in_the_corridor(params);
+    let drive = machine.step(&observation(2, 100.5, 100.5));
+    assert!(drive.brake > 0.0 && drive.throttle == 0.0);
+    assert!(machine.pause().is_ok());
+    assert!(machine.pause().is_err(), "already paused");
+    assert_eq!(machine.status().mode, Mode::Paused);
+    assert!(machine.resume_after_pause().is_ok());
+    assert!(machine.resume_after_pause().is_err(), "not paused");
+    assert_eq!(machine.status().mode, Mode::Idle);
+    assert_eq!(machine.start_mission(), Ok("mission started"));
+    assert!(machine.start_mission().is_err());
+    assert!(machine.step(&observation(3, 100.5, 100.5)).throttle > 0.0, "explores");
+    assert_eq!(machine.status().mode, Mode::Explore);
+    machine.pause().unwrap();
+    let drive = machine.step(&observation(4, 100.5, 100.5));
+    assert!(drive.brake > 0.0 && drive.throttle == 0.0);
+    assert_eq!(machine.return_home_now(), Ok("returning home"));
+    assert_eq!(machine.status().mode, Mode::ReturnHome, "a return home ends the pause");
+    machine.step(&observation(5, 110.5, 100.5));
+    assert_eq!(machine.status().mode, Mode::ReturnHome);
+    let mut collecting = observation(6, 110.5, 100.5);
+    collecting.picking_up = true;
+    machine.step(&collecting);
+    assert_eq!(machine.status().mode, Mode::Pickup, "a sample in the arm's reach is picked up");
+    machine.step(&observation(7, 110.5, 100.5));
+    machine.step(&observation(8, 110.5, 100.5));
+    assert_eq!(machine.status().mode, Mode::ReturnHome, "then home again, not exploring");
+}
+
+#[test]
+fn frames_held_still_from_outside_do_not_count_as_stuck() {
+    let params = DecisionParams::default();
+    let after_the_hold = 10 + params.frames(params.stuck_s.max(params.stall_s)) + 5;
+    let stepped_over_a_hold = |held_still: bool| {
+        let mut machine = machine_in_the_corridor(params.clone());
+        for frame in 2..10 {
+            assert!(machine.step(&observation(frame, 100.5, 100.5)).throttle > 0.0);
+        }
+        if held_still {
+            machine.start_afresh();
+        }
+        machine.step(&observation(after_the_hold, 100.5, 100.5));
+        machine.status().mode
+    };
+    assert_eq!(stepped_over_a_hold(false), Mode::Recover, "without the hold noted, the gap looks stuck");
+    assert_eq!(stepped_over_a_hold(true), Mode::Explore);
+}
