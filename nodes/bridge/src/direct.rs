@@ -6,11 +6,11 @@
 
 use std::collections::VecDeque;
 
-use rover_msgs::msg::{DriveCommand, Telemetry};
-use rover_msgs::std_msgs::Header;
+use rover_msgs::msg::DriveCommand;
 use serde_json::Value;
 
-use crate::convert::telemetry_message;
+use crate::clock::SimClock;
+use crate::convert::{FrameMessages, PinholeCamera};
 use crate::node::BridgeParams;
 use crate::reply::{DataEvent, DriveValues};
 use crate::telemetry::{SimTelemetry, parse_telemetry};
@@ -28,27 +28,26 @@ pub trait UnityPeer {
     fn receive(&mut self, event: &str, data: &Value) -> anyhow::Result<bool>;
 }
 
-/// One frame as the graph gets it.
-#[derive(Debug, Clone)]
-pub struct Frame {
-    /// The telemetry message, numbered.
-    pub telemetry: Telemetry,
-    /// The camera JPEG.
-    pub image_jpeg: Vec<u8>,
-}
-
 /// A simulator linked to the graph's libraries as the bridge links it over the socket.
 pub struct DirectLink<P> {
     peer: P,
     in_flight: VecDeque<SimTelemetry>,
     max_payload_bytes: usize,
+    clock: SimClock,
+    camera: PinholeCamera,
 }
 
 impl<P: UnityPeer> DirectLink<P> {
-    /// Opens the link: the peer's first telemetries go in flight.
-    pub fn open(peer: P) -> anyhow::Result<Self> {
-        let max_payload_bytes = BridgeParams::default().max_payload_bytes as usize;
-        let mut link = DirectLink { peer, in_flight: VecDeque::with_capacity(LOOPS_IN_FLIGHT), max_payload_bytes };
+    /// Opens the link to a peer whose frames are `frame_period_s` apart: its first telemetries go
+    /// in flight.
+    pub fn open(peer: P, frame_period_s: f64) -> anyhow::Result<Self> {
+        let mut link = DirectLink {
+            peer,
+            in_flight: VecDeque::with_capacity(LOOPS_IN_FLIGHT),
+            max_payload_bytes: BridgeParams::default().max_payload_bytes as usize,
+            clock: SimClock::new(frame_period_s, true),
+            camera: PinholeCamera::rover(),
+        };
         for _ in 0..LOOPS_IN_FLIGHT {
             link.read_telemetry()?;
         }
@@ -60,12 +59,12 @@ impl<P: UnityPeer> DirectLink<P> {
         &self.peer
     }
 
-    /// The next telemetry in flight, as frame `frame` of the graph; none when every telemetry has
-    /// been taken and no command sent since.
-    pub fn next_frame(&mut self, frame: u64) -> Option<Frame> {
+    /// The messages of the next telemetry in flight, as the bridge publishes them for frame
+    /// `frame`, stamped with its simulated time; none when every telemetry has been taken and no
+    /// command sent since.
+    pub fn next_frame(&mut self, frame: u64) -> Option<FrameMessages> {
         let telemetry = self.in_flight.pop_front()?;
-        let message = telemetry_message(&telemetry, frame, Header::default());
-        Some(Frame { telemetry: message, image_jpeg: telemetry.image_jpeg })
+        Some(FrameMessages::new(&telemetry, frame, self.clock.stamp_frame(frame), &self.camera))
     }
 
     /// Sends a drive command as the bridge answers with one: clamped, as the text of a `data`
@@ -100,6 +99,8 @@ impl<P: UnityPeer> DirectLink<P> {
 
 #[cfg(test)]
 mod tests {
+    use rover_msgs::std_msgs::Header;
+
     use super::*;
 
     /// A peer that answers with telemetry numbered by the events it got, and keeps the events.
@@ -126,13 +127,22 @@ mod tests {
         event.1[name].as_str().expect("a string value")
     }
 
+    #[test]
+    fn frames_are_stamped_with_their_simulated_time() {
+        let mut link = DirectLink::open(Recorder::default(), 0.04).unwrap();
+        let frame = link.next_frame(50).unwrap();
+        assert_eq!(frame.telemetry.header.stamp, rover_msgs::builtin_interfaces::Time { sec: 2, nanosec: 0 });
+        assert_eq!(frame.compressed.header.stamp, frame.telemetry.header.stamp, "paired by stamp");
+        assert!(frame.compressed.data.starts_with(&[0xff, 0xd8]), "the simulator's JPEG");
+    }
+
     fn drive(throttle: f32, brake: f32, steering_angle_deg: f32) -> DriveCommand {
         DriveCommand { header: Header::default(), frame: 1, throttle, brake, steering_angle_deg }
     }
 
     #[test]
     fn each_command_is_applied_two_frames_after_the_state_it_answers() {
-        let mut link = DirectLink::open(Recorder::default()).unwrap();
+        let mut link = DirectLink::open(Recorder::default(), 0.04).unwrap();
         let first = link.next_frame(1).unwrap();
         assert_eq!((first.telemetry.frame, first.telemetry.x_m), (1, 100.0));
         link.send_drive(&drive(0.3, 0.0, 5.0), 10.0).unwrap();
@@ -146,14 +156,14 @@ mod tests {
 
     #[test]
     fn an_event_the_simulator_ignores_is_an_error_not_a_lost_loop() {
-        let mut link = DirectLink::open(Recorder::default()).unwrap();
+        let mut link = DirectLink::open(Recorder::default(), 0.04).unwrap();
         let error = link.send("ignored", Value::Null).unwrap_err();
         assert!(error.to_string().contains("ignored the ignored event"), "{error}");
     }
 
     #[test]
     fn a_drive_is_sent_as_the_bridge_sends_it() {
-        let mut link = DirectLink::open(Recorder::default()).unwrap();
+        let mut link = DirectLink::open(Recorder::default(), 0.04).unwrap();
         link.send_drive(&drive(0.3, 0.713_479_546_953_064_8_f64 as f32, 5.0), 10.0).unwrap();
         link.send_drive(&drive(2.0, -1.0, -40.0), 10.0).unwrap();
         link.send_drive(&drive(f32::NAN, 0.0, 0.0), 10.0).unwrap();

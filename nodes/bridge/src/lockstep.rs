@@ -3,8 +3,8 @@
 //! after a longer silence. Independent of sockets and DDS: frames leave through a [`FrameSink`].
 
 use std::collections::HashMap;
-use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use rover_msgs::geometry_msgs::Twist;
@@ -71,12 +71,14 @@ struct FrameFacts {
 pub struct LockStep<S> {
     config: Mutex<LockStepConfig>,
     sink: S,
-    stats: BridgeStats,
+    stats: Arc<BridgeStats>,
     next_frame: AtomicU64,
     waiting: Mutex<HashMap<u64, oneshot::Sender<DriveValues>>>,
     last_command: Mutex<Option<LastCommand>>,
     pickup_requested: AtomicBool,
     braking_on_silence: AtomicBool,
+    /// Whether the bridge is active (lifecycle); otherwise every reply is the brake.
+    active: AtomicBool,
     teleop: Mutex<Option<(Twist, Instant)>>,
     insets: Mutex<Insets>,
 }
@@ -87,12 +89,13 @@ impl<S: FrameSink> LockStep<S> {
         LockStep {
             config: Mutex::new(config),
             sink,
-            stats: BridgeStats::default(),
+            stats: Arc::default(),
             next_frame: AtomicU64::new(0),
             waiting: Mutex::new(HashMap::new()),
             last_command: Mutex::new(None),
             pickup_requested: AtomicBool::new(false),
             braking_on_silence: AtomicBool::new(false),
+            active: AtomicBool::new(true),
             teleop: Mutex::new(None),
             insets: Mutex::new(Insets::default()),
         }
@@ -108,9 +111,20 @@ impl<S: FrameSink> LockStep<S> {
         *lock(&self.config) = config;
     }
 
+    /// Activates or deactivates the bridge: an inactive bridge answers every frame with the brake
+    /// at once, whatever drive, pickup or teleoperation commands come.
+    pub fn set_active(&self, active: bool) {
+        self.active.store(active, Ordering::Relaxed);
+    }
+
     /// The health counters.
     pub fn stats(&self) -> &BridgeStats {
         &self.stats
+    }
+
+    /// The health counters, for the parts of the server that outlive a borrow of the core.
+    pub fn shared_stats(&self) -> Arc<BridgeStats> {
+        self.stats.clone()
     }
 
     /// The current inset images.
@@ -203,6 +217,10 @@ impl<S: FrameSink> LockStep<S> {
     async fn decide(&self, waiting: Waiting) -> (Reply, Option<Instant>) {
         let config = self.config();
         let Waiting { receiver, facts, .. } = waiting;
+        if !self.active.load(Ordering::Relaxed) {
+            lock(&self.waiting).remove(&facts.frame);
+            return (Reply::Data(DriveValues::brake(config.policy.brake), CommandSource::Inactive), None);
+        }
         let fresh = if config.policy.deadline.is_zero() {
             let mut receiver = receiver;
             receiver.try_recv().ok()
@@ -374,6 +392,21 @@ mod tests {
         let braked = core.reply(core.receive(Some(&payload(false)))).await;
         assert_eq!(braked, Reply::Data(DriveValues::brake(10.0), CommandSource::SilenceBrake));
         assert_eq!(core.stats().deadline_misses(), 2);
+    }
+
+    #[tokio::test]
+    async fn an_inactive_bridge_brakes_whatever_comes_until_active_again() {
+        let (core, frames) = core();
+        core.set_active(false);
+        let (answering, frame, _frames) = frame_in_flight(&core, frames).await;
+        core.on_drive_command(frame, 0.3, 0.0, 5.0);
+        core.on_pickup_request();
+        assert_eq!(answering.await.unwrap(), Reply::Data(DriveValues::brake(10.0), CommandSource::Inactive));
+        core.set_active(true);
+        core.on_drive_command(0, 0.4, 0.0, 0.0);
+        let reply = core.reply(core.receive(Some(&payload(false)))).await;
+        assert!(matches!(reply, Reply::Data(v, CommandSource::Held) if v.throttle == 0.4), "{reply:?}");
+        assert!(core.stats().summary().contains("1 inactive brakes"), "{}", core.stats().summary());
     }
 
     #[tokio::test]

@@ -16,10 +16,12 @@ use rover_msgs::rosgraph_msgs::Clock;
 use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image};
 use rover_msgs::std_msgs::Header;
 use rover_msgs::tf2_msgs::TFMessage;
+use rover_runtime::lifecycle::{State, Transition};
 use rover_runtime::sync::lock;
 use rover_runtime::{Publisher, RosNode, Runtime, publish_or_warn, spawn_subscriber, topics};
 use tracing::Instrument as _;
 
+use crate::access::AccessPolicy;
 use crate::clock::SimClock;
 use crate::convert::{self, FrameMessages, PinholeCamera};
 use crate::lockstep::{FrameSink, LockStep, LockStepConfig};
@@ -67,6 +69,26 @@ rover_runtime::node_params! {
         /// Simulated time per telemetry frame, s: /clock advances by it each frame, as the
         /// simulator sends no time (the headless simulator steps 0.04 s).
         frame_period_s: f64 [0.001, 1.0] = rover_msgs::unity::FRAME_PERIOD_S,
+        /// Browser origins (the Origin header, e.g. "http://localhost:8080") allowed to connect; a
+        /// request with any other Origin is refused (403), so that no web page in a browser can
+        /// become the simulator. Simulators send no Origin.
+        allowed_origins: Vec<String> = Vec::new(),
+        /// Token a simulator must present as `Authorization: Bearer TOKEN` (`rover sim --token`);
+        /// empty: none asked. The Unity simulator cannot send one: set it only for rover sim.
+        simulator_token: String = "",
+        /// Addresses or networks (e.g. "192.168.1.20", "10.0.0.0/8") a simulator may connect from;
+        /// empty: any. Others are refused (403) before anything else is read.
+        allowed_addresses: Vec<String> = Vec::new(),
+        /// Open connections to the Socket.IO server at most (one simulator is served; the rest are
+        /// reconnects and refusals in passing); more are refused (503).
+        max_connections: i64 [1, 1024] = 8,
+        /// A connection that has not completed an accepted websocket handshake after this long is
+        /// closed, s, so that idle connections cannot hold the connection cap.
+        handshake_timeout_s: f64 [0.1, 60.0] = 5.0,
+        /// A served simulator that sends nothing for this long is disconnected and the next one
+        /// served, s. Simulators send telemetry every frame (Unity at its frame rate, 25 Hz or
+        /// more), so silence means it is gone; the Engine.IO heartbeat alone keeps it 85 s.
+        simulator_idle_timeout_s: f64 [0.5, 600.0] = 5.0,
     }
     read_at_start: [
         host,
@@ -79,6 +101,12 @@ rover_runtime::node_params! {
         inset_jpeg_quality,
         replace_connected_simulator,
         frame_period_s,
+        allowed_origins,
+        simulator_token,
+        allowed_addresses,
+        max_connections,
+        handshake_timeout_s,
+        simulator_idle_timeout_s,
     ]
 }
 
@@ -104,6 +132,23 @@ impl BridgeParams {
             address: SocketAddr::new(ip, self.port as u16),
             max_message_bytes: self.max_payload_bytes as usize * 4,
             replace_connected_simulator: self.replace_connected_simulator,
+            access: self.access_policy()?,
+            handshake_timeout: Duration::from_secs_f64(self.handshake_timeout_s),
+            idle_timeout: Duration::from_secs_f64(self.simulator_idle_timeout_s),
+        })
+    }
+
+    fn access_policy(&self) -> anyhow::Result<AccessPolicy> {
+        let allowed_networks = self
+            .allowed_addresses
+            .iter()
+            .map(|text| text.parse().map_err(|e: String| anyhow::anyhow!("parameter allowed_addresses: {e}")))
+            .collect::<anyhow::Result<_>>()?;
+        Ok(AccessPolicy {
+            allowed_origins: self.allowed_origins.clone(),
+            token: Some(self.simulator_token.clone()).filter(|token| !token.is_empty()),
+            allowed_networks,
+            max_connections: self.max_connections as usize,
         })
     }
 }
@@ -222,12 +267,36 @@ pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
             config_core.set_config(updated);
         }
     });
+    manage(&node, core.clone(), &span)?;
     let shutdown = runtime.shutdown();
     let served = server::serve(core.clone(), initial.server_config()?, async move { shutdown.wait().await })
         .instrument(span.clone())
         .await;
     span.in_scope(|| tracing::info!("bridge: {}", core.stats().summary()));
     served
+}
+
+/// Makes the bridge a managed node, configured and active from the start unless its `autostart`
+/// parameter is false: while it is not active, it answers the simulator with the brake.
+fn manage(node: &RosNode, core: Arc<LockStep<DdsSink>>, span: &tracing::Span) -> anyhow::Result<()> {
+    let mut lifecycle = node.lifecycle()?;
+    if node.autostarts() {
+        lifecycle.record(Transition::Configure);
+        lifecycle.record(Transition::Activate);
+    }
+    core.set_active(lifecycle.state() == State::Active);
+    tokio::spawn(
+        async move {
+            loop {
+                let request = lifecycle.next_request().await;
+                let goal = lifecycle.state().after(request.transition);
+                core.set_active(goal == Some(State::Active));
+                lifecycle.finish(request, true);
+            }
+        }
+        .instrument(span.clone()),
+    );
+    Ok(())
 }
 
 fn subscribe_commands(node: &mut RosNode, core: &Arc<LockStep<DdsSink>>, span: &tracing::Span) -> anyhow::Result<()> {
@@ -298,6 +367,24 @@ mod tests {
             error.to_string(),
             "node `/bridge`: parameter `brake` (from unsafe.yaml) = 0 is outside the allowed range [1, 100]"
         );
+    }
+
+    #[test]
+    fn a_bad_allowed_address_is_refused_naming_it() {
+        let params =
+            BridgeParams { allowed_addresses: vec!["10.0.0.0/8".into(), "lan".into()], ..BridgeParams::default() };
+        let error = params.server_config().unwrap_err().to_string();
+        assert_eq!(
+            error,
+            "parameter allowed_addresses: \"lan\" is not an IP address or network, expected e.g. 192.168.1.20 or 10.0.0.0/8"
+        );
+    }
+
+    #[test]
+    fn an_empty_token_asks_for_none() {
+        assert_eq!(BridgeParams::default().access_policy().unwrap().token, None);
+        let params = BridgeParams { simulator_token: "s3cret".into(), ..BridgeParams::default() };
+        assert_eq!(params.access_policy().unwrap().token.as_deref(), Some("s3cret"));
     }
 
     #[test]

@@ -50,6 +50,8 @@ pub enum CommandSource {
     Teleop,
     /// A brake, because the telemetry frame was rejected.
     RejectedFrame,
+    /// A brake, because the bridge is not active (lifecycle).
+    Inactive,
 }
 
 /// The event to send back for one telemetry frame.

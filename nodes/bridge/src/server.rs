@@ -5,11 +5,13 @@
 //! [`crate::sio`]: every message is handled in arrival order from the first byte on.
 //!
 //! One simulator is served at a time: a second connection is refused (or, when configured,
-//! replaces the first), so that two simulators never share the lock-step frame numbers.
+//! replaces the first), so that two simulators never share the lock-step frame numbers. Only the
+//! websocket transport is served, each request passes the [`crate::gate`] first, and a served
+//! simulator that falls silent is closed after the idle timeout, freeing its slot.
 
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use axum::http::{Request, Uri};
@@ -17,12 +19,15 @@ use bytes::Bytes;
 use engineioxide::handler::EngineIoHandler;
 use engineioxide::sid::Sid;
 use engineioxide::socket::{DisconnectReason, Socket};
-use engineioxide::{Str, config::EngineIoConfig, layer::EngineIoLayer};
+use engineioxide::{Str, TransportType, config::EngineIoConfig, layer::EngineIoLayer};
+use rover_runtime::rejections::worth_logging;
 use rover_runtime::sync::lock;
 use tokio::sync::mpsc::error::TrySendError;
 use tokio::sync::oneshot;
 use tower::util::MapRequestLayer;
 
+use crate::access::AccessPolicy;
+use crate::gate::{self, Gate, GatedListener, Peer};
 use crate::insets::InsetsSent;
 use crate::lockstep::{FrameSink, InFlight, LockStep};
 use crate::reply::{DataEvent, Reply};
@@ -31,7 +36,7 @@ use crate::stats::BridgeStats;
 use crate::telemetry::check_size;
 
 /// Settings of the Socket.IO server.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct ServerConfig {
     /// Address to listen on.
     pub address: SocketAddr,
@@ -39,6 +44,12 @@ pub struct ServerConfig {
     pub max_message_bytes: usize,
     /// A new simulator connection replaces the one being served instead of being refused.
     pub replace_connected_simulator: bool,
+    /// Who may connect.
+    pub access: AccessPolicy,
+    /// A connection with no admitted websocket handshake by then is closed.
+    pub handshake_timeout: Duration,
+    /// A served simulator that sends nothing for this long is closed.
+    pub idle_timeout: Duration,
 }
 
 /// Rewrites `EIO=4` to `EIO=3` in the query, so the Unity client gets the Engine.IO 3 behaviour it speaks.
@@ -66,6 +77,7 @@ pub async fn serve<S: FrameSink>(
 ) -> anyhow::Result<()> {
     let engine_config = EngineIoConfig::builder()
         .req_path("/socket.io")
+        .transports([TransportType::Websocket])
         .ping_interval(Duration::from_secs(25))
         .ping_timeout(Duration::from_secs(60))
         .max_payload(config.max_message_bytes as u64)
@@ -79,15 +91,21 @@ pub async fn serve<S: FrameSink>(
         replies: Arc::default(),
         insets_sent: Arc::default(),
         replace_connected: config.replace_connected_simulator,
+        idle_timeout: config.idle_timeout,
     });
+    let gate = Gate::new(config.access, config.handshake_timeout, handler.core.shared_stats());
     let app = axum::Router::new()
         .layer(EngineIoLayer::from_config(handler, engine_config))
+        .layer(axum::middleware::from_fn_with_state(gate.clone(), gate::admit))
         .layer(MapRequestLayer::new(rewrite_engine_io_version));
-    let listener = tokio::net::TcpListener::bind(config.address)
+    let listener = GatedListener::bind(config.address, gate)
         .await
         .with_context(|| format!("cannot listen on {} (is another bridge running?)", config.address))?;
     tracing::info!("waiting for the simulator on ws://{}/socket.io/", config.address);
-    axum::serve(listener, app).with_graceful_shutdown(shutdown).await.context("Socket.IO server failed")
+    axum::serve(listener, app.into_make_service_with_connect_info::<Peer>())
+        .with_graceful_shutdown(shutdown)
+        .await
+        .context("Socket.IO server failed")
 }
 
 /// What becomes of a new simulator connection.
@@ -101,10 +119,18 @@ enum Admission<T> {
     Refused(Sid),
 }
 
-/// The one simulator connection the bridge serves (`T` is the connection, a socket in the server).
+/// The one simulator connection the bridge serves (`T` is the connection, a socket in the server),
+/// with when it was last heard from.
 #[derive(Debug)]
 struct ServedSimulator<T> {
-    current: Mutex<Option<(Sid, T)>>,
+    current: Mutex<Option<Served<T>>>,
+}
+
+#[derive(Debug)]
+struct Served<T> {
+    sid: Sid,
+    connection: T,
+    last_heard: Instant,
 }
 
 impl<T> Default for ServedSimulator<T> {
@@ -114,30 +140,41 @@ impl<T> Default for ServedSimulator<T> {
 }
 
 impl<T> ServedSimulator<T> {
-    /// Decides on connection `sid`: served if none is, else refused, or served in place of the
-    /// current one when `replace`.
-    fn admit(&self, sid: Sid, connection: T, replace: bool) -> Admission<T> {
+    /// Decides on connection `sid`, heard from at `now`: served if none is, else refused, or
+    /// served in place of the current one when `replace`.
+    fn admit(&self, sid: Sid, connection: T, replace: bool, now: Instant) -> Admission<T> {
         let mut current = self.current();
-        if let Some((served, _)) = current.as_ref().filter(|_| !replace) {
-            return Admission::Refused(*served);
+        if let Some(served) = current.as_ref().filter(|_| !replace) {
+            return Admission::Refused(served.sid);
         }
-        match current.replace((sid, connection)) {
+        match current.replace(Served { sid, connection, last_heard: now }) {
             None => Admission::Served,
-            Some((old_sid, old)) => Admission::Replacing(old_sid, old),
+            Some(old) => Admission::Replacing(old.sid, old.connection),
         }
     }
 
-    /// Whether connection `sid` is the one served.
-    fn serves(&self, sid: Sid) -> bool {
-        self.current().as_ref().is_some_and(|(served, _)| *served == sid)
+    /// Notes that connection `sid` sent something at `now`; returns whether it is the one served.
+    fn heard(&self, sid: Sid, now: Instant) -> bool {
+        let mut current = self.current();
+        let served = current.as_mut().filter(|served| served.sid == sid);
+        served.map(|served| served.last_heard = now).is_some()
+    }
+
+    /// How long connection `sid` has been silent at `now`; `None` if it is not the one served.
+    fn silent_for(&self, sid: Sid, now: Instant) -> Option<Duration> {
+        let current = self.current();
+        current
+            .as_ref()
+            .filter(|served| served.sid == sid)
+            .map(|served| now.saturating_duration_since(served.last_heard))
     }
 
     /// Forgets connection `sid` if it is the one served; returns whether it was.
     fn release(&self, sid: Sid) -> bool {
-        self.current().take_if(|(served, _)| *served == sid).is_some()
+        self.current().take_if(|served| served.sid == sid).is_some()
     }
 
-    fn current(&self) -> std::sync::MutexGuard<'_, Option<(Sid, T)>> {
+    fn current(&self) -> std::sync::MutexGuard<'_, Option<Served<T>>> {
         lock(&self.current)
     }
 }
@@ -166,6 +203,7 @@ struct SimulatorLink<S> {
     replies: Arc<ReplyOrder>,
     insets_sent: Arc<InsetsSent<Sid>>,
     replace_connected: bool,
+    idle_timeout: Duration,
 }
 
 impl<S> Clone for SimulatorLink<S> {
@@ -176,6 +214,7 @@ impl<S> Clone for SimulatorLink<S> {
             replies: self.replies.clone(),
             insets_sent: self.insets_sent.clone(),
             replace_connected: self.replace_connected,
+            idle_timeout: self.idle_timeout,
         }
     }
 }
@@ -190,7 +229,7 @@ impl<S: FrameSink> EngineIoHandler for SimulatorLink<S> {
     type Data = ();
 
     fn on_connect(self: Arc<Self>, socket: Arc<Socket<()>>) {
-        match self.served.admit(socket.id, socket.clone(), self.replace_connected) {
+        match self.served.admit(socket.id, socket.clone(), self.replace_connected, Instant::now()) {
             Admission::Refused(served) => return self.refuse(&socket, served),
             Admission::Replacing(old_sid, old) => {
                 tracing::warn!(sid = %socket.id, "a new simulator connection replaces simulator {old_sid}");
@@ -199,11 +238,12 @@ impl<S: FrameSink> EngineIoHandler for SimulatorLink<S> {
             }
             Admission::Served => {}
         }
-        tracing::info!(sid = %socket.id, "simulator connected");
+        tracing::info!(sid = %socket.id, "simulator connected from {}", peer_of(&socket));
         self.core.stats().client_connected();
         if socket.emit(sio::CONNECT).is_err() {
             tracing::warn!(sid = %socket.id, "cannot send the namespace CONNECT");
         }
+        self.close_when_silent(socket);
     }
 
     fn on_disconnect(&self, socket: Arc<Socket<()>>, reason: DisconnectReason) {
@@ -213,7 +253,7 @@ impl<S: FrameSink> EngineIoHandler for SimulatorLink<S> {
     }
 
     fn on_message(self: &Arc<Self>, message: Str, socket: Arc<Socket<()>>) {
-        if !self.served.serves(socket.id) {
+        if !self.served.heard(socket.id, Instant::now()) {
             return;
         }
         let in_flight = match self.packet(&message) {
@@ -229,7 +269,7 @@ impl<S: FrameSink> EngineIoHandler for SimulatorLink<S> {
     }
 
     fn on_binary(self: &Arc<Self>, data: Bytes, socket: Arc<Socket<()>>) {
-        if !self.served.serves(socket.id) {
+        if !self.served.heard(socket.id, Instant::now()) {
             return;
         }
         let problem = format!("binary websocket message of {} bytes (the simulator only sends text)", data.len());
@@ -243,12 +283,39 @@ impl<S: FrameSink> SimulatorLink<S> {
     /// never reach the lock-step core.
     fn refuse(&self, socket: &Socket<()>, served: Sid) {
         let message = format_args!(
-            "refused a second simulator connection ({}): simulator {served} is connected and served \
+            "refused a second simulator connection ({} from {}): simulator {served} is connected and served \
              (parameter replace_connected_simulator lets a new one take over)",
-            socket.id
+            socket.id,
+            peer_of(socket)
         );
         self.core.stats().warn_problem("simulator_refused", message);
         socket.close(DisconnectReason::ClosingServer);
+    }
+
+    /// Closes the served connection `socket` once it has sent nothing for the idle timeout, so
+    /// that a simulator that vanished without closing frees the slot for the next one.
+    fn close_when_silent(&self, socket: Arc<Socket<()>>) {
+        let (served, core, idle_timeout) = (self.served.clone(), self.core.clone(), self.idle_timeout);
+        tokio::spawn(async move {
+            while let Some(silent_for) = served.silent_for(socket.id, Instant::now()) {
+                if silent_for < idle_timeout {
+                    tokio::time::sleep(idle_timeout - silent_for).await;
+                } else if served.release(socket.id) {
+                    let count = core.stats().client_disconnected("idle");
+                    if worth_logging(count) {
+                        tracing::warn!(
+                            sid = %socket.id,
+                            "closed the connection of the simulator at {}: nothing received for {:.1} s \
+                             (parameter simulator_idle_timeout_s); the next simulator to connect is served \
+                             ({count} such so far)",
+                            peer_of(&socket),
+                            silent_for.as_secs_f64()
+                        );
+                    }
+                    socket.close(DisconnectReason::HeartbeatTimeout);
+                }
+            }
+        });
     }
 
     /// The Socket.IO packet of a websocket message; or why it was refused: too large (then it is
@@ -271,6 +338,12 @@ impl<S: FrameSink> SimulatorLink<S> {
             let _ = sent.send(());
         });
     }
+}
+
+/// The address `socket` connected from, for the logs.
+fn peer_of(socket: &Socket<()>) -> String {
+    let peer = socket.req_parts.extensions.get::<axum::extract::ConnectInfo<Peer>>();
+    peer.map_or_else(|| "an unknown address".to_string(), |info| info.0.address().to_string())
 }
 
 fn log_disconnect(socket: &Socket<()>, reason: &DisconnectReason, stats: &BridgeStats) {
@@ -338,25 +411,45 @@ mod tests {
 
     #[test]
     fn one_simulator_is_served_and_a_second_is_refused_until_it_leaves() {
-        let (first, second) = (Sid::new(), Sid::new());
+        let (first, second, now) = (Sid::new(), Sid::new(), Instant::now());
         let served = ServedSimulator::default();
-        assert_eq!(served.admit(first, 1, false), Admission::Served);
-        assert_eq!(served.admit(second, 2, false), Admission::Refused(first));
-        assert!(served.serves(first) && !served.serves(second));
+        assert_eq!(served.admit(first, 1, false, now), Admission::Served);
+        assert_eq!(served.admit(second, 2, false, now), Admission::Refused(first));
+        assert!(served.heard(first, now) && !served.heard(second, now));
         assert!(!served.release(second), "the refused connection was never served");
         assert!(served.release(first));
-        assert_eq!(served.admit(second, 2, false), Admission::Served);
-        assert!(served.serves(second));
+        assert_eq!(served.admit(second, 2, false, now), Admission::Served);
+        assert!(served.heard(second, now));
     }
 
     #[test]
     fn with_replacement_the_newest_simulator_is_served() {
-        let (first, second) = (Sid::new(), Sid::new());
+        let (first, second, now) = (Sid::new(), Sid::new(), Instant::now());
         let served = ServedSimulator::default();
-        assert_eq!(served.admit(first, 1, true), Admission::Served);
-        assert_eq!(served.admit(second, 2, true), Admission::Replacing(first, 1));
-        assert!(served.serves(second) && !served.serves(first));
+        assert_eq!(served.admit(first, 1, true, now), Admission::Served);
+        assert_eq!(served.admit(second, 2, true, now), Admission::Replacing(first, 1));
+        assert!(served.heard(second, now) && !served.heard(first, now));
         assert!(!served.release(first), "the replaced connection's close does not free the slot");
-        assert!(served.serves(second));
+        assert!(served.heard(second, now));
+    }
+
+    #[test]
+    fn silence_is_counted_from_the_last_message_of_the_served_simulator() {
+        let (first, second, start) = (Sid::new(), Sid::new(), Instant::now());
+        let served = ServedSimulator::default();
+        served.admit(first, 1, false, start);
+        let later = |ms| start + Duration::from_millis(ms);
+        assert_eq!(served.silent_for(first, later(300)), Some(Duration::from_millis(300)));
+        served.heard(first, later(400));
+        assert_eq!(served.silent_for(first, later(1000)), Some(Duration::from_millis(600)));
+        assert_eq!(served.silent_for(second, later(1000)), None, "a connection not served has no silence");
+        served.heard(second, later(2000));
+        assert_eq!(
+            served.silent_for(first, later(2000)),
+            Some(Duration::from_millis(1600)),
+            "the refused one's messages do not count"
+        );
+        served.release(first);
+        assert_eq!(served.silent_for(first, later(2000)), None);
     }
 }

@@ -81,6 +81,7 @@ pub struct BridgeStats {
     replies_silence_brake: AtomicU64,
     replies_teleop: AtomicU64,
     replies_rejected: AtomicU64,
+    replies_inactive: AtomicU64,
     replies_pickup: AtomicU64,
     replies_manual: AtomicU64,
     problems: Mutex<BTreeMap<String, u64>>,
@@ -102,6 +103,7 @@ impl Default for BridgeStats {
             replies_silence_brake: AtomicU64::new(0),
             replies_teleop: AtomicU64::new(0),
             replies_rejected: AtomicU64::new(0),
+            replies_inactive: AtomicU64::new(0),
             replies_pickup: AtomicU64::new(0),
             replies_manual: AtomicU64::new(0),
             problems: Mutex::new(BTreeMap::new()),
@@ -135,10 +137,11 @@ impl BridgeStats {
         self.connections.fetch_add(1, Ordering::Relaxed);
     }
 
-    /// Counts a simulator disconnection and its reason.
-    pub fn client_disconnected(&self, reason: &str) {
+    /// Counts a simulator disconnection and its reason; returns how many of that reason there
+    /// were so far.
+    pub fn client_disconnected(&self, reason: &str) -> u64 {
         self.connected.fetch_sub(1, Ordering::Relaxed);
-        self.problem(&format!("disconnect_{reason}"));
+        self.problem(&format!("disconnect_{reason}"))
     }
 
     /// Counts a problem of kind `kind` (a rejected frame, a disconnect, a bad command...); returns
@@ -168,6 +171,7 @@ impl BridgeStats {
             Reply::Data(_, CommandSource::SilenceBrake) => &self.replies_silence_brake,
             Reply::Data(_, CommandSource::Teleop) => &self.replies_teleop,
             Reply::Data(_, CommandSource::RejectedFrame) => &self.replies_rejected,
+            Reply::Data(_, CommandSource::Inactive) => &self.replies_inactive,
             Reply::Pickup => &self.replies_pickup,
             Reply::Manual => &self.replies_manual,
         };
@@ -228,14 +232,15 @@ impl BridgeStats {
         let latency = self.latency();
         let problems = lock(&self.problems);
         format!(
-            "{} frames; replies: {} fresh, {} held, {} silence brakes, {} teleop, {} rejected frames, {} pickups, \
-             {} manual; {} deadline misses; reply latency p50 {:.2} ms, p99 {:.2} ms; problems {:?}",
+            "{} frames; replies: {} fresh, {} held, {} silence brakes, {} teleop, {} rejected frames, {} inactive brakes, \
+             {} pickups, {} manual; {} deadline misses; reply latency p50 {:.2} ms, p99 {:.2} ms; problems {:?}",
             self.frames(),
             self.fresh_replies(),
             count(&self.replies_held),
             count(&self.replies_silence_brake),
             count(&self.replies_teleop),
             count(&self.replies_rejected),
+            count(&self.replies_inactive),
             count(&self.replies_pickup),
             count(&self.replies_manual),
             self.deadline_misses(),
@@ -272,6 +277,7 @@ impl BridgeStats {
             key_value(SILENCE_BRAKES_KEY, silence.to_string()),
             key_value("replies_teleop", self.replies_teleop.load(Ordering::Relaxed).to_string()),
             key_value("replies_rejected_frame", self.replies_rejected.load(Ordering::Relaxed).to_string()),
+            key_value("replies_inactive_brake", self.replies_inactive.load(Ordering::Relaxed).to_string()),
             key_value("replies_pickup", self.replies_pickup.load(Ordering::Relaxed).to_string()),
             key_value("replies_manual", self.replies_manual.load(Ordering::Relaxed).to_string()),
         ];

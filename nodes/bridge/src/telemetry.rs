@@ -77,6 +77,14 @@ pub enum TelemetryError {
         /// Entries in `samples_y`.
         y: usize,
     },
+    /// A sample list is longer than [`MAX_SAMPLES`].
+    #[error("telemetry field `{field}` lists {count} samples, more than the {MAX_SAMPLES} accepted")]
+    TooManySamples {
+        /// Field name.
+        field: &'static str,
+        /// Entries listed.
+        count: usize,
+    },
     /// `image` is not valid base64.
     #[error("telemetry field `image` is not valid base64: {0}")]
     BadBase64(String),
@@ -95,6 +103,7 @@ impl TelemetryError {
             TelemetryError::NotFinite { .. } => "not_finite",
             TelemetryError::BadPosition(_) => "bad_position",
             TelemetryError::SampleListsDiffer { .. } => "sample_lists_differ",
+            TelemetryError::TooManySamples { .. } => "too_many_samples",
             TelemetryError::BadBase64(_) => "bad_base64",
         }
     }
@@ -199,9 +208,16 @@ fn parse_position(text: &str) -> Result<(f64, f64), TelemetryError> {
     Ok((x, y))
 }
 
+/// Most samples a telemetry frame may list: Unity places six, and every one is republished.
+pub const MAX_SAMPLES: usize = 64;
+
 fn parse_list(field: &'static str, text: &str) -> Result<Vec<f64>, TelemetryError> {
     if text.trim().is_empty() {
         return Ok(Vec::new());
+    }
+    let count = text.split(';').count();
+    if count > MAX_SAMPLES {
+        return Err(TelemetryError::TooManySamples { field, count });
     }
     text.split(';').map(|item| parse_number(field, item)).collect()
 }
@@ -303,6 +319,17 @@ pub(crate) mod tests {
         assert_eq!(parse_telemetry("[1]", 100).unwrap_err(), TelemetryError::NotAnObject("an array"));
         assert_eq!(parse_telemetry("{", 100).unwrap_err().kind(), "invalid_json");
         assert_eq!(parse_telemetry("{}", 1).unwrap_err(), TelemetryError::TooLarge { bytes: 2, limit: 1 });
+    }
+
+    #[test]
+    fn a_frame_listing_more_samples_than_accepted_is_refused() {
+        let mut fields = sample_payload();
+        let many = vec!["1.5"; MAX_SAMPLES + 1].join(";");
+        fields.insert("samples_x".into(), many.clone().into());
+        fields.insert("samples_y".into(), many.into());
+        let error = parse(&fields).unwrap_err();
+        assert_eq!(error.kind(), "too_many_samples");
+        assert_eq!(error.to_string(), "telemetry field `samples_x` lists 65 samples, more than the 64 accepted");
     }
 
     #[test]

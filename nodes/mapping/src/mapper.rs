@@ -3,6 +3,7 @@
 //! scan, the samples picked up counted from the scans' telemetry and their rocks forgotten, the
 //! statistics of `rover/map_stats`, and the memory a snapshot keeps.
 
+use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{MapStats, Telemetry, TerrainScan};
 use rover_msgs::std_msgs::Header;
@@ -64,19 +65,57 @@ impl MappingCore {
         }
     }
 
-    /// Maps one terrain scan and follows the telemetry it carries, unless it fails its checks or
-    /// comes before the last scan taken.
-    pub fn add_scan(&mut self, scan: &TerrainScan) {
+    /// Maps one terrain scan received at `now` (the node's clock) and follows the telemetry it
+    /// carries, unless it fails its checks, is stamped ahead of `now`, or comes before the last
+    /// scan taken.
+    pub fn add_scan(&mut self, scan: &TerrainScan, now: &Time) {
         self.unpublished_scans += 1;
         self.last_scan_frame = scan.telemetry.frame;
-        if !self.rejections.accept(topics::TERRAIN.name, scan) {
+        if !self.rejections.accept(topics::TERRAIN.name, scan) || !self.stamped_by_now(&scan.header, now) {
             return;
         }
+        self.restart_order_if_time_went_back(now);
         let order = order_of(&scan.header, scan.telemetry.frame);
         if self.in_order(order) {
             self.forget_rocks_picked_before(order);
             self.map_scan(scan);
             self.follow_telemetry(&scan.telemetry, order);
+        }
+    }
+
+    /// Maps `scan` as if received at the time it is stamped.
+    #[cfg(test)]
+    pub(crate) fn add_scan_at_its_stamp(&mut self, scan: &TerrainScan) {
+        self.add_scan(scan, &scan.header.stamp.clone());
+    }
+
+    /// Whether `header` is stamped at most `max_stamp_ahead_s` after `now`: a scan from the future
+    /// (a peer's, or from a host whose clock is ahead) would hold back every scan until its stamp.
+    fn stamped_by_now(&mut self, header: &Header, now: &Time) -> bool {
+        let ahead_s = header.stamp.as_secs_f64() - now.as_secs_f64();
+        if ahead_s <= self.params.max_stamp_ahead_s {
+            return true;
+        }
+        let problem = format_args!(
+            "skipped a terrain scan stamped {ahead_s:.1} s after this node's clock, more than \
+             max_stamp_ahead_s = {} s: a peer's scan, or hosts whose clocks disagree",
+            self.params.max_stamp_ahead_s
+        );
+        self.rejections.reject("stamped_ahead", &problem);
+        false
+    }
+
+    /// Orders scans afresh when `now` is more than `max_stamp_ahead_s` behind the last scan
+    /// taken: time started again, as the simulated time of a respawned bridge does.
+    fn restart_order_if_time_went_back(&mut self, now: &Time) {
+        let Some((sec, nanosec, frame)) = self.last_scan else { return };
+        let last_s = Time { sec, nanosec }.as_secs_f64();
+        if last_s - now.as_secs_f64() > self.params.max_stamp_ahead_s {
+            tracing::warn!(
+                "time went back from {last_s:.2} s (frame {frame}) to {:.2} s: ordering scans afresh",
+                now.as_secs_f64()
+            );
+            self.last_scan = None;
         }
     }
 
@@ -316,7 +355,7 @@ mod tests {
     fn mapped_and_out_of_order(scans: &[(u64, i32)]) -> (u64, u64) {
         let mut mapping = core();
         for &(frame, sec) in scans {
-            mapping.add_scan(&rock_scan(frame, sec, (100.0, 100.0)));
+            mapping.add_scan(&rock_scan(frame, sec, (100.0, 100.0)), &Time { sec, nanosec: 0 });
         }
         (mapping.frames_mapped(), mapping.rejections().count("out_of_order"))
     }
@@ -332,13 +371,39 @@ mod tests {
     }
 
     #[test]
+    fn a_scan_stamped_ahead_of_the_clock_is_skipped_and_holds_nothing_back() {
+        let mut mapping = core();
+        let at = |sec| Time { sec, nanosec: 0 };
+        mapping.add_scan(&rock_scan(1, 10, (100.0, 100.0)), &at(10));
+        mapping.add_scan(&rock_scan(2, 1_000_000, (100.0, 100.0)), &at(10));
+        mapping.add_scan(&rock_scan(3, 14, (100.0, 100.0)), &at(11));
+        mapping.add_scan(&rock_scan(4, 11, (100.0, 100.0)), &at(11));
+        assert_eq!(mapping.frames_mapped(), 2, "frames 1 and 3: {}", mapping.rejections());
+        assert_eq!(mapping.rejections().count("stamped_ahead"), 1);
+        assert_eq!(mapping.rejections().count("out_of_order"), 1, "frame 4 came after frame 3");
+    }
+
+    #[test]
+    fn scans_after_the_clock_starts_again_are_mapped_in_their_new_order() {
+        let mut mapping = core();
+        let at = |sec| Time { sec, nanosec: 0 };
+        mapping.add_scan(&rock_scan(7000, 300, (100.0, 100.0)), &at(300));
+        for frame in 1..=3 {
+            mapping.add_scan(&rock_scan(frame, frame as i32, (100.0, 100.0)), &at(frame as i32));
+        }
+        mapping.add_scan(&rock_scan(2, 2, (100.0, 100.0)), &at(3));
+        assert_eq!(mapping.frames_mapped(), 4, "{}", mapping.rejections());
+        assert_eq!(mapping.rejections().count("out_of_order"), 1, "a repeated frame of the new time");
+    }
+
+    #[test]
     fn maps_are_published_at_the_same_frames_whichever_scans_came_first() {
         let every = MappingParams::default().publish_every_scans as u64;
         let published_after = |frames: std::ops::RangeInclusive<u64>| {
             let mut mapping = core();
             let mut published = Vec::new();
             for frame in frames {
-                mapping.add_scan(&rock_scan(frame, frame as i32, (100.0, 100.0)));
+                mapping.add_scan_at_its_stamp(&rock_scan(frame, frame as i32, (100.0, 100.0)));
                 if mapping.publication_due() {
                     mapping.mark_published();
                     published.push(frame);
@@ -356,8 +421,8 @@ mod tests {
     fn home_is_where_the_first_scan_was_taken() {
         let mut mapping = core();
         assert_eq!(mapping.publication(Header::default()).stats.home_frame, 0, "no home before any scan");
-        mapping.add_scan(&rock_scan(3, 3, (99.0, 85.0)));
-        mapping.add_scan(&rock_scan(4, 4, (120.0, 90.0)));
+        mapping.add_scan_at_its_stamp(&rock_scan(3, 3, (99.0, 85.0)));
+        mapping.add_scan_at_its_stamp(&rock_scan(4, 4, (120.0, 90.0)));
         assert_eq!(mapping.home(), Some(Home { frame: 3, x_m: 99.0, y_m: 85.0 }));
         let stats = mapping.publication(Header::default()).stats;
         assert_eq!((stats.home_frame, stats.home_x_m, stats.home_y_m), (3, 99.0, 85.0));
@@ -368,13 +433,13 @@ mod tests {
         let (picked, other) = ((100.0, 100.0), (150.0, 150.0));
         let mut mapping = core();
         for (frame, position) in [(1, picked), (2, picked), (3, other), (4, other)] {
-            mapping.add_scan(&rock_scan(frame, frame as i32, position));
+            mapping.add_scan_at_its_stamp(&rock_scan(frame, frame as i32, position));
         }
         assert_eq!((mapping.samples_collected(), mapping.rocks().len()), (0, 2), "the first frame sets the count");
-        mapping.add_scan(&with_samples(rock_scan(5, 5, picked), 5));
+        mapping.add_scan_at_its_stamp(&with_samples(rock_scan(5, 5, picked), 5));
         assert_eq!(mapping.samples_collected(), 1);
         assert_eq!(mapping.rocks().len(), 2, "not forgotten before the next scan");
-        mapping.add_scan(&with_samples(rock_scan(6, 6, other), 5));
+        mapping.add_scan_at_its_stamp(&with_samples(rock_scan(6, 6, other), 5));
         let rocks = mapping.rocks();
         assert_eq!(rocks.len(), 1, "{rocks:?}");
         assert!((rocks[0].0 - other.0).hypot(rocks[0].1 - other.1) < 3.0, "the other rock stays: {rocks:?}");
@@ -384,14 +449,14 @@ mod tests {
     #[test]
     fn a_restored_memory_carries_the_map_home_and_count_on() {
         let mut mapping = core();
-        mapping.add_scan(&rock_scan(1, 1, (100.0, 100.0)));
-        mapping.add_scan(&with_samples(rock_scan(2, 2, (140.0, 100.0)), 5));
+        mapping.add_scan_at_its_stamp(&rock_scan(1, 1, (100.0, 100.0)));
+        mapping.add_scan_at_its_stamp(&with_samples(rock_scan(2, 2, (140.0, 100.0)), 5));
         let mut restarted = core();
         restarted.restore(mapping.memory());
         assert_eq!(restarted.memory(), mapping.memory());
         assert_eq!(restarted.home(), Some(Home { frame: 1, x_m: 100.0, y_m: 100.0 }));
         assert_eq!(restarted.map().occupancy(), mapping.map().occupancy());
-        restarted.add_scan(&with_samples(rock_scan(3, 3, (140.0, 100.0)), 4));
+        restarted.add_scan_at_its_stamp(&with_samples(rock_scan(3, 3, (140.0, 100.0)), 4));
         assert_eq!(restarted.samples_collected(), 2, "a pickup since the snapshot still counts");
     }
 }

@@ -1,20 +1,18 @@
 //! The mapping node (`rover mapping`): terrain scans in; the map, its image, statistics and the
-//! located rocks out. It wires [`MappingCore`] to the topics and to its snapshot file.
+//! located rocks out: [`MappingCore`] with its publications and its snapshot file.
 
 use std::time::{Duration, Instant};
 
-use futures::StreamExt;
 use rover_imaging::message::rgb8_message;
 use rover_msgs::frame_ids;
 use rover_msgs::geometry_msgs::{Point, Pose as PoseMsg, PoseArray, Quaternion};
 use rover_msgs::map_grid::SIDE_CELLS;
-use rover_msgs::msg::MapStats;
+use rover_msgs::msg::TerrainScan;
 use rover_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
-use rover_msgs::sensor_msgs::Image;
 use rover_msgs::std_msgs::Header;
+use rover_runtime::node_core::{Inputs, NodeCore, Outbox};
 use rover_runtime::snapshot::SnapshotFile;
-use rover_runtime::{Publisher, Runtime, publish_or_warn, topics};
-use tracing::Instrument as _;
+use rover_runtime::topics;
 
 use crate::image::{InsetStats, map_inset};
 use crate::mapper::{MapPublication, MappingCore};
@@ -22,18 +20,13 @@ use crate::params::MappingParams;
 use crate::score::ground_truth_from_png;
 use crate::snapshot;
 
-/// Once asked to stop, the node still maps the scans already sent to it until none has come for
-/// this long.
-const DRAIN_QUIET: Duration = Duration::from_millis(100);
-/// Once asked to stop, the node maps scans for at most this long.
-const DRAIN_LIMIT: Duration = Duration::from_secs(1);
-
 /// The ground truth that `params` name, if any.
 fn ground_truth(params: &MappingParams) -> anyhow::Result<Option<Vec<bool>>> {
     if params.ground_truth_png.is_empty() {
         return Ok(None);
     }
-    let png = std::fs::read(&params.ground_truth_png)
+    let path = std::path::Path::new(&params.ground_truth_png);
+    let png = rover_imaging::read_file_at_most(path, rover_imaging::MAX_IMAGE_FILE_BYTES)
         .map_err(|e| anyhow::anyhow!("parameter ground_truth_png = {:?}: {e}", params.ground_truth_png))?;
     let truth = ground_truth_from_png(&png).map_err(|e| anyhow::anyhow!("parameter ground_truth_png: {e}"))?;
     Ok(Some(truth))
@@ -78,7 +71,7 @@ impl Snapshots {
     }
 
     /// Writes the snapshot now if the collected count or home changed since the last one (see
-    /// [`Outputs::publish`]).
+    /// [`MappingNode::publish`]).
     fn write_if_mission_changed(&mut self, mapping: &MappingCore) {
         let ((_, collected, home_known), (_, written_collected, written_home_known)) =
             (Self::held(mapping), self.written);
@@ -97,11 +90,12 @@ impl Snapshots {
     }
 }
 
-struct Outputs {
-    map: Publisher<OccupancyGrid>,
-    image: Publisher<Image>,
-    stats: Publisher<MapStats>,
-    rocks: Publisher<PoseArray>,
+/// The mapping node: every terrain scan into the world map; the map, its image, statistics and
+/// the located rocks published every few scans, and at the latest `publish_max_delay_ms` after a
+/// scan.
+pub struct MappingNode {
+    mapping: MappingCore,
+    snapshots: Snapshots,
     /// The rocks last published; `None` until the first publication, so that the latched topic
     /// says "no rocks yet" from the start.
     last_rocks: Option<Vec<(f64, f64)>>,
@@ -110,113 +104,107 @@ struct Outputs {
     started: Instant,
 }
 
-impl Outputs {
+impl NodeCore for MappingNode {
+    type Params = MappingParams;
+    const NAME: &'static str = "mapping";
+    const DRAINS_ON_STOP: bool = true;
+
+    fn new(settings: MappingParams) -> anyhow::Result<Self> {
+        let truth = ground_truth(&settings)?;
+        let mut mapping = MappingCore::new(settings, truth);
+        let mut snapshots = Snapshots::new(&mapping.params().state_dir);
+        snapshots.restore(&mut mapping);
+        Ok(MappingNode { mapping, snapshots, last_rocks: None, published_at: Instant::now(), started: Instant::now() })
+    }
+
+    fn inputs() -> Inputs<Self> {
+        Inputs::new()
+            .on(&topics::TERRAIN, Self::on_scan)
+            .on(&topics::SAMPLE_TRUTH, |node, samples, _| node.mapping.set_samples_truth(samples))
+    }
+
+    fn start(&mut self, out: &mut Outbox) {
+        self.publish(out.header(frame_ids::MAP), out);
+    }
+
+    fn set_params(&mut self, params: MappingParams) {
+        self.mapping.set_params(params);
+    }
+
+    fn timer_due(&self) -> Option<Instant> {
+        let delay = Duration::from_secs_f64(self.mapping.params().publish_max_delay_ms / 1000.0);
+        self.mapping.has_unpublished_scans().then_some(self.published_at + delay)
+    }
+
+    fn on_timer(&mut self, out: &mut Outbox) {
+        self.publish(out.header(frame_ids::MAP), out);
+    }
+
+    fn stop(&mut self, out: &mut Outbox) {
+        self.snapshots.write(&self.mapping);
+        self.publish(out.header(frame_ids::MAP), out);
+        tracing::info!(
+            "mapping: {} frames mapped, {} skipped while tilted, rejected {}",
+            self.mapping.frames_mapped(),
+            self.mapping.tilted_frames(),
+            self.mapping.rejections()
+        );
+    }
+}
+
+impl MappingNode {
+    fn on_scan(&mut self, scan: &TerrainScan, out: &mut Outbox) {
+        self.mapping.add_scan(scan, &out.now());
+        if self.mapping.publication_due() {
+            // Stamped as the scan, so that the decision node knows which frame the map includes.
+            self.publish(Header::at(frame_ids::MAP, scan.header.stamp.clone()), out);
+            let every = Duration::from_secs_f64(self.mapping.params().snapshot_every_ms / 1000.0);
+            self.snapshots.write_if_due(&self.mapping, every);
+        }
+    }
+
     /// Publishes the map, its image, statistics and rocks, stamped with `header`. A new collected
-    /// count or home goes into `snapshots` first: a count goes out on `rover/map_stats` only once
+    /// count or home goes into the snapshot first: a count goes out on `rover/map_stats` only once
     /// it is on disk, so a node started again after a kill never publishes a smaller one.
-    fn publish(&mut self, mapping: &mut MappingCore, snapshots: &mut Snapshots, header: Header) {
-        snapshots.write_if_mission_changed(mapping);
+    fn publish(&mut self, header: Header, out: &mut Outbox) {
+        let mapping = &mut self.mapping;
+        self.snapshots.write_if_mission_changed(mapping);
         mapping.mark_published();
         self.published_at = Instant::now();
         let MapPublication { occupancy, stats, rocks } = mapping.publication(header.clone());
-        let grid = OccupancyGrid {
-            header: header.clone(),
-            info: MapMetaData {
-                map_load_time: header.stamp.clone(),
-                resolution: 1.0,
-                width: SIDE_CELLS as u32,
-                height: SIDE_CELLS as u32,
-                origin: PoseMsg { position: Point::default(), orientation: Quaternion::from_yaw(0.0) },
-            },
-            data: occupancy.clone(),
-        };
-        publish_or_warn(&self.map, &topics::MAP, grid);
-        let inset = InsetStats {
-            time_s: self.started.elapsed().as_secs_f64(),
-            mapped_pct: stats.mapped_pct.is_finite().then_some(stats.mapped_pct as f64),
-            fidelity_pct: stats.fidelity_pct.is_finite().then_some(stats.fidelity_pct as f64),
-            rocks_located: stats.rocks_located as usize,
-            collected: mapping.samples_collected() as usize,
-        };
-        let image = map_inset(&occupancy, mapping.ground_truth(), &rocks, &inset);
-        let message = rgb8_message(image, header.clone());
-        publish_or_warn(&self.image, &topics::MAP_IMAGE, message);
-        publish_or_warn(&self.stats, &topics::MAP_STATS, stats);
+        if out.wanted(&topics::MAP_IMAGE) {
+            let inset = InsetStats {
+                time_s: self.started.elapsed().as_secs_f64(),
+                mapped_pct: stats.mapped_pct.is_finite().then_some(stats.mapped_pct as f64),
+                fidelity_pct: stats.fidelity_pct.is_finite().then_some(stats.fidelity_pct as f64),
+                rocks_located: stats.rocks_located as usize,
+                collected: mapping.samples_collected() as usize,
+            };
+            let image = map_inset(&occupancy, mapping.ground_truth(), &rocks, &inset);
+            out.publish(&topics::MAP_IMAGE, rgb8_message(image, header.clone()));
+        }
+        out.publish(&topics::MAP, occupancy_grid(occupancy, header.clone()));
+        out.publish(&topics::MAP_STATS, stats);
         if self.last_rocks.as_ref() != Some(&rocks) {
-            publish_or_warn(&self.rocks, &topics::ROCKS, PoseArray::of_points(header, &rocks));
+            out.publish(&topics::ROCKS, PoseArray::of_points(header, &rocks));
             self.last_rocks = Some(rocks);
         }
     }
 }
 
-/// Runs the mapping node until shutdown, then maps the scans still arriving (see [`DRAIN_QUIET`]
-/// and [`DRAIN_LIMIT`]), writes its snapshot and publishes the map a last time.
-pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
-    let (mut node, params) = runtime.node::<MappingParams>("mapping")?;
-    let span = node.span();
-    let settings = params.get();
-    let truth = ground_truth(&settings)?;
-    let mut mapping = MappingCore::new(settings, truth);
-    let mut snapshots = Snapshots::new(&mapping.params().state_dir);
-    snapshots.restore(&mut mapping);
-    let mut outputs = Outputs {
-        map: node.publisher(&topics::MAP)?,
-        image: node.publisher(&topics::MAP_IMAGE)?,
-        stats: node.publisher(&topics::MAP_STATS)?,
-        rocks: node.publisher(&topics::ROCKS)?,
-        last_rocks: None,
-        published_at: Instant::now(),
-        started: Instant::now(),
-    };
-    let mut scans = std::pin::pin!(node.messages(&topics::TERRAIN)?);
-    let mut truth = std::pin::pin!(node.messages(&topics::SAMPLE_TRUTH)?);
-    let mut changes = params.watch();
-    let shutdown = runtime.shutdown();
-    outputs.publish(&mut mapping, &mut snapshots, node.header(frame_ids::MAP));
-    async {
-    loop {
-        let flush_at = outputs.published_at + Duration::from_secs_f64(mapping.params().publish_max_delay_ms / 1000.0);
-        tokio::select! {
-            () = shutdown.wait() => break,
-            Some(scan) = scans.next() => {
-                mapping.add_scan(&scan);
-                if mapping.publication_due() {
-                    // Stamped as the scan, so that the decision node knows which frame the map includes.
-                    let header = Header::at(frame_ids::MAP, scan.header.stamp.clone());
-                    outputs.publish(&mut mapping, &mut snapshots, header);
-                    snapshots.write_if_due(&mapping, Duration::from_secs_f64(mapping.params().snapshot_every_ms / 1000.0));
-                }
-            }
-            Some(samples) = truth.next() => mapping.set_samples_truth(&samples),
-            () = tokio::time::sleep_until(flush_at.into()), if mapping.has_unpublished_scans() => {
-                outputs.publish(&mut mapping, &mut snapshots, node.header(frame_ids::MAP));
-            }
-            Ok(()) = changes.changed() => mapping.set_params(changes.borrow_and_update().clone()),
-        }
+/// The map grid as an `OccupancyGrid` stamped with `header`.
+fn occupancy_grid(occupancy: Vec<i8>, header: Header) -> OccupancyGrid {
+    OccupancyGrid {
+        info: MapMetaData {
+            map_load_time: header.stamp.clone(),
+            resolution: 1.0,
+            width: SIDE_CELLS as u32,
+            height: SIDE_CELLS as u32,
+            origin: PoseMsg { position: Point::default(), orientation: Quaternion::from_yaw(0.0) },
+        },
+        header,
+        data: occupancy,
     }
-    let stopped_at = Instant::now();
-    let mut quiet_until = stopped_at + DRAIN_QUIET;
-    loop {
-        tokio::select! {
-            Some(scan) = scans.next() => {
-                mapping.add_scan(&scan);
-                quiet_until = Instant::now() + DRAIN_QUIET;
-            }
-            () = tokio::time::sleep_until(quiet_until.min(stopped_at + DRAIN_LIMIT).into()) => break,
-        }
-    }
-    snapshots.write(&mapping);
-    outputs.publish(&mut mapping, &mut snapshots, node.header(frame_ids::MAP));
-    tracing::info!(
-        "mapping: {} frames mapped, {} skipped while tilted, rejected {}",
-        mapping.frames_mapped(),
-        mapping.tilted_frames(),
-        mapping.rejections()
-    );
-    }
-    .instrument(span)
-    .await;
-    Ok(())
 }
 
 #[cfg(test)]
@@ -231,8 +219,8 @@ mod tests {
         let state_dir = dir.to_str().expect("a UTF-8 temporary folder");
         let mut mapping = MappingCore::new(MappingParams::default(), None);
         let mut snapshots = Snapshots::new(state_dir);
-        mapping.add_scan(&rock_scan(1, 1, (100.0, 100.0)));
-        mapping.add_scan(&with_samples(rock_scan(2, 2, (100.0, 100.0)), 5));
+        mapping.add_scan_at_its_stamp(&rock_scan(1, 1, (100.0, 100.0)));
+        mapping.add_scan_at_its_stamp(&with_samples(rock_scan(2, 2, (100.0, 100.0)), 5));
         assert_eq!(mapping.samples_collected(), 1);
         let written = mapping.memory();
         snapshots.write_if_mission_changed(&mapping);
@@ -244,7 +232,7 @@ mod tests {
         let restarted = restored();
         assert_eq!(restarted.samples_collected(), 1, "the new count is on disk");
         assert!(restarted.memory() == written, "the snapshot holds the memory of the count's scan");
-        mapping.add_scan(&with_samples(rock_scan(3, 3, (100.0, 100.0)), 5));
+        mapping.add_scan_at_its_stamp(&with_samples(rock_scan(3, 3, (100.0, 100.0)), 5));
         snapshots.write_if_mission_changed(&mapping);
         assert!(mapping.memory() != written, "the scan added to the map");
         assert!(restored().memory() == written, "a scan that changes only the map waits for the periodic write");

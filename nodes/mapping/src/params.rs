@@ -29,6 +29,10 @@ rover_runtime::node_params! {
         /// Rock cells closer than this are one rock, metres (a sample seen from afar lands up to
         /// 3 m beyond where it lies; no two sample places of the Unity world are closer than 7 m).
         rock_merge_m: f64 [0.1, 20.0] = 3.5,
+        /// A scan stamped more than this after the node's clock is skipped, and a clock this far
+        /// behind the last scan mapped means time started again (a respawned bridge's simulated
+        /// time), so scans are ordered afresh, seconds. Hosts' clocks must agree within it.
+        max_stamp_ahead_s: f64 [0.1, 3600.0] = 5.0,
         /// Ground-truth map (200x200 PNG, navigable > 0) for the Udacity scores; empty: none.
         ground_truth_png: String = "",
         /// Publish map, map/image, rover/map_stats and rover/rocks after each terrain scan whose

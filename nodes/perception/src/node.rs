@@ -1,14 +1,13 @@
 //! The perception node (`rover perception`): camera JPEGs and telemetry in, terrain scans and the
 //! classified bird's-eye view out.
 
-use futures::StreamExt;
 use rover_imaging::message::rgb8_message;
 use rover_msgs::builtin_interfaces::Time;
-use rover_msgs::msg::{Telemetry, TerrainScan};
-use rover_msgs::sensor_msgs::{CompressedImage, Image};
-use rover_msgs::std_msgs::Header;
+use rover_msgs::msg::Telemetry;
+use rover_msgs::sensor_msgs::CompressedImage;
+use rover_runtime::node_core::{Inputs, NodeCore, Outbox};
 use rover_runtime::pairing::Pairer;
-use rover_runtime::{Publisher, Rejections, Runtime, publish_or_warn, topics};
+use rover_runtime::{Rejections, topics};
 
 use crate::Perception;
 use crate::params::PerceptionParams;
@@ -17,69 +16,85 @@ use crate::scan::{ScanGeometry, vision_image};
 /// How many unmatched camera frames or telemetry messages are kept while waiting for a partner.
 const PAIRING_BACKLOG: usize = 16;
 
-/// Runs the perception node until shutdown.
-pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
-    let (mut node, params) = runtime.node::<PerceptionParams>("perception")?;
-    let span = node.span();
-    let settings = params.get();
-    let (perception, geometry) = settings.pipeline()?;
-    let mut worker = Worker {
-        perception,
-        geometry,
-        terrain: node.publisher(&topics::TERRAIN)?,
-        vision: node.publisher(&topics::VISION)?,
-        settings,
-        frames: 0,
-        rejections: Rejections::default(),
-    };
-    let mut telemetry = std::pin::pin!(node.messages(&topics::TELEMETRY)?);
-    let mut camera = std::pin::pin!(node.messages(&topics::CAMERA_COMPRESSED)?);
-    let mut pairs: Pairer<Time, CompressedImage, Telemetry> = Pairer::new(PAIRING_BACKLOG);
-    let shutdown = runtime.shutdown();
-    loop {
-        let pair = tokio::select! {
-            () = shutdown.wait() => break,
-            Some(image) = camera.next() => pairs.push_first(image.header.stamp.clone(), image),
-            Some(pose) = telemetry.next() => pairs.push_second(pose.header.stamp.clone(), pose),
-            else => break,
-        };
-        if let Some((image, pose)) = pair {
-            let _entered = span.enter();
-            worker.handle(image.header, &image.data, pose);
-        }
-    }
-    tracing::info!(parent: &span, "perception: {} frames, rejected {}, {} unpaired", worker.frames, worker.rejections, pairs.dropped());
-    Ok(())
-}
-
-struct Worker {
+/// The perception node: each camera frame, with the telemetry of the same stamp, classified and
+/// projected into a terrain scan.
+pub struct PerceptionNode {
+    /// The classifier of camera images.
     perception: Perception,
+    /// Where each classified pixel lies around the rover.
     geometry: ScanGeometry,
-    terrain: Publisher<TerrainScan>,
-    vision: Publisher<Image>,
     settings: PerceptionParams,
+    /// Camera frames and telemetry waiting for their partner of the same stamp.
+    pairs: Pairer<Time, CompressedImage, Telemetry>,
+    /// Frames classified so far.
     frames: u64,
+    /// Inputs refused as invalid.
     rejections: Rejections,
 }
 
-impl Worker {
-    fn handle(&mut self, header: Header, jpeg: &[u8], pose: Telemetry) {
+impl NodeCore for PerceptionNode {
+    type Params = PerceptionParams;
+    const NAME: &'static str = "perception";
+
+    fn new(settings: PerceptionParams) -> anyhow::Result<Self> {
+        let (perception, geometry) = settings.pipeline()?;
+        Ok(PerceptionNode {
+            perception,
+            geometry,
+            settings,
+            pairs: Pairer::new(PAIRING_BACKLOG),
+            frames: 0,
+            rejections: Rejections::default(),
+        })
+    }
+
+    fn inputs() -> Inputs<Self> {
+        Inputs::new().on(&topics::CAMERA_COMPRESSED, Self::on_camera).on(&topics::TELEMETRY, Self::on_telemetry)
+    }
+
+    /// Every parameter of perception is read at start: a new value takes effect when the node
+    /// starts again.
+    fn set_params(&mut self, _params: PerceptionParams) {}
+
+    fn stop(&mut self, _out: &mut Outbox) {
+        tracing::info!(
+            "perception: {} frames, rejected {}, {} unpaired",
+            self.frames,
+            self.rejections,
+            self.pairs.dropped()
+        );
+    }
+}
+
+impl PerceptionNode {
+    fn on_camera(&mut self, image: &CompressedImage, out: &mut Outbox) {
+        if let Some((image, pose)) = self.pairs.push_first(image.header.stamp.clone(), image.clone()) {
+            self.handle(&image, pose, out);
+        }
+    }
+
+    fn on_telemetry(&mut self, pose: &Telemetry, out: &mut Outbox) {
+        if let Some((image, pose)) = self.pairs.push_second(pose.header.stamp.clone(), pose.clone()) {
+            self.handle(&image, pose, out);
+        }
+    }
+
+    fn handle(&mut self, image: &CompressedImage, pose: Telemetry, out: &mut Outbox) {
         if !self.rejections.accept(topics::TELEMETRY.name, &pose) {
             return;
         }
-        if let Err(e) = self.perception.process_jpeg(jpeg) {
+        if let Err(e) = self.perception.process_jpeg(&image.data) {
             let problem = format_args!("rejected the camera image of frame {}: {e}", pose.frame);
             self.rejections.reject(topics::CAMERA_COMPRESSED.name, &problem);
             return;
         }
         self.frames += 1;
-        let scan = self.geometry.terrain_scan(self.perception.classes(), &pose, header.clone());
-        publish_or_warn(&self.terrain, &topics::TERRAIN, scan);
+        let scan = self.geometry.terrain_scan(self.perception.classes(), &pose, image.header.clone());
+        out.publish(&topics::TERRAIN, scan);
         let every = self.settings.vision_every_frames as u64;
-        if every > 0 && self.frames.is_multiple_of(every) {
-            let image = vision_image(self.perception.table(), self.perception.classes());
-            let message = rgb8_message(image, header);
-            publish_or_warn(&self.vision, &topics::VISION, message);
+        if every > 0 && self.frames.is_multiple_of(every) && out.wanted(&topics::VISION) {
+            let view = vision_image(self.perception.table(), self.perception.classes());
+            out.publish(&topics::VISION, rgb8_message(view, image.header.clone()));
         }
     }
 }

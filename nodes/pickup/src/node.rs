@@ -1,46 +1,55 @@
 //! The pickup node (`rover pickup`): telemetry in, pickup requests out.
 
-use futures::StreamExt;
 use rover_msgs::frame_ids;
-use rover_msgs::msg::PickupRequest;
+use rover_msgs::msg::{PickupRequest, Telemetry};
 use rover_msgs::std_msgs::Header;
-use rover_runtime::{Rejections, Runtime, publish_or_warn, topics};
-use tracing::Instrument as _;
+use rover_runtime::node_core::{Inputs, NodeCore, Outbox};
+use rover_runtime::{Rejections, topics};
 
 use crate::{Pickup, PickupParams, checked_arm_input};
 
-/// Runs the pickup node until shutdown.
-pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
-    let (mut node, params) = runtime.node::<PickupParams>("pickup")?;
-    let span = node.span();
-    let requests = node.publisher(&topics::PICKUP)?;
-    let mut telemetry = std::pin::pin!(node.messages(&topics::TELEMETRY)?);
-    let mut changes = params.watch();
-    let mut settings = params.get();
-    let mut pickup = Pickup::default();
-    let mut rejections = Rejections::default();
-    let shutdown = runtime.shutdown();
-    async {
-        loop {
-            tokio::select! {
-                () = shutdown.wait() => break,
-                Some(t) = telemetry.next() => {
-                    if let Some(input) = checked_arm_input(&t, &mut rejections) && pickup.on_telemetry(&input, &settings) {
-                        tracing::info!(frame = t.frame, "sample within reach and rover stopped: requesting a pickup");
-                        let request = PickupRequest { header: Header { frame_id: frame_ids::BASE_LINK.to_string(), ..t.header }, frame: t.frame };
-                        publish_or_warn(&requests, &topics::PICKUP, request);
-                    }
-                }
-                Ok(()) = changes.changed() => settings = changes.borrow_and_update().clone(),
-            }
-        }
+/// The pickup node: one request each time a sample comes within reach of a stopped rover.
+pub struct PickupNode {
+    /// The arm's state: requests made, samples collected.
+    pickup: Pickup,
+    params: PickupParams,
+    /// Telemetry refused as invalid.
+    rejections: Rejections,
+}
+
+impl NodeCore for PickupNode {
+    type Params = PickupParams;
+    const NAME: &'static str = "pickup";
+
+    fn new(params: PickupParams) -> anyhow::Result<Self> {
+        Ok(PickupNode { pickup: Pickup::default(), params, rejections: Rejections::default() })
+    }
+
+    fn inputs() -> Inputs<Self> {
+        Inputs::new().on(&topics::TELEMETRY, Self::on_telemetry)
+    }
+
+    fn set_params(&mut self, params: PickupParams) {
+        self.params = params;
+    }
+
+    fn stop(&mut self, _out: &mut Outbox) {
         tracing::info!(
-            "pickup: {} requests, {} samples collected, rejected {rejections}",
-            pickup.requests,
-            pickup.collected()
+            "pickup: {} requests, {} samples collected, rejected {}",
+            self.pickup.requests,
+            self.pickup.collected(),
+            self.rejections
         );
     }
-    .instrument(span)
-    .await;
-    Ok(())
+}
+
+impl PickupNode {
+    fn on_telemetry(&mut self, telemetry: &Telemetry, out: &mut Outbox) {
+        let Some(input) = checked_arm_input(telemetry, &mut self.rejections) else { return };
+        if self.pickup.on_telemetry(&input, &self.params) {
+            tracing::info!(frame = telemetry.frame, "sample within reach and rover stopped: requesting a pickup");
+            let header = Header { frame_id: frame_ids::BASE_LINK.to_string(), ..telemetry.header.clone() };
+            out.publish(&topics::PICKUP, PickupRequest { header, frame: telemetry.frame });
+        }
+    }
 }
