@@ -7,6 +7,7 @@
 //! ([`schema`]). The messages are the CDR bytes as published, encapsulation header included.
 //! This crate deals in plain types and bytes; the `rover bag` command wires it to DDS.
 
+mod files;
 mod metadata;
 mod qos;
 mod reader;
@@ -18,7 +19,7 @@ use std::path::{Path, PathBuf};
 pub use metadata::BagMetadata;
 pub use qos::QosProfile;
 pub use reader::{BagMessage, BagReader};
-pub use writer::{BagWriter, TopicId};
+pub use writer::{BagWriter, CHECKPOINT_PERIOD, TopicId};
 
 /// The storage identifier of MCAP bags in `metadata.yaml`.
 pub const STORAGE_IDENTIFIER: &str = "mcap";
@@ -89,6 +90,16 @@ pub enum BagError {
         /// What the MCAP library reported.
         source: mcap::McapError,
     },
+    /// A storage file that `metadata.yaml` lists is outside the bag folder or not a regular file.
+    #[error("{dir}/metadata.yaml: storage file {path:?} {problem}")]
+    StoragePath {
+        /// The bag folder.
+        dir: PathBuf,
+        /// The path as listed.
+        path: String,
+        /// What is wrong with it and what was expected.
+        problem: String,
+    },
     /// A message names a topic the writer was not given.
     #[error("no topic with id {0} was added to this bag")]
     UnknownTopic(usize),
@@ -99,7 +110,12 @@ impl BagError {
         BagError::Io { path: path.to_path_buf(), source }
     }
 
+    /// An MCAP error on `path`; an I/O error is kept as one, so that its cause (e.g. a full
+    /// disk) is in the message.
     fn mcap(path: &Path, source: mcap::McapError) -> Self {
-        BagError::Mcap { path: path.to_path_buf(), source }
+        match source {
+            mcap::McapError::Io(source) => BagError::io(path, source),
+            source => BagError::Mcap { path: path.to_path_buf(), source },
+        }
     }
 }

@@ -1,16 +1,19 @@
 //! `metadata.yaml` of a rosbag2 bag, version 9 (the fields ROS 2 Jazzy and Kilted write).
 
 use std::collections::BTreeMap;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::{BagError, QosProfile, STORAGE_IDENTIFIER, TopicInfo};
+use crate::{BagError, QosProfile, STORAGE_IDENTIFIER, TopicInfo, files};
 
 /// The metadata file's name in the bag folder.
 pub const FILE_NAME: &str = "metadata.yaml";
 /// The version of the metadata format written.
 pub const VERSION: u32 = 9;
+/// The longest `metadata.yaml` read, bytes (one of a bag with thousands of topics is far shorter).
+pub const MAX_FILE_BYTES: u64 = 16 << 20;
 /// The ROS distribution the bags are written for.
 pub const ROS_DISTRO: &str = "kilted";
 
@@ -172,28 +175,42 @@ impl BagMetadata {
         Ok(file.rosbag2_bagfile_information)
     }
 
-    /// Writes `dir/metadata.yaml`.
+    /// Replaces `dir/metadata.yaml` atomically: a crash leaves the previous one or this one.
     pub fn write(&self, dir: &Path) -> Result<(), BagError> {
-        let path = dir.join(FILE_NAME);
-        std::fs::write(&path, self.to_yaml()).map_err(|e| BagError::io(&path, e))
+        files::replace_atomically(&dir.join(FILE_NAME), self.to_yaml().as_bytes())
     }
 
-    /// Reads `dir/metadata.yaml`, telling a missing folder and a folder that is no bag apart.
+    /// Reads `dir/metadata.yaml`, telling a missing folder and a folder that is no bag apart; a
+    /// `metadata.yaml` that is not a regular file or is longer than [`MAX_FILE_BYTES`] is refused.
     pub fn read(dir: &Path) -> Result<Self, BagError> {
         if !dir.is_dir() {
             return Err(BagError::MissingFolder(dir.to_path_buf()));
         }
         let path = dir.join(FILE_NAME);
-        if !path.is_file() {
-            return Err(BagError::NotABag(dir.to_path_buf()));
+        match std::fs::symlink_metadata(&path) {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Err(BagError::NotABag(dir.to_path_buf())),
+            Err(e) => return Err(BagError::io(&path, e)),
+            Ok(_) => {}
         }
-        let text = std::fs::read_to_string(&path).map_err(|e| BagError::io(&path, e))?;
+        let (mut file, _) = files::open_regular(&path, "a metadata file", MAX_FILE_BYTES)?;
+        let mut text = String::new();
+        file.read_to_string(&mut text).map_err(|e| BagError::io(&path, e))?;
         Self::from_yaml(&text, &path)
     }
 
-    /// The storage files as paths in `dir`.
-    pub fn storage_paths(&self, dir: &Path) -> Vec<PathBuf> {
-        self.relative_file_paths.iter().map(|file| dir.join(file)).collect()
+    /// The storage files as paths in `dir`, each checked to be a regular file inside it.
+    pub fn storage_paths(&self, dir: &Path) -> Result<Vec<PathBuf>, BagError> {
+        self.relative_file_paths.iter().map(|file| files::confined_storage_path(dir, file)).collect()
+    }
+
+    /// The messages that the storage file `relative` (as listed) holds at least: its count in
+    /// `files`, the bag's count when it has one file, else none known.
+    pub(crate) fn listed_messages_of(&self, relative: &str) -> u64 {
+        match self.files.iter().find(|file| file.path == relative) {
+            Some(file) => file.message_count,
+            None if self.relative_file_paths.len() == 1 => self.message_count,
+            None => 0,
+        }
     }
 
     /// The topics with their message types and QoS (the first offered profile, or reliable keep

@@ -1,12 +1,18 @@
-//! Writing a bag: the folder, its MCAP file and, at the end, `metadata.yaml`.
+//! Writing a bag: the folder, its MCAP file and `metadata.yaml`, rewritten at each checkpoint so
+//! that a recording killed or stopped by a full disk stays a bag of what was written.
 
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 use crate::schema::SCHEMA_ENCODING;
 use crate::{BagError, BagMetadata, MessageTime, SERIALIZATION_FORMAT, TopicInfo};
+
+/// How often [`BagWriter::checkpoint_if_due`] makes what was written durable and listed in
+/// `metadata.yaml`: the most a crash loses.
+pub const CHECKPOINT_PERIOD: Duration = Duration::from_secs(1);
 
 /// The MCAP profile of ROS 2 bags.
 pub const MCAP_PROFILE: &str = "ros2";
@@ -33,19 +39,28 @@ struct WrittenTopic {
     sequence: u32,
 }
 
-/// A bag being written. Call [`BagWriter::finish`] at the end: without it the MCAP file has no
-/// summary and the folder no `metadata.yaml`.
+/// A bag being written. Every [`CHECKPOINT_PERIOD`] (checked on each message, or by calling
+/// [`BagWriter::checkpoint_if_due`]) the open MCAP chunk is ended, the file synced and
+/// `metadata.yaml` replaced with the messages written so far; [`BagWriter::finish`] adds the MCAP
+/// summary at the end.
 pub struct BagWriter {
     dir: PathBuf,
     file_name: String,
     mcap: mcap::Writer<BufWriter<File>>,
+    /// A second handle on the MCAP file, to sync it.
+    file: File,
     topics: Vec<WrittenTopic>,
     log_ns_range: Option<(u64, u64)>,
+    last_checkpoint: Instant,
+    /// Messages that the last `metadata.yaml` lists.
+    listed_messages: u64,
+    /// Whether something was added since the last checkpoint.
+    changed: bool,
 }
 
 impl BagWriter {
-    /// Creates the bag folder `dir` (which must not exist yet) and its MCAP file `NAME_0.mcap`,
-    /// `NAME` being the folder's name.
+    /// Creates the bag folder `dir` (which must not exist yet), its MCAP file `NAME_0.mcap`, `NAME`
+    /// being the folder's name, and a `metadata.yaml` of no messages.
     pub fn create(dir: &Path) -> Result<Self, BagError> {
         if dir.exists() {
             return Err(BagError::OutputExists(dir.to_path_buf()));
@@ -58,12 +73,25 @@ impl BagWriter {
         std::fs::create_dir_all(dir).map_err(|e| BagError::io(dir, e))?;
         let path = dir.join(&file_name);
         let file = File::create(&path).map_err(|e| BagError::io(&path, e))?;
+        let sync_handle = file.try_clone().map_err(|e| BagError::io(&path, e))?;
         let mcap = mcap::WriteOptions::new()
             .profile(MCAP_PROFILE)
             .compression(None)
             .create(BufWriter::new(file))
             .map_err(|e| BagError::mcap(&path, e))?;
-        Ok(BagWriter { dir: dir.to_path_buf(), file_name, mcap, topics: Vec::new(), log_ns_range: None })
+        let mut writer = BagWriter {
+            dir: dir.to_path_buf(),
+            file_name,
+            mcap,
+            file: sync_handle,
+            topics: Vec::new(),
+            log_ns_range: None,
+            last_checkpoint: Instant::now(),
+            listed_messages: 0,
+            changed: false,
+        };
+        writer.checkpoint()?;
+        Ok(writer)
     }
 
     /// The MCAP file.
@@ -84,10 +112,11 @@ impl BagWriter {
             .add_channel(schema, &info.name, SERIALIZATION_FORMAT, &metadata)
             .map_err(|e| BagError::mcap(&path, e))?;
         self.topics.push(WrittenTopic { info, channel, messages: 0, sequence: 0 });
+        self.changed = true;
         Ok(TopicId(self.topics.len() - 1))
     }
 
-    /// Writes one message of `topic`: its serialized bytes, as published.
+    /// Writes one message of `topic`: its serialized bytes, as published; checkpoints when due.
     pub fn write(&mut self, topic: TopicId, time: MessageTime, data: &[u8]) -> Result<(), BagError> {
         let path = self.mcap_path();
         let written = self.topics.get_mut(topic.0).ok_or(BagError::UnknownTopic(topic.0))?;
@@ -104,18 +133,49 @@ impl BagWriter {
             None => (time.log_ns, time.log_ns),
             Some((first, last)) => (first.min(time.log_ns), last.max(time.log_ns)),
         });
+        self.changed = true;
+        self.checkpoint_if_due()
+    }
+
+    /// Checkpoints if something was added and the last checkpoint is [`CHECKPOINT_PERIOD`] old.
+    pub fn checkpoint_if_due(&mut self) -> Result<(), BagError> {
+        if self.changed && self.last_checkpoint.elapsed() >= CHECKPOINT_PERIOD {
+            self.checkpoint()?;
+        }
         Ok(())
+    }
+
+    /// Ends the open MCAP chunk, syncs the file and replaces `metadata.yaml` with the messages
+    /// written so far: a reader gets them all even if the writer never finishes.
+    pub(crate) fn checkpoint(&mut self) -> Result<(), BagError> {
+        let path = self.mcap_path();
+        self.mcap.flush().map_err(|e| BagError::mcap(&path, e))?;
+        self.file.sync_data().map_err(|e| BagError::io(&path, e))?;
+        let metadata = self.metadata();
+        metadata.write(&self.dir)?;
+        (self.last_checkpoint, self.listed_messages, self.changed) = (Instant::now(), metadata.message_count, false);
+        Ok(())
+    }
+
+    /// The messages that `metadata.yaml` lists: those written up to the last checkpoint.
+    pub fn listed_messages(&self) -> u64 {
+        self.listed_messages
+    }
+
+    /// The metadata of the messages written so far.
+    fn metadata(&self) -> BagMetadata {
+        let (start_ns, end_ns) = self.log_ns_range.unwrap_or((0, 0));
+        let topics: Vec<(TopicInfo, u64)> = self.topics.iter().map(|t| (t.info.clone(), t.messages)).collect();
+        BagMetadata::single_file(&self.file_name, &topics, start_ns, end_ns)
     }
 
     /// Ends the MCAP file with its summary and writes `metadata.yaml`; returns the metadata.
     pub fn finish(mut self) -> Result<BagMetadata, BagError> {
         let path = self.mcap_path();
         self.mcap.finish().map_err(|e| BagError::mcap(&path, e))?;
+        let metadata = self.metadata();
         let file = self.mcap.into_inner().into_inner().map_err(|e| BagError::io(&path, e.into_error()))?;
         file.sync_all().map_err(|e| BagError::io(&path, e))?;
-        let (start_ns, end_ns) = self.log_ns_range.unwrap_or((0, 0));
-        let topics: Vec<(TopicInfo, u64)> = self.topics.into_iter().map(|t| (t.info, t.messages)).collect();
-        let metadata = BagMetadata::single_file(&self.file_name, &topics, start_ns, end_ns);
         metadata.write(&self.dir)?;
         Ok(metadata)
     }

@@ -2,5 +2,6 @@
 //! name starts with `fuzz_`, so that `cargo test fuzz_` selects them all; the number of inputs is
 //! proptest's default (256) unless `PROPTEST_CASES` says otherwise (see `tools/fuzz-long`).
 
+pub mod jpeg;
 pub mod messages;
 pub mod mutation;

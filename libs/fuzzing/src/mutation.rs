@@ -1,4 +1,5 @@
-//! Byte-level mutations of a valid input: flipped bits, inserted and removed bytes, truncation.
+//! Byte-level mutations of a valid input: flipped bits, inserted and removed bytes, truncation, a
+//! PNG header that lies about its size.
 
 use proptest::prelude::*;
 
@@ -71,6 +72,30 @@ pub fn mutated_text(seeds: Vec<String>) -> impl Strategy<Value = String> {
     proptest::sample::select(seeds)
         .prop_flat_map(|seed| mutated_bytes(seed.into_bytes()))
         .prop_map(|bytes| String::from_utf8_lossy(&bytes).into_owned())
+}
+
+/// `png` with the size in its header replaced by `width` x `height`, its checksum mended: a file
+/// that claims an image far larger than the rows it holds.
+pub fn with_png_size(png: &[u8], width: u32, height: u32) -> Vec<u8> {
+    const IHDR_DATA: std::ops::Range<usize> = 16..29;
+    let mut patched = png.to_vec();
+    patched[16..20].copy_from_slice(&width.to_be_bytes());
+    patched[20..24].copy_from_slice(&height.to_be_bytes());
+    let crc = png_crc32(&patched[IHDR_DATA.start - 4..IHDR_DATA.end]);
+    patched[IHDR_DATA.end..IHDR_DATA.end + 4].copy_from_slice(&crc.to_be_bytes());
+    patched
+}
+
+/// The CRC-32 a PNG chunk ends with, over its type and data.
+fn png_crc32(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &byte in bytes {
+        crc ^= u32::from(byte);
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+        }
+    }
+    !crc
 }
 
 #[cfg(test)]

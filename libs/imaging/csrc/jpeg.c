@@ -41,6 +41,20 @@ static void on_message(j_common_ptr info, int level) {
     }
 }
 
+/* Most scans a JPEG may have. Each scan of a progressive JPEG is a pass over the whole image, so a
+ * file of thousands of tiny scans would cost thousands of decodings; encoders write about ten. */
+#define MAX_SCANS 100
+
+/* A progress monitor that fails the call once the JPEG has more than MAX_SCANS scans. */
+static void limit_scans(j_common_ptr info) {
+    j_decompress_ptr decompress = (j_decompress_ptr)info;
+    if (decompress->input_scan_number > MAX_SCANS) {
+        struct guard *guard = (struct guard *)info->err;
+        snprintf(guard->message, guard->message_len, "it has more than %d scans", MAX_SCANS);
+        longjmp(guard->back, 1);
+    }
+}
+
 static struct jpeg_error_mgr *guarded(struct guard *guard, char *message, size_t message_len) {
     struct jpeg_error_mgr *manager = jpeg_std_error(&guard->manager);
     manager->error_exit = fail;
@@ -179,6 +193,8 @@ int rover_jpeg_decode(const unsigned char *jpeg, unsigned long len, unsigned cha
         jpeg_destroy_decompress(&info);
         return ROVER_JPEG_FAILED;
     }
+    struct jpeg_progress_mgr progress = {.progress_monitor = limit_scans};
+    info.progress = &progress;
     info.out_color_space = JCS_RGB;
     jpeg_start_decompress(&info);
     read_rows(&info, rgb, (JDIMENSION)first_row, (JDIMENSION)end_row);

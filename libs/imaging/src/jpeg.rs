@@ -275,6 +275,16 @@ mod tests {
     }
 
     #[test]
+    fn a_progressive_jpeg_of_more_than_100_scans_is_refused() {
+        use rover_fuzzing::jpeg::progressive_grey_8x8;
+
+        let grey = decode_jpeg(&progressive_grey_8x8(0), 8, 8).expect("64 scans decode");
+        assert!(grey.data.iter().all(|&v| v.abs_diff(128) <= 1), "mid-grey: {:?}", &grey.data[..6]);
+        let error = decode_jpeg(&progressive_grey_8x8(13), 8, 8).unwrap_err();
+        assert!(error.to_string().starts_with("cannot decode the JPEG: it has more than 100 scans"), "{error}");
+    }
+
+    #[test]
     fn corrupt_and_truncated_jpegs_are_named() {
         let jpeg = encode_jpeg(&gradient(64, 32), 75).unwrap();
         assert_eq!(jpeg_dimensions(b"hello"), Err(ImageError::NotJpeg(5)));
@@ -351,11 +361,12 @@ mod tests {
         assert!(mean_error < 4.0, "grey noise at quality 100: mean error {mean_error}");
     }
 
-    /// Fuzz targets: a mutated JPEG (flipped, inserted or removed bytes, truncated) is checked and
-    /// decoded without panicking, and its pixel buffer is only sized when the header gives the
-    /// expected size.
+    /// Fuzz targets: a mutated JPEG (flipped, inserted or removed bytes, truncated), baseline or
+    /// progressive, is checked and decoded without panicking, and its pixel buffer is only sized
+    /// when the header gives the expected size.
     mod fuzz {
         use proptest::prelude::*;
+        use rover_fuzzing::jpeg::progressive_grey_8x8;
         use rover_fuzzing::mutation::mutated_bytes;
 
         use super::*;
@@ -375,6 +386,13 @@ mod tests {
                 match decode_jpeg_into(&jpeg, SIZE.0, SIZE.1, &mut out) {
                     Ok(()) => prop_assert_eq!(out.data.len(), SIZE.0 * SIZE.1 * 3),
                     Err(_) => prop_assert!(out.data.capacity() == 0 || out.data.len() == SIZE.0 * SIZE.1 * 3),
+                }
+            }
+
+            #[test]
+            fn fuzz_progressive_jpeg_mutated_bytes(jpeg in mutated_bytes(progressive_grey_8x8(1))) {
+                if let Ok(image) = decode_jpeg(&jpeg, 8, 8) {
+                    prop_assert_eq!(image.data.len(), 8 * 8 * 3);
                 }
             }
         }

@@ -84,11 +84,45 @@ fn png_error(error: png::DecodingError) -> ImageError {
     ImageError::Corrupt { format: "PNG", reason: error.to_string() }
 }
 
+/// Most pixels a PNG may have: its header is checked before any row is decoded, so that a small
+/// file claiming a huge image costs nothing.
+pub const MAX_PNG_PIXELS: u64 = 1 << 22;
+
+/// Largest file [`read_file_at_most`] callers use for an image, bytes.
+pub const MAX_IMAGE_FILE_BYTES: u64 = 16 << 20;
+
+/// The PNG's reader, refused when its header claims more than [`MAX_PNG_PIXELS`].
+fn png_reader(
+    bytes: &[u8],
+    transformations: png::Transformations,
+) -> Result<png::Reader<std::io::Cursor<&[u8]>>, ImageError> {
+    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+    decoder.set_transformations(transformations);
+    let reader = decoder.read_info().map_err(png_error)?;
+    let (width, height) = (reader.info().width, reader.info().height);
+    if u64::from(width) * u64::from(height) > MAX_PNG_PIXELS {
+        let reason = format!("its header says {width}x{height} pixels, more than the {MAX_PNG_PIXELS} accepted");
+        return Err(ImageError::Corrupt { format: "PNG", reason });
+    }
+    Ok(reader)
+}
+
+/// The bytes of the file at `path`, refused when it holds more than `max_bytes`: what a path
+/// names cannot make a reader allocate more than that.
+pub fn read_file_at_most(path: &std::path::Path, max_bytes: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read as _;
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)?.take(max_bytes + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > max_bytes {
+        let message = format!("{} is larger than {max_bytes} bytes, the most read", path.display());
+        return Err(std::io::Error::new(std::io::ErrorKind::InvalidData, message));
+    }
+    Ok(bytes)
+}
+
 /// Reads an 8-bit grayscale, RGB or RGBA PNG as RGB.
 pub fn decode_png(bytes: &[u8]) -> Result<RgbImage, ImageError> {
-    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
-    decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
-    let mut reader = decoder.read_info().map_err(png_error)?;
+    let mut reader = png_reader(bytes, png::Transformations::EXPAND | png::Transformations::STRIP_16)?;
     let mut buffer = vec![0; reader.output_buffer_size().unwrap_or_default()];
     let info = reader.next_frame(&mut buffer).map_err(png_error)?;
     let (width, height) = (info.width as usize, info.height as usize);
@@ -114,25 +148,15 @@ pub struct Gray16Image {
     pub data: Vec<u16>,
 }
 
-/// Largest side of a PNG read by [`decode_png_gray16`], pixels: bounds what a file can make us
-/// allocate.
-const MAX_GRAY16_SIDE: u32 = 8192;
-
 /// Reads a 16-bit greyscale PNG with its samples as they are (no scaling to 8 bits).
 pub fn decode_png_gray16(bytes: &[u8]) -> Result<Gray16Image, ImageError> {
-    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
-    decoder.set_transformations(png::Transformations::IDENTITY);
-    let reader = decoder.read_info().map_err(png_error)?;
+    let mut reader = png_reader(bytes, png::Transformations::IDENTITY)?;
     let info = reader.info();
     let (color, depth, width, height) = (info.color_type, info.bit_depth, info.width, info.height);
     let corrupt = |reason: String| ImageError::Corrupt { format: "PNG", reason };
     if color != png::ColorType::Grayscale || depth != png::BitDepth::Sixteen {
         return Err(corrupt(format!("it is {color:?} with {depth:?} bits, expected 16-bit greyscale")));
     }
-    if width > MAX_GRAY16_SIDE || height > MAX_GRAY16_SIDE {
-        return Err(corrupt(format!("it is {width}x{height}, larger than {MAX_GRAY16_SIDE} pixels a side")));
-    }
-    let mut reader = reader;
     let mut buffer = vec![0; reader.output_buffer_size().unwrap_or_default()];
     reader.next_frame(&mut buffer).map_err(png_error)?;
     let data = buffer.chunks_exact(2).map(|pair| u16::from_be_bytes([pair[0], pair[1]])).collect();
@@ -196,8 +220,31 @@ mod tests {
         assert!(error.to_string().starts_with("cannot decode the PNG: "), "{error}");
     }
 
-    /// A survey PNG, its bytes mutated: read or refused, never a panic, and what is read is
-    /// whole.
+    #[test]
+    fn a_png_whose_header_claims_a_huge_image_is_refused_before_its_rows_are_read() {
+        use rover_fuzzing::mutation::with_png_size;
+        let rgb = encode_png(&RgbImage::new(64, 64)).unwrap();
+        assert_eq!(decode_png(&with_png_size(&rgb, 64, 64)).unwrap(), RgbImage::new(64, 64), "the mend keeps it valid");
+        let huge = with_png_size(&rgb, 100_000, 100_000);
+        let error = decode_png(&huge).unwrap_err().to_string();
+        assert!(error.contains("100000x100000") && error.contains("more than"), "{error}");
+        let grey = encode_png_gray16(&Gray16Image { width: 4, height: 4, data: vec![7; 16] }).unwrap();
+        let error = decode_png_gray16(&with_png_size(&grey, 1 << 20, 8)).unwrap_err().to_string();
+        assert!(error.contains("1048576x8"), "{error}");
+    }
+
+    #[test]
+    fn a_file_larger_than_the_bound_is_refused_unread() {
+        let path = std::env::temp_dir().join(format!("rover-imaging-bound-{}", std::process::id()));
+        std::fs::write(&path, [1u8; 100]).unwrap();
+        assert_eq!(read_file_at_most(&path, 100).unwrap().len(), 100);
+        let error = read_file_at_most(&path, 99).unwrap_err().to_string();
+        assert!(error.contains("larger than 99 bytes"), "{error}");
+        std::fs::remove_file(path).unwrap();
+    }
+
+    /// A survey and a map PNG, their bytes mutated: read or refused, never a panic, and what is
+    /// read is whole.
     mod fuzz {
         use proptest::prelude::*;
         use rover_fuzzing::mutation::mutated_bytes;
@@ -209,11 +256,25 @@ mod tests {
             encode_png_gray16(&Gray16Image { width: 12, height: 9, data }).unwrap()
         }
 
+        fn small_map() -> Vec<u8> {
+            let mut image = RgbImage::new(10, 7);
+            image.data.iter_mut().enumerate().for_each(|(i, byte)| *byte = (i * 11) as u8);
+            encode_png(&image).unwrap()
+        }
+
         proptest! {
             #[test]
             fn fuzz_png_gray16_mutated_bytes(png in mutated_bytes(small_survey())) {
                 if let Ok(image) = decode_png_gray16(&png) {
                     prop_assert_eq!(image.data.len(), image.width * image.height);
+                }
+            }
+
+            #[test]
+            fn fuzz_png_rgb_mutated_bytes(png in mutated_bytes(small_map())) {
+                if let Ok(image) = decode_png(&png) {
+                    prop_assert_eq!(image.data.len(), image.width * image.height * 3);
+                    prop_assert!((image.width * image.height) as u64 <= MAX_PNG_PIXELS);
                 }
             }
         }

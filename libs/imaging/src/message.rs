@@ -18,11 +18,15 @@ pub fn rgb8_message(image: RgbImage, header: Header) -> Image {
     }
 }
 
-/// The image of an rgb8 `Image` message, or why it is not one.
+/// The image of an rgb8 `Image` message, or why it is not one (another encoding, more than
+/// [`crate::MAX_PNG_PIXELS`] pixels, or rows that do not match its size).
 pub fn rgb_image_from_message(message: Image) -> Result<RgbImage, String> {
     let (width, height) = (message.width as usize, message.height as usize);
     if message.encoding != "rgb8" {
         return Err(format!("encoding {:?}, expected \"rgb8\"", message.encoding));
+    }
+    if u64::from(message.width) * u64::from(message.height) > crate::MAX_PNG_PIXELS {
+        return Err(format!("{width}x{height} pixels, more than the {} accepted", crate::MAX_PNG_PIXELS));
     }
     if message.step as usize != width * 3 || message.data.len() != width * height * 3 {
         return Err(format!("{} bytes with step {} for {width}x{height} rgb8", message.data.len(), message.step));
@@ -42,7 +46,42 @@ mod tests {
         assert_eq!(rgb_image_from_message(message.clone()), Ok(image));
         let bgr = Image { encoding: "bgr8".into(), ..message.clone() };
         assert!(rgb_image_from_message(bgr).unwrap_err().contains("bgr8"));
-        let short = Image { data: vec![0; 5], ..message };
+        let short = Image { data: vec![0; 5], ..message.clone() };
         assert!(rgb_image_from_message(short).unwrap_err().contains("5 bytes"));
+        let huge = Image { width: u32::MAX, height: u32::MAX, step: u32::MAX, ..message };
+        assert!(rgb_image_from_message(huge).unwrap_err().contains("more than"));
+    }
+
+    /// Fuzz target: an `Image` as a peer publishes it (any size, step, encoding and data) is taken
+    /// or refused, never a panic, and what is taken encodes as the bridge's inset JPEG.
+    mod fuzz {
+        use proptest::prelude::*;
+
+        use super::*;
+
+        fn image() -> impl Strategy<Value = Image> {
+            let sides = prop_oneof![0u32..40, any::<u32>()];
+            let encoding = prop_oneof![Just("rgb8".to_string()), "\\PC{0,6}"];
+            (sides.clone(), sides, prop_oneof![0u32..130, any::<u32>()], encoding, 0usize..5000).prop_map(
+                |(width, height, step, encoding, bytes)| Image {
+                    width,
+                    height,
+                    step,
+                    encoding,
+                    data: vec![7; bytes],
+                    ..Image::default()
+                },
+            )
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_inset_image_messages(message in image()) {
+                if let Ok(image) = rgb_image_from_message(message) {
+                    prop_assert_eq!(image.data.len(), image.width * image.height * 3);
+                    let _ = crate::encode_jpeg(&image, 75);
+                }
+            }
+        }
     }
 }
