@@ -26,6 +26,11 @@ enum Command {
     All,
     /// Print the name of every node, one a line, in start order (the launchers read this list).
     Nodes,
+    /// Bring the graph's nodes, started with -p autostart:=false, up in start order (configure,
+    /// then activate), as Nav2's lifecycle manager does; then bring up any node that comes back
+    /// unconfigured (respawned), until Ctrl-C.
+    #[command(name = "lifecycle-manager", after_help = ROS_ARGS_HELP)]
+    LifecycleManager,
     /// Replay a recorded dataset (robot_log.csv + IMG/) through perception and mapping and print
     /// the Udacity scores. Parameters: -p perception:NAME:=VALUE, -p mapping:NAME:=VALUE.
     #[command(after_help = ROS_ARGS_HELP)]
@@ -55,6 +60,12 @@ enum Command {
     /// (Open connection, Foxglove WebSocket, ws://127.0.0.1:8765) until Ctrl-C.
     #[command(name = "live-view", after_help = ROS_ARGS_HELP)]
     LiveView(rover::tools::live_view::LiveViewArgs),
+    /// Print nftables rules that let a DDS domain's traffic in from this host and the allowed
+    /// peers only (apply with `rover dds-firewall | sudo nft -f -`): the DDS library listens on
+    /// every interface, so without them any host that reaches its ports can send a node packets
+    /// that make it allocate gigabytes.
+    #[command(name = "dds-firewall")]
+    DdsFirewall(rover::tools::dds_firewall::DdsFirewallArgs),
 }
 
 /// The command line, with each node's parameter table in its long help.
@@ -124,6 +135,10 @@ async fn run(
     match command {
         Command::Node(node) => node.run(dds(participant, ros_args, shutdown)?).await,
         Command::All => run_all(dds(participant, ros_args, shutdown)?).await,
+        Command::LifecycleManager => {
+            rover::processes::lifecycle_manager::run(dds(participant, ros_args, shutdown)?).await
+        }
+        Command::DdsFirewall(args) => rover::tools::dds_firewall::run(&args),
         Command::Nodes => {
             node_names().for_each(|name| println!("{name}"));
             Ok(())
@@ -175,6 +190,9 @@ async fn run(
         }
         Command::Bag(BagArgs { command: BagCommand::FromDataset(args) }) => {
             rover::tools::bag::from_dataset::from_dataset(&args, &ros_args).map(drop)
+        }
+        Command::Bag(BagArgs { command: BagCommand::Info(args) }) => {
+            rover::tools::bag::info::info(&args).map(|text| print!("{text}"))
         }
         Command::LiveView(args) => rover::tools::live_view::run(&args, dds(participant, ros_args, shutdown)?).await,
     }

@@ -48,7 +48,10 @@ impl WorldArgs {
         let world = match &self.map {
             None => procedural_world(seed),
             Some(map) => {
-                let read = |path: &Path| std::fs::read(path).with_context(|| format!("cannot read {}", path.display()));
+                let read = |path: &Path| {
+                    rover_imaging::read_file_at_most(path, rover_imaging::MAX_IMAGE_FILE_BYTES)
+                        .with_context(|| format!("cannot read {}", path.display()))
+                };
                 let read_optional = |path: &Option<PathBuf>| path.as_deref().map(read).transpose();
                 let (map_png, floor_png) = (read(map)?, read_optional(&self.floor)?);
                 let (elevation_png, rocks_json) = (read_optional(&self.elevation)?, read_optional(&self.rocks)?);
@@ -94,6 +97,10 @@ pub struct SimArgs {
     /// Port of the bridge (the Unity simulator always uses 4567).
     #[arg(long, default_value_t = 4567)]
     pub port: u16,
+    /// Token to present to the bridge, as `Authorization: Bearer TOKEN`: the bridge's parameter
+    /// simulator_token, when set (the Unity simulator presents none).
+    #[arg(long, value_name = "TOKEN")]
+    pub token: Option<String>,
     /// Simulated time per command, seconds.
     #[arg(long, default_value_t = FRAME_PERIOD_S, value_name = "SECONDS")]
     pub step_seconds: f64,
@@ -113,6 +120,10 @@ pub struct SimArgs {
     /// e.g. to look at a procedural world or to score it with other tools.
     #[arg(long, value_name = "PNG")]
     pub export_map: Option<PathBuf>,
+    /// Write where the rover can drive (white: cells without boulder or steep ground) to this PNG
+    /// and exit, e.g. to draw goals or starts on the floor.
+    #[arg(long, value_name = "PNG")]
+    pub export_drivable: Option<PathBuf>,
 }
 
 impl SimArgs {
@@ -138,10 +149,18 @@ impl SimArgs {
 /// With `--export-map`, writes the world's map instead and returns `None`.
 pub async fn run(args: &SimArgs, stop: impl std::future::Future<Output = ()>) -> anyhow::Result<Option<SimReport>> {
     let world = args.world.world(args.seed)?;
-    if let Some(path) = &args.export_map {
-        let png = world.ground_truth_png()?;
-        std::fs::write(path, png).with_context(|| format!("cannot write the map to {}", path.display()))?;
-        println!("wrote the ground-truth map of the world to {}", path.display());
+    let exports = [
+        (&args.export_map, "ground-truth map", world.ground_truth()),
+        (&args.export_drivable, "drivable cells", &world.drivable_cells()),
+    ];
+    let wanted: Vec<_> =
+        exports.iter().filter_map(|(path, what, cells)| path.as_ref().map(|path| (path, what, cells))).collect();
+    for &(path, what, cells) in &wanted {
+        std::fs::write(path, World::cells_png(cells)?)
+            .with_context(|| format!("cannot write the {what} to {}", path.display()))?;
+        println!("wrote the {what} of the world to {}", path.display());
+    }
+    if !wanted.is_empty() {
         return Ok(None);
     }
     let config = args.config()?;
@@ -155,7 +174,7 @@ pub async fn run(args: &SimArgs, stop: impl std::future::Future<Output = ()>) ->
         simulator.world().start.yaw_deg,
         simulator.samples().len()
     );
-    let client = ClientConfig::unity(&args.host, args.port);
+    let client = ClientConfig { token: args.token.clone(), ..ClientConfig::unity(&args.host, args.port) };
     let stats = run_client(&mut simulator, &client, stop).await;
     let report = simulator.report();
     tracing::info!(

@@ -251,11 +251,23 @@ impl World {
         )
     }
 
-    /// The scoring ground truth as a `map_bw.png`-style PNG: navigable pixels white, the rest
-    /// black (row = y, column = x).
-    pub fn ground_truth_png(&self) -> Result<Vec<u8>, rover_imaging::ImageError> {
+    /// The 1 m cells where the rover can drive all over (row-major, row = y): every terrain
+    /// square of the cell is drivable.
+    pub fn drivable_cells(&self) -> Vec<bool> {
+        let quarters = [0.25, 0.75];
+        (0..WORLD_SIZE * WORLD_SIZE)
+            .map(|i| {
+                let (x, y) = ((i % WORLD_SIZE) as f64, (i / WORLD_SIZE) as f64);
+                quarters.iter().all(|dy| quarters.iter().all(|dx| self.is_drivable(x + dx, y + dy)))
+            })
+            .collect()
+    }
+
+    /// Cells as a `map_bw.png`-style PNG: true pixels white, the rest black (row = y,
+    /// column = x); e.g. the scoring ground truth ([`World::ground_truth`]).
+    pub fn cells_png(cells: &[bool]) -> Result<Vec<u8>, rover_imaging::ImageError> {
         let mut image = rover_imaging::RgbImage::new(WORLD_SIZE, WORLD_SIZE);
-        for (i, _) in self.ground_truth.iter().enumerate().filter(|(_, navigable)| **navigable) {
+        for (i, _) in cells.iter().enumerate().filter(|(_, on)| **on) {
             image.set_pixel(i % WORLD_SIZE, i / WORLD_SIZE, [255, 255, 255]);
         }
         rover_imaging::encode_png(&image)
@@ -415,8 +427,21 @@ mod tests {
     #[test]
     fn the_exported_map_is_the_ground_truth() {
         let world = crate::procgen::procedural_world(3);
-        let png = world.ground_truth_png().unwrap();
+        let png = World::cells_png(world.ground_truth()).unwrap();
         assert_eq!(read_mask(&png, "map").unwrap(), world.ground_truth());
         assert!(matches!(read_mask(b"not a png", "map"), Err(WorldError::Unreadable { name: "map", .. })));
+    }
+
+    #[test]
+    fn drivable_cells_are_floor_without_the_boulders() {
+        let world = crate::procgen::procedural_world(3);
+        let drivable = world.drivable_cells();
+        let (cells, floor) =
+            (drivable.iter().filter(|&&d| d).count(), world.ground_truth().iter().filter(|&&f| f).count());
+        assert!(cells > floor / 2, "most of the floor: {cells} of {floor}");
+        assert!(!world.boulders().is_empty(), "a world with boulders");
+        let centre_cell = |b: &Boulder| b.centre[1] as usize * WORLD_SIZE + b.centre[0] as usize;
+        let under_boulders = world.boulders().iter().filter(|b| !drivable[centre_cell(b)]).count();
+        assert_eq!(under_boulders, world.boulders().len(), "no boulder's centre is drivable");
     }
 }

@@ -87,7 +87,7 @@ pub async fn run_demo(args: &DemoArgs, runtime: &Runtime, ros_args: &[String]) -
         None => None,
     };
     let live_view = if args.foxglove {
-        let view_args = LiveViewArgs { host: "127.0.0.1".to_string(), port: args.foxglove_port };
+        let view_args = LiveViewArgs::local(args.foxglove_port);
         Some(LiveView::start(runtime, &view_args).await?)
     } else {
         None

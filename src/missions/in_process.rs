@@ -1,31 +1,33 @@
 //! A whole mission in one thread, without DDS or sockets: the simulator linked as the bridge links
-//! it ([`DirectLink`]), and the library code the perception, mapping, decision and pickup nodes
-//! run, called in the order the graph runs them. It is the fast loop for developing the decision logic and for
-//! tests of it; `rover eval` runs the same mission with every node in its own process.
+//! it ([`DirectLink`]), and the cores of the perception, mapping, decision and pickup nodes run by
+//! the in-process [`Executor`] over the graph table. It is the fast loop for developing the
+//! decision logic and for tests of it; `rover eval` runs the same cores with every node in its
+//! own process.
 
 use std::time::Instant;
 
-use rover_bridge::direct::{DirectLink, Frame, UnityPeer};
-use rover_decision::drive::Drive;
-use rover_decision::grid::Grid;
-use rover_decision::machine::{Machine, Mode};
+use rover_bridge::direct::{DirectLink, UnityPeer};
+use rover_decision::node::DecisionNode;
 use rover_decision::params::DecisionParams;
-use rover_mapping::map::WorldMap;
-use rover_mapping::mapper::{MapPublication, MappingCore};
+use rover_mapping::node::MappingNode;
 use rover_mapping::params::MappingParams;
-use rover_mapping::score::{LocatedSamples, occupancy_scores};
+use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::msg::DriveCommand;
-use rover_msgs::std_msgs::Header;
+use rover_perception::node::PerceptionNode;
 use rover_perception::params::PerceptionParams;
-use rover_pickup::{Pickup, PickupParams, checked_arm_input};
-use rover_runtime::{Rejections, RosArgs, Shutdown, resolve_params};
+use rover_pickup::PickupParams;
+use rover_pickup::node::PickupNode;
+use rover_runtime::executor::Executor;
+use rover_runtime::node_core::Sent;
+use rover_runtime::{RosArgs, Shutdown, resolve_params, topics};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
 use rover_sim::wire::client::Simulation as _;
 use rover_sim::world::World;
 use serde::Serialize;
 
-use crate::missions::picture::{DrivenPath, MissionMap, sample_marks};
-use crate::missions::time_by_mode::{ModeClock, TimeByMode, activity_of};
+use crate::missions::evaluator::Evaluator;
+use crate::missions::picture::MissionMap;
+use crate::missions::time_by_mode::TimeByMode;
 use crate::missions::timeline::Timeline;
 use crate::processes::nodes::Node;
 
@@ -112,94 +114,59 @@ pub fn run_in_process(
     shutdown: &Shutdown,
     mut on_progress: impl FnMut(&Progress),
 ) -> anyhow::Result<MissionOutcome> {
-    let truth = world.ground_truth().to_vec();
-    let samples: Vec<(f64, f64)> = world.samples.iter().map(|s| (s.x_m, s.y_m)).collect();
-    tracing::debug!("samples at {samples:.1?}");
-    let config = SimConfig { step_s: settings.decision.frame_period_s, ..SimConfig::default() };
-    let mut link = DirectLink::open(SimulatorPeer(Simulator::new(world, config)))?;
-    let (mut perception, geometry) = settings.perception.pipeline()?;
-    let mut mapping = MappingCore::new(settings.mapping.clone(), None);
-    let mut machine = Machine::new(settings.decision.clone());
-    let mut rays = settings.decision.free_space_rays();
-    let mut pickup = Pickup::default();
-    let mut pickup_rejections = Rejections::default();
-    let mut located = LocatedSamples::new(samples);
-    let mut clock = ModeClock::default();
-    let mut path = DrivenPath::default();
-    let (mut timeline, mut mapped_pct) = (Timeline::default(), 0.0);
-    let snapshot = |sim: &Simulator,
-                    map: &WorldMap,
-                    located: &LocatedSamples,
-                    mode: Mode,
-                    clock: &ModeClock,
-                    timeline: &Timeline| {
-        let scores = map.scores(&truth);
-        Progress {
-            sim_seconds: sim.report().sim_seconds,
-            mapped_pct: scores.mapped_pct,
-            fidelity_pct: scores.fidelity_pct,
-            located: located.count(),
-            collected: sim.report().samples_collected,
-            mode: mode.name().to_string(),
-            time_by_mode: clock.times().clone(),
-            timeline: timeline.clone(),
-            replies: Replies::default(),
-        }
-    };
+    tracing::debug!("samples at {:.1?}", world.samples.iter().map(|s| (s.x_m, s.y_m)).collect::<Vec<_>>());
+    let step_s = settings.decision.frame_period_s;
+    let mut evaluator = Evaluator::new(&world);
+    let config = SimConfig { step_s, ..SimConfig::default() };
+    let mut link = DirectLink::open(SimulatorPeer(Simulator::new(world, config)), step_s)?;
+    let mut graph = graph_of_cores(settings)?;
+    evaluator.observe(&graph.start(Time::default()));
     let started = Instant::now();
     for frame in 1.. {
         if shutdown.is_requested() {
             anyhow::bail!("interrupted at {:.1} sim s", link.peer().0.report().sim_seconds);
         }
-        let Frame { telemetry: message, image_jpeg } =
-            link.next_frame(frame).expect("each command sent brings the telemetry of a frame");
-        path.record(message.x_m, message.y_m);
-        clock.on_frame(frame, activity_of(machine.status().mode.name(), &message), config.step_s);
-        let classes = perception.process_jpeg(&image_jpeg)?;
-        let scan = geometry.terrain_scan(classes, &message, Header::default());
-        mapping.add_scan(&scan);
-        if mapping.publication_due() {
-            mapping.mark_published();
-            located.update(&mapping.map().rock_cells());
-            let MapPublication { occupancy, rocks, .. } = mapping.publication(Header::default());
-            mapped_pct = occupancy_scores(&occupancy, &truth).mapped_pct;
-            let grid = Grid::from_occupancy(&occupancy).expect("the map has the cells of map_grid");
-            machine.receive_map(frame, grid);
-            machine.receive_rocks(frame, rocks);
-        }
-        let observation = rover_decision::observation(&scan, &mut rays);
-        let drive = machine.step(&observation);
-        // As the decision node does after publishing; here nothing runs beside it, but the missions
-        // that check decisions to the metre go through the plans it makes ahead.
-        machine.prepare_next_frame(&observation.position);
-        let arm = checked_arm_input(&message, &mut pickup_rejections);
-        if arm.is_some_and(|arm| pickup.on_telemetry(&arm, &settings.pickup)) {
-            link.send_pickup()?;
-        } else {
-            send_drive(&mut link, frame, &drive, settings.decision.brake)?;
-        }
-        let sim = &link.peer().0;
-        timeline.note(sim.report().sim_seconds, mapped_pct, sim.report().samples_collected);
-        let mode = machine.status().mode;
+        let messages = link.next_frame(frame).expect("each command sent brings the telemetry of a frame");
+        let now = messages.telemetry.header.stamp.clone();
+        evaluator.on_telemetry(&messages.telemetry, step_s);
+        let mut written = graph.publish(&topics::TELEMETRY, messages.telemetry, now.clone());
+        written.extend(graph.publish(&topics::CAMERA_COMPRESSED, messages.compressed, now));
+        let done = evaluator.observe(&written);
+        answer(&mut link, &written, settings.decision.brake as f32)?;
         if frame % progress_every_frames.max(1) == 0 {
-            on_progress(&snapshot(sim, mapping.map(), &located, mode, &clock, &timeline));
+            on_progress(&evaluator.snapshot());
         }
-        if mode == Mode::Done || sim.report().sim_seconds >= max_sim_seconds {
+        if done || link.peer().0.report().sim_seconds >= max_sim_seconds {
             break;
         }
     }
+    evaluator.observe(&graph.stop());
     tracing::debug!("mission took {:.1} s", started.elapsed().as_secs_f64());
-    let sim = &link.peer().0;
-    let progress = snapshot(sim, mapping.map(), &located, machine.status().mode, &clock, &timeline);
-    let start = sim.world().start;
-    let mission_map = MissionMap {
-        occupancy: mapping.map().occupancy(),
-        ground_truth: truth,
-        path,
-        home_m: (start.x_m, start.y_m),
-        samples: sample_marks(sim),
-    };
-    Ok(MissionOutcome { report: sim.report(), progress, mission_map })
+    let simulator = &link.peer().0;
+    let (progress, mission_map) = evaluator.finish(simulator);
+    Ok(MissionOutcome { report: simulator.report(), progress, mission_map })
+}
+
+/// The graph's nodes but the bridge, in one executor.
+fn graph_of_cores(settings: &NodeSettings) -> anyhow::Result<Executor> {
+    let mut graph = Executor::new(&[topics::MAP.name, topics::ROCKS.name, topics::MODE.name]);
+    graph.add::<PerceptionNode>(settings.perception.clone())?;
+    graph.add::<MappingNode>(settings.mapping.clone())?;
+    graph.add::<DecisionNode>(settings.decision.clone())?;
+    graph.add::<PickupNode>(settings.pickup.clone())?;
+    Ok(graph)
+}
+
+/// Answers the simulator with what the graph wrote for a frame, as the bridge does: a pickup
+/// request first, else the drive command, else (no scan came of the frame) the brake.
+fn answer(link: &mut DirectLink<SimulatorPeer>, written: &[Sent], brake: f32) -> anyhow::Result<()> {
+    if written.iter().any(|sent| sent.on(&topics::PICKUP).is_some()) {
+        return link.send_pickup();
+    }
+    match written.iter().find_map(|sent| sent.on(&topics::DRIVE_CMD)) {
+        Some(command) => link.send_drive(command, brake),
+        None => link.send_drive(&DriveCommand { brake, ..DriveCommand::default() }, brake),
+    }
 }
 
 /// The simulator as the bridge's peer in this process.
@@ -213,16 +180,4 @@ impl UnityPeer for SimulatorPeer {
     fn receive(&mut self, event: &str, data: &serde_json::Value) -> anyhow::Result<bool> {
         Ok(self.0.receive_event(event, Some(data))?)
     }
-}
-
-/// Sends `drive` as the decision node publishes it for `frame`: in the `f32` of `rover/drive_cmd`.
-fn send_drive(link: &mut DirectLink<SimulatorPeer>, frame: u64, drive: &Drive, brake: f64) -> anyhow::Result<()> {
-    let command = DriveCommand {
-        header: Header::default(),
-        frame,
-        throttle: drive.throttle as f32,
-        brake: drive.brake as f32,
-        steering_angle_deg: drive.steering_deg as f32,
-    };
-    link.send_drive(&command, brake as f32)
 }

@@ -5,6 +5,7 @@
 pub mod chaos;
 pub mod demo;
 pub mod eval;
+mod evaluator;
 pub mod in_graph;
 pub mod in_process;
 pub mod picture;

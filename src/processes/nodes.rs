@@ -10,6 +10,7 @@ use rover_runtime::params::{NodeParams, ParamSpec};
 pub const ROS_ARGS_HELP: &str = "ROS arguments (after the subcommand's own options):
   --ros-args [-r FROM:=TO]... [-p NAME:=VALUE]... [--params-file FILE]... [--log-level LEVEL] [--]
   -r __ns:=/NAMESPACE and -r __node:=NAME rename a node; prefix a rule with NODE: to aim it at one node.
+  -p autostart:=false leaves the node unconfigured until `ros2 lifecycle set NODE configure` and `activate`.
 Environment: ROS_DOMAIN_ID (default 0) selects the DDS domain; RUST_LOG filters the log.";
 
 /// A node of the graph, run by the `rover` subcommand of its name.
@@ -64,10 +65,12 @@ impl Node {
     pub fn run(self, runtime: &Runtime) -> LocalBoxFuture<'_, anyhow::Result<()>> {
         match self {
             Node::Bridge => rover_bridge::node::run(runtime).boxed_local(),
-            Node::Perception => rover_perception::node::run(runtime).boxed_local(),
-            Node::Mapping => rover_mapping::node::run(runtime).boxed_local(),
-            Node::Decision => rover_decision::node::run(runtime).boxed_local(),
-            Node::Pickup => rover_pickup::node::run(runtime).boxed_local(),
+            Node::Perception => {
+                rover_runtime::run_node::<rover_perception::node::PerceptionNode>(runtime).boxed_local()
+            }
+            Node::Mapping => rover_runtime::run_node::<rover_mapping::node::MappingNode>(runtime).boxed_local(),
+            Node::Decision => rover_runtime::run_node::<rover_decision::node::DecisionNode>(runtime).boxed_local(),
+            Node::Pickup => rover_runtime::run_node::<rover_pickup::node::PickupNode>(runtime).boxed_local(),
         }
     }
 }

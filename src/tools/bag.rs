@@ -1,8 +1,9 @@
 //! `rover bag`: records topics of the graph into a rosbag2 bag in MCAP storage, plays a bag back
-//! with its timing, and turns a recorded Udacity dataset into a bag. The bag format is
+//! with its timing, tells what a bag holds, and turns a recorded Udacity dataset into a bag. The bag format is
 //! [`rover_bag`]; this module wires it to the topic table ([`rover_runtime::topics`]) and DDS.
 
 pub mod from_dataset;
+pub mod info;
 pub mod play;
 pub mod record;
 
@@ -37,6 +38,9 @@ pub enum BagCommand {
     /// once), stamped at the frame times of the image names.
     #[command(name = "from-dataset", after_help = crate::processes::nodes::ROS_ARGS_HELP)]
     FromDataset(from_dataset::FromDatasetArgs),
+    /// Print what a bag holds: its size, duration and the messages of each topic (as its
+    /// metadata.yaml lists them), and whether its recording was interrupted.
+    Info(info::InfoArgs),
 }
 
 /// The name of every topic of the table, resolved for `identity` (namespace and remaps).
@@ -115,7 +119,13 @@ fn write_message<M: RosMessage>(
 
 /// The size of the bag's storage files, bytes.
 fn storage_bytes(dir: &Path, metadata: &BagMetadata) -> u64 {
-    metadata.storage_paths(dir).iter().filter_map(|path| std::fs::metadata(path).ok()).map(|m| m.len()).sum()
+    metadata
+        .storage_paths(dir)
+        .unwrap_or_default()
+        .iter()
+        .filter_map(|path| std::fs::metadata(path).ok())
+        .map(|m| m.len())
+        .sum()
 }
 
 /// The end-of-run summary of a bag: its size, its duration, the messages of each topic.

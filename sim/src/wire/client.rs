@@ -52,9 +52,20 @@ pub struct Connection {
 impl Connection {
     /// Opens the websocket transport directly (no polling handshake), as websocket-sharp does.
     pub async fn open(url: &str) -> Result<Connection, WireError> {
-        let mut request =
-            url.into_client_request().map_err(|e| WireError::BadUrl { url: url.to_string(), reason: e.to_string() })?;
+        Connection::open_with_token(url, None).await
+    }
+
+    /// [`Connection::open`], presenting `token` (if any) as `Authorization: Bearer TOKEN`, for a
+    /// bridge that asks for one (its parameter `simulator_token`; Unity cannot send one).
+    pub async fn open_with_token(url: &str, token: Option<&str>) -> Result<Connection, WireError> {
+        let bad_url = |reason: String| WireError::BadUrl { url: url.to_string(), reason };
+        let mut request = url.into_client_request().map_err(|e| bad_url(e.to_string()))?;
         request.headers_mut().insert("User-Agent", HeaderValue::from_static("websocket-sharp/1.0"));
+        if let Some(token) = token {
+            let bearer = HeaderValue::from_str(&format!("Bearer {token}"))
+                .map_err(|_| bad_url("the token is not valid in an HTTP header (printable ASCII expected)".into()))?;
+            request.headers_mut().insert("Authorization", bearer);
+        }
         let (socket, _response) = tokio_tungstenite::connect_async(request).await?;
         Ok(Connection { socket })
     }
@@ -143,6 +154,8 @@ pub struct ClientConfig {
     pub reconnect_delay: Duration,
     /// Pause after a pong before the next ping (25 s in Unity).
     pub ping_interval: Duration,
+    /// Token presented to the bridge (its parameter `simulator_token`); Unity sends none.
+    pub token: Option<String>,
 }
 
 impl ClientConfig {
@@ -152,6 +165,7 @@ impl ClientConfig {
             url: unity_url(host, port),
             reconnect_delay: Duration::from_millis(20),
             ping_interval: Duration::from_secs(25),
+            token: None,
         }
     }
 }
@@ -183,7 +197,7 @@ pub async fn run_client<S: Simulation>(
     let mut waiting_logged = false;
     while !simulation.finished() {
         let opened = tokio::select! {
-            opened = Connection::open(&config.url) => opened,
+            opened = Connection::open_with_token(&config.url, config.token.as_deref()) => opened,
             () = &mut stop => break,
         };
         let mut connection = match opened {

@@ -1,5 +1,7 @@
 //! `rover bag play`: a typed publisher per topic of the bag that is in the topic table, each
-//! message deserialized and published at its log time relative to the first, divided by the rate.
+//! message deserialized and published at its log time relative to the first, divided by the rate;
+//! a gap of more than [`MAX_GAP`] between messages is skipped, so that a bad stamp cannot stall
+//! the playback for years.
 
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -8,6 +10,7 @@ use std::time::{Duration, Instant};
 use futures::future::BoxFuture;
 use rover_bag::{BagMessage, BagReader, TopicInfo};
 use rover_msgs::RosMessage;
+use rover_runtime::rejections::worth_logging;
 use rover_runtime::topics::{Topic, TopicVisitor, visit_all};
 use rover_runtime::{NoParams, Publisher, RosNode, Runtime, Shutdown};
 
@@ -21,6 +24,13 @@ const SUBSCRIBER_WAIT: Duration = Duration::from_secs(30);
 const DELIVERY_GRACE: Duration = Duration::from_secs(1);
 /// How often the progress line is printed.
 const PROGRESS_PERIOD: Duration = Duration::from_secs(5);
+/// The slowest and fastest `--rate`.
+const RATE_RANGE: std::ops::RangeInclusive<f64> = 0.001..=1000.0;
+/// The longest gap in log time between consecutive messages that is played as recorded; a longer
+/// one is skipped (with a warning).
+const MAX_GAP: Duration = Duration::from_secs(60);
+/// The latest a message is ever played after the start: later than any playback ends.
+const MAX_OFFSET: Duration = Duration::from_secs(100 * 365 * 86_400);
 
 /// Options of `rover bag play`.
 #[derive(Debug, Clone, clap::Args)]
@@ -28,7 +38,8 @@ pub struct PlayArgs {
     /// The bag folder (with metadata.yaml).
     #[arg(value_name = "DIR")]
     pub bag: PathBuf,
-    /// Play this many times faster than recorded (0.5: half as fast).
+    /// Play this many times faster than recorded (0.5: half as fast), from 0.001 to 1000. A gap of
+    /// more than 60 s between consecutive messages (log time) is skipped, with a warning.
     #[arg(long, default_value_t = 1.0, value_parser = positive_rate, value_name = "R")]
     pub rate: f64,
     /// Play only these topics of the bag (default: every topic of the bag that is in the graph's
@@ -41,11 +52,61 @@ pub struct PlayArgs {
     pub wait_for: Vec<String>,
 }
 
+/// A `--rate` in [`RATE_RANGE`].
 fn positive_rate(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
-        Ok(rate) if rate.is_finite() && rate > 0.0 => Ok(rate),
-        _ => Err(format!("{text:?} is not a positive number")),
+        Ok(rate) if RATE_RANGE.contains(&rate) => Ok(rate),
+        _ => Err(format!(
+            "{text:?} is not a positive number from {} to {} (times as fast as recorded)",
+            RATE_RANGE.start(),
+            RATE_RANGE.end()
+        )),
     }
+}
+
+/// The bag time played so far: log time since the first message, without the gaps skipped.
+#[derive(Debug, Default)]
+struct BagClock {
+    /// The latest log time seen, nanoseconds.
+    latest_ns: Option<u64>,
+    /// Bag time played up to `latest_ns`, nanoseconds.
+    played_ns: u64,
+    /// Gaps skipped so far.
+    skipped_gaps: u64,
+}
+
+impl BagClock {
+    /// The bag time at which the message logged at `log_ns` is played: as recorded after the
+    /// previous one, at once if logged earlier, right after it if more than [`MAX_GAP`] later.
+    fn played_ns(&mut self, log_ns: u64) -> u64 {
+        let gap_ns = self.latest_ns.map_or(0, |latest| log_ns.saturating_sub(latest));
+        if gap_ns > duration_ns(MAX_GAP) {
+            self.skipped_gaps += 1;
+            if worth_logging(self.skipped_gaps) {
+                tracing::warn!(
+                    "skipped {:.1} s without messages in the bag before the message logged at {log_ns} ns: gaps over \
+                     {MAX_GAP:?} are not played ({} such so far)",
+                    gap_ns as f64 / 1e9,
+                    self.skipped_gaps
+                );
+            }
+        } else {
+            self.played_ns = self.played_ns.saturating_add(gap_ns);
+        }
+        self.latest_ns = Some(self.latest_ns.map_or(log_ns, |latest| latest.max(log_ns)));
+        self.played_ns
+    }
+}
+
+/// `duration` in nanoseconds, saturated.
+fn duration_ns(duration: Duration) -> u64 {
+    u64::try_from(duration.as_nanos()).unwrap_or(u64::MAX)
+}
+
+/// When the message at bag time `played_ns` is due after the start at `rate`, at most
+/// [`MAX_OFFSET`].
+fn wall_offset(played_ns: u64, rate: f64) -> Duration {
+    Duration::try_from_secs_f64(played_ns as f64 / 1e9 / rate).map_or(MAX_OFFSET, |offset| offset.min(MAX_OFFSET))
 }
 
 /// Publishes one topic's messages from their serialized bytes.
@@ -152,7 +213,8 @@ async fn wait_for_subscribers(
 pub struct Played {
     /// Messages published.
     pub messages: u64,
-    /// Bag time covered, seconds (log time of the last message played minus the first's).
+    /// Bag time covered, seconds (log time of the last message played minus the first's, less the
+    /// gaps skipped).
     pub bag_seconds: f64,
     /// Whether shutdown stopped it before the end.
     pub interrupted: bool,
@@ -165,15 +227,15 @@ async fn play_messages(
     rate: f64,
     shutdown: &Shutdown,
 ) -> anyhow::Result<Played> {
-    let (started, mut first_ns, mut played) = (tokio::time::Instant::now(), None, Played::default());
+    let (started, mut clock, mut played) = (tokio::time::Instant::now(), BagClock::default(), Played::default());
     let mut next_progress = Instant::now() + PROGRESS_PERIOD;
     for message in bag.messages() {
         let BagMessage { topic, time, data } = message?;
         let Some(publisher) = publishers.get(&topic) else { continue };
-        let first = *first_ns.get_or_insert(time.log_ns);
-        let bag_seconds = time.log_ns.saturating_sub(first) as f64 / 1e9;
+        let played_ns = clock.played_ns(time.log_ns);
+        let bag_seconds = played_ns as f64 / 1e9;
         tokio::select! {
-            () = tokio::time::sleep_until(started + Duration::from_secs_f64(bag_seconds / rate)) => {}
+            () = tokio::time::sleep_until(started + wall_offset(played_ns, rate)) => {}
             () = shutdown.wait() => return Ok(Played { interrupted: true, ..played }),
         }
         if let Err(e) = publisher.publish_cdr(&data) {
@@ -209,4 +271,78 @@ pub async fn play(args: &PlayArgs, runtime: &Runtime) -> anyhow::Result<Played> 
         if played.interrupted { " (interrupted)" } else { "" }
     );
     Ok(played)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rates_outside_the_range_or_not_numbers_are_refused_naming_them() {
+        assert_eq!(positive_rate("0.5"), Ok(0.5));
+        assert_eq!(positive_rate("1000"), Ok(1000.0));
+        for bad in ["0", "-1", "1e-300", "0.0009", "1001", "NaN", "inf", "-inf", "fast", ""] {
+            let error = positive_rate(bad).unwrap_err();
+            assert!(error.contains(&format!("{bad:?}")) && error.contains("from 0.001 to 1000"), "{error}");
+        }
+    }
+
+    #[test]
+    fn extreme_gaps_are_skipped_and_earlier_stamps_played_at_once() {
+        let mut clock = BagClock::default();
+        let played: Vec<u64> = [u64::MAX / 2, u64::MAX / 2 + 5, 0, u64::MAX / 2 + 7, u64::MAX, u64::MAX, 1]
+            .map(|ns| clock.played_ns(ns))
+            .to_vec();
+        assert_eq!(played, [0, 5, 5, 7, 7, 7, 7]);
+        assert_eq!(clock.skipped_gaps, 1);
+        let mut clock = BagClock::default();
+        let minute_ns = duration_ns(MAX_GAP);
+        assert_eq!([0, minute_ns, minute_ns + 1 + minute_ns].map(|ns| clock.played_ns(ns)), [0, minute_ns, minute_ns]);
+    }
+
+    #[test]
+    fn waits_saturate_instead_of_overflowing() {
+        assert_eq!(wall_offset(2_000_000_000, 2.0), Duration::from_secs(1));
+        assert_eq!(wall_offset(u64::MAX, *RATE_RANGE.start()), MAX_OFFSET);
+        assert_eq!(wall_offset(u64::MAX, f64::MIN_POSITIVE), MAX_OFFSET);
+        assert_eq!(wall_offset(u64::MAX, 0.0), MAX_OFFSET);
+        assert_eq!(wall_offset(0, f64::NAN), MAX_OFFSET);
+        assert!(tokio::time::Instant::now().checked_add(MAX_OFFSET).is_some());
+    }
+
+    mod fuzz {
+        use proptest::prelude::*;
+        use rover_fuzzing::messages::{occupancy_grid, telemetry, terrain_scan};
+        use rover_fuzzing::mutation::mutated_bytes;
+
+        use super::*;
+
+        /// Decodes bytes as the message type of every topic of the table, as `rover bag play`
+        /// decodes a bag's messages before publishing them.
+        struct DecodeAsEveryTopic<'a>(&'a [u8]);
+
+        impl TopicVisitor for DecodeAsEveryTopic<'_> {
+            fn visit<M: RosMessage>(&mut self, _topic: &Topic<M>) -> anyhow::Result<()> {
+                let _ = rover_runtime::cdr::decode::<M>(self.0);
+                Ok(())
+            }
+        }
+
+        /// The CDR bytes of a hostile telemetry frame, terrain scan or map, as a bag stores them.
+        fn bag_message() -> impl Strategy<Value = Vec<u8>> {
+            let encoded = |message: anyhow::Result<Vec<u8>>| message.expect("a message encodes");
+            prop_oneof![
+                telemetry().prop_map(move |m| encoded(rover_runtime::cdr::encode(&m))),
+                terrain_scan().prop_map(move |m| encoded(rover_runtime::cdr::encode(&m))),
+                occupancy_grid().prop_map(move |m| encoded(rover_runtime::cdr::encode(&m))),
+            ]
+        }
+
+        proptest! {
+            #[test]
+            fn fuzz_bag_cdr_decoded_as_every_topic(bytes in bag_message().prop_flat_map(mutated_bytes)) {
+                visit_all(&mut DecodeAsEveryTopic(&bytes)).unwrap();
+            }
+        }
+    }
 }

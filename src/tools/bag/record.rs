@@ -1,17 +1,21 @@
 //! `rover bag record`: typed subscriptions to topics of the table; each message serialized again
 //! with ros2-client's CDR serializer (the bytes its publisher sent) and written by a thread of
-//! its own, so that writing never holds up the DDS readers.
+//! its own, so that writing never holds up the DDS readers. The queue to that thread is bounded:
+//! when the writer falls behind (a slow or full disk), messages are dropped and counted, never
+//! waited for.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use rover_bag::{BagMetadata, BagWriter, MessageTime, TopicId};
+use rover_bag::{BagError, BagMetadata, BagWriter, CHECKPOINT_PERIOD, MessageTime, TopicId};
 use rover_msgs::RosMessage;
+use rover_runtime::rejections::worth_logging;
 use rover_runtime::sync::lock;
 use rover_runtime::topics::{Topic, TopicVisitor, visit_all};
 use rover_runtime::{MessageInfo, NoParams, RosNode, Runtime, spawn_subscriber_with_info};
-use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
 use super::{add_topic, check_known, now_ns, resolve_names, resolved_table_names, summary};
@@ -22,6 +26,10 @@ const RECORDER_NODE: &str = "rosbag2_recorder";
 const READER_HISTORY_DEPTH: usize = 1000;
 /// How often `rover bag record` prints its progress line.
 const PROGRESS_PERIOD: Duration = Duration::from_secs(5);
+/// Most messages waiting for the writer thread.
+const MAX_QUEUED_MESSAGES: usize = 10_000;
+/// Most bytes of message data waiting for the writer thread.
+const MAX_QUEUED_BYTES: u64 = 256 << 20;
 
 /// Options of `rover bag record`.
 #[derive(Debug, Clone, clap::Args)]
@@ -45,6 +53,90 @@ struct Received {
     data: Vec<u8>,
 }
 
+/// The queue from the subscriptions to the writer thread, bounded by messages and bytes.
+#[derive(Clone)]
+struct WriterQueue {
+    sender: SyncSender<Received>,
+    counts: Arc<QueueCounts>,
+}
+
+/// What is in the queue and what did not fit.
+#[derive(Debug)]
+struct QueueCounts {
+    max_messages: usize,
+    queued_bytes: AtomicU64,
+    max_bytes: u64,
+    dropped: AtomicU64,
+}
+
+/// The writer thread's end of a [`WriterQueue`].
+struct QueueReceiver {
+    receiver: Receiver<Received>,
+    counts: Arc<QueueCounts>,
+}
+
+impl WriterQueue {
+    /// A queue of at most `max_messages` messages and `max_bytes` bytes of data.
+    fn bounded(max_messages: usize, max_bytes: u64) -> (Self, QueueReceiver) {
+        let (sender, receiver) = sync_channel(max_messages);
+        let counts = Arc::new(QueueCounts {
+            max_messages,
+            queued_bytes: AtomicU64::new(0),
+            max_bytes,
+            dropped: AtomicU64::new(0),
+        });
+        (WriterQueue { sender, counts: counts.clone() }, QueueReceiver { receiver, counts })
+    }
+
+    /// Queues `received` if it fits; otherwise drops it, counts it and warns (the 1st, 2nd, 4th...
+    /// time). Never blocks.
+    fn offer(&self, received: Received) {
+        let bytes = received.data.len() as u64;
+        let queued_bytes = self.counts.queued_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes;
+        let refused = if queued_bytes > self.counts.max_bytes {
+            Some(format!("it is behind by {queued_bytes} bytes"))
+        } else {
+            match self.sender.try_send(received) {
+                Ok(()) => None,
+                Err(TrySendError::Full(_)) => Some(format!("it is behind by {} messages", self.counts.max_messages)),
+                Err(TrySendError::Disconnected(_)) => Some("it has stopped".to_string()),
+            }
+        };
+        if let Some(why) = refused {
+            self.counts.queued_bytes.fetch_sub(bytes, Ordering::Relaxed);
+            self.count_dropped(&why);
+        }
+    }
+
+    /// Counts a message dropped because of `why` and warns the 1st, 2nd, 4th... time.
+    fn count_dropped(&self, why: &str) {
+        let dropped = self.counts.dropped.fetch_add(1, Ordering::Relaxed) + 1;
+        if worth_logging(dropped) {
+            tracing::warn!("dropped a message for the bag writer: {why} ({dropped} dropped so far)");
+        }
+    }
+
+    /// Messages dropped so far.
+    fn dropped(&self) -> u64 {
+        self.counts.dropped.load(Ordering::Relaxed)
+    }
+}
+
+impl QueueReceiver {
+    /// The next message, or `Ok(None)` when none came within `timeout`; `Err` once every sender
+    /// is gone.
+    fn next(&self, timeout: Duration) -> Result<Option<Received>, RecvTimeoutError> {
+        match self.receiver.recv_timeout(timeout) {
+            Ok(received) => {
+                self.counts.queued_bytes.fetch_sub(received.data.len() as u64, Ordering::Relaxed);
+                Ok(Some(received))
+            }
+            Err(RecvTimeoutError::Timeout) => Ok(None),
+            Err(disconnected) => Err(disconnected),
+        }
+    }
+}
+
 /// What the writer thread has written so far.
 #[derive(Debug, Clone, Default)]
 struct Written {
@@ -60,6 +152,7 @@ pub struct Recorder {
     subscribers: Vec<JoinHandle<()>>,
     writer: JoinHandle<anyhow::Result<BagMetadata>>,
     written: Arc<Mutex<Written>>,
+    queue: WriterQueue,
     dir: PathBuf,
     started: Instant,
 }
@@ -71,9 +164,9 @@ impl Recorder {
         let (mut node, _) = runtime.node::<NoParams>(RECORDER_NODE)?;
         let selected = selected_topics(&node, topics)?;
         let mut writer = BagWriter::create(dir)?;
-        let (sender, receiver) = mpsc::unbounded_channel();
+        let (queue, receiver) = WriterQueue::bounded(MAX_QUEUED_MESSAGES, MAX_QUEUED_BYTES);
         let mut subscribe =
-            Subscribe { node: &mut node, selected, writer: &mut writer, sender, subscribers: Vec::new() };
+            Subscribe { node: &mut node, selected, writer: &mut writer, queue: queue.clone(), subscribers: Vec::new() };
         visit_all(&mut subscribe)?;
         let subscribers = std::mem::take(&mut subscribe.subscribers);
         let topic_count = subscribers.len();
@@ -83,19 +176,28 @@ impl Recorder {
             move || write_until_closed(writer, receiver, &written)
         });
         tracing::info!("recording {topic_count} topics into {}", dir.display());
-        Ok(Recorder { _node: node, subscribers, writer, written, dir: dir.to_path_buf(), started: Instant::now() })
+        Ok(Recorder {
+            _node: node,
+            subscribers,
+            writer,
+            written,
+            queue,
+            dir: dir.to_path_buf(),
+            started: Instant::now(),
+        })
     }
 
-    /// One line on the recording so far: time, messages, megabytes.
+    /// One line on the recording so far: time, messages, megabytes, messages dropped.
     pub fn progress_line(&self) -> String {
         let written = lock(&self.written).clone();
         format!(
-            "recording {}: {:.0} s, {} messages on {} topics, {:.1} MB",
+            "recording {}: {:.0} s, {} messages on {} topics, {:.1} MB, {} dropped",
             self.dir.display(),
             self.started.elapsed().as_secs_f64(),
             written.messages.iter().sum::<u64>(),
             written.messages.iter().filter(|&&count| count > 0).count(),
-            written.bytes as f64 / 1e6
+            written.bytes as f64 / 1e6,
+            self.queue.dropped()
         )
     }
 
@@ -111,6 +213,11 @@ impl Recorder {
         }
         for subscriber in self.subscribers {
             let _ = subscriber.await;
+        }
+        let dropped = self.queue.dropped();
+        drop(self.queue);
+        if dropped > 0 {
+            tracing::warn!("{dropped} messages dropped: the bag writer fell behind");
         }
         self.writer.await.map_err(|e| anyhow::anyhow!("the bag writer thread failed: {e}"))?
     }
@@ -128,19 +235,36 @@ fn selected_topics(node: &RosNode, requested: &[String]) -> anyhow::Result<Vec<S
     Ok(resolved)
 }
 
-/// Writes what arrives on `receiver` until every sender is gone, then ends the bag.
+/// Writes what arrives on `receiver` until every sender is gone, checkpointing the bag when no
+/// message comes, then ends the bag. A write error ends the recording: the bag's metadata then
+/// lists what was written up to the last checkpoint.
 fn write_until_closed(
     mut writer: BagWriter,
-    mut receiver: mpsc::UnboundedReceiver<Received>,
+    receiver: QueueReceiver,
     written: &Mutex<Written>,
 ) -> anyhow::Result<BagMetadata> {
-    while let Some(received) = receiver.blocking_recv() {
-        writer.write(received.topic, received.time, &received.data)?;
-        let mut written = lock(written);
-        written.messages[received.topic.index()] += 1;
-        written.bytes += received.data.len() as u64;
+    while let Ok(next) = receiver.next(CHECKPOINT_PERIOD) {
+        let outcome = match next {
+            Some(received) => write_received(&mut writer, &received, written),
+            None => writer.checkpoint_if_due(),
+        };
+        outcome.map_err(|e| {
+            anyhow::anyhow!(
+                "{e}; the recording stopped there, its metadata.yaml lists the {} messages written before",
+                writer.listed_messages()
+            )
+        })?;
     }
     Ok(writer.finish()?)
+}
+
+/// Writes `received` and counts it.
+fn write_received(writer: &mut BagWriter, received: &Received, written: &Mutex<Written>) -> Result<(), BagError> {
+    writer.write(received.topic, received.time, &received.data)?;
+    let mut written = lock(written);
+    written.messages[received.topic.index()] += 1;
+    written.bytes += received.data.len() as u64;
+    Ok(())
 }
 
 /// Adds each selected topic to the bag and subscribes to it.
@@ -148,7 +272,7 @@ struct Subscribe<'a> {
     node: &'a mut RosNode,
     selected: Vec<String>,
     writer: &'a mut BagWriter,
-    sender: mpsc::UnboundedSender<Received>,
+    queue: WriterQueue,
     subscribers: Vec<JoinHandle<()>>,
 }
 
@@ -159,12 +283,10 @@ impl TopicVisitor for Subscribe<'_> {
         }
         let id = add_topic(self.writer, self.node.identity(), topic)?;
         let subscription = self.node.subscription(&topic.with_history_depth(READER_HISTORY_DEPTH))?;
-        let sender = self.sender.clone();
+        let queue = self.queue.clone();
         let handler = move |message: M, info: MessageInfo| match rover_runtime::cdr::encode(&message) {
-            Ok(data) => {
-                let _ = sender.send(Received { topic: id, time: message_time(&info), data });
-            }
-            Err(e) => tracing::warn!("{e:#}"),
+            Ok(data) => queue.offer(Received { topic: id, time: message_time(&info), data }),
+            Err(e) => queue.count_dropped(&format!("cannot encode it ({e:#})")),
         };
         self.subscribers.push(spawn_subscriber_with_info(subscription, self.node.span(), handler));
         Ok(())
@@ -183,20 +305,67 @@ pub(crate) fn message_time(info: &MessageInfo) -> MessageTime {
 pub async fn record(args: &RecordArgs, runtime: &Runtime) -> anyhow::Result<BagMetadata> {
     let recorder = Recorder::start(runtime, &args.output, &args.topics)?;
     let shutdown = runtime.shutdown();
-    let mut ticks = tokio::time::interval(PROGRESS_PERIOD);
-    ticks.tick().await;
+    let mut checks = tokio::time::interval(CHECKPOINT_PERIOD);
+    let mut next_progress = Instant::now() + PROGRESS_PERIOD;
     loop {
         tokio::select! {
             () = shutdown.wait() => break,
-            _ = ticks.tick() => {
+            _ = checks.tick() => {
                 if recorder.writer_stopped() {
                     break;
                 }
-                eprintln!("{}", recorder.progress_line());
+                if Instant::now() >= next_progress {
+                    eprintln!("{}", recorder.progress_line());
+                    next_progress += PROGRESS_PERIOD;
+                }
             }
         }
     }
     let metadata = recorder.finish().await?;
     print!("{}", summary(&args.output, &metadata));
     Ok(metadata)
+}
+
+#[cfg(test)]
+mod tests {
+    use rover_bag::{QosProfile, TopicInfo};
+
+    use super::*;
+
+    /// A topic id of a bag made for the test in a fresh folder named after `name`.
+    fn topic_id(name: &str) -> (TopicId, PathBuf) {
+        let dir = std::env::temp_dir().join(format!("rover-record-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let mut writer = BagWriter::create(&dir).unwrap();
+        let info = TopicInfo {
+            name: "/x".into(),
+            type_name: "std_msgs/msg/Empty".into(),
+            qos: QosProfile::keep_last(1, true, false),
+        };
+        (writer.add_topic(info, "").unwrap(), dir)
+    }
+
+    fn message(topic: TopicId, bytes: usize) -> Received {
+        Received { topic, time: MessageTime { log_ns: 1, publish_ns: 1 }, data: vec![0; bytes] }
+    }
+
+    #[test]
+    fn a_full_queue_drops_and_counts_messages_without_blocking() {
+        let (topic, dir) = topic_id("queue");
+        let (queue, receiver) = WriterQueue::bounded(3, 100);
+        for _ in 0..5 {
+            queue.offer(message(topic, 10));
+        }
+        assert_eq!(queue.dropped(), 2, "3 messages fit");
+        queue.offer(message(topic, 71));
+        assert_eq!(queue.dropped(), 3, "30 bytes queued, 71 more do not fit in 100");
+        assert_eq!(receiver.next(Duration::ZERO).unwrap().map(|m| m.data.len()), Some(10));
+        queue.offer(message(topic, 70));
+        assert_eq!(queue.dropped(), 3, "20 bytes queued, 70 more fit");
+        assert_eq!(receiver.next(Duration::ZERO).unwrap().map(|m| m.data.len()), Some(10));
+        drop(receiver);
+        queue.offer(message(topic, 1));
+        assert_eq!(queue.dropped(), 4, "a stopped writer takes nothing");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
