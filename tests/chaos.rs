@@ -1,11 +1,18 @@
-//! Chaos test: one full mission, graph in separate processes, in which each of the five nodes in
-//! turn is SIGKILLed at a random moment and started again by the graph's respawn. The mission
-//! completes; home and the collected count never change across a restart; after a kill the mapped
-//! share drops by at most a point more than it does anywhere else in the mission. The kill moments
-//! come from `CHAOS_SEED` (printed; default: the clock), so a failing run can be repeated.
+//! Chaos test: one full mission, graph in separate processes on simulated time
+//! (`use_sim_time:=true`), in which each of the five nodes in turn is SIGKILLed at a random moment
+//! and started again by the graph's respawn (a respawned bridge starts simulated time again). The nodes start
+//! unconfigured (`autostart:=false`) and `rover lifecycle-manager` brings them up, the respawned
+//! ones too; later the decision node is deactivated through its lifecycle services for a while
+//! (the rover stops and holds) and activated again, and a peer publishes a terrain scan stamped a
+//! day ahead, which mapping skips. The mission completes; home and the collected
+//! count never change across a restart; after a kill the mapped share drops by at most a point
+//! more than it does anywhere else in the mission. The kill moments come from `CHAOS_SEED`
+//! (printed; default: the clock), so a failing run can be repeated.
 
 mod support;
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use rover::missions::chaos::Chaos;
@@ -14,7 +21,8 @@ use rover::missions::in_graph::{SIMULATOR_PROCESS, run_graph_mission};
 use rover::missions::picture::write_mission_png;
 use rover::processes::graph::GraphConfig;
 use rover::processes::nodes::Node;
-use rover_msgs::msg::MapStats;
+use rover_msgs::msg::{MapStats, Telemetry, TerrainScan};
+use rover_runtime::lifecycle::{LifecycleClient, State, Transition};
 use rover_runtime::topics;
 use rover_sim::sim::SimConfig;
 use support::{Domain, Latest, graph_config, test_runtime};
@@ -34,6 +42,104 @@ const SLOT_S: f64 = 60.0;
 const MAPPED_DROP_LIMIT_PCT: f64 = 1.0;
 /// The drop is watched for this long after each kill, simulated seconds.
 const AFTER_KILL_S: f64 = 30.0;
+
+/// The decision node is deactivated at this simulated time (after the last kill's slot)...
+const HOLD_AT_S: f64 = 330.0;
+/// ...for this long, simulated seconds.
+const HOLD_S: f64 = 10.0;
+/// Deactivated, the rover is below 0.2 m/s with the brake on within this many frames (1 simulated
+/// second).
+const STOP_WITHIN_FRAMES: usize = 25;
+
+/// A peer publishes a terrain scan stamped a day ahead at this simulated time (after the last
+/// kill's slot, so that mapping is up).
+const FUTURE_SCAN_AT_S: f64 = 325.0;
+
+/// Publishes, once at [`FUTURE_SCAN_AT_S`], the latest terrain scan stamped a day ahead, as a
+/// hostile peer could.
+struct FutureScan {
+    latest: Arc<Mutex<Option<TerrainScan>>>,
+    publisher: rover_runtime::Publisher<TerrainScan>,
+    sent: AtomicBool,
+}
+
+impl FutureScan {
+    fn new(node: &mut rover_runtime::RosNode) -> Self {
+        let latest = Arc::new(Mutex::new(None));
+        let sink = latest.clone();
+        let subscription = node.subscription(&topics::TERRAIN).expect("subscribe to the scans");
+        rover_runtime::spawn_subscriber(subscription, tracing::Span::none(), move |scan| {
+            *rover_runtime::sync::lock(&sink) = Some(scan)
+        });
+        let publisher = node.publisher(&topics::TERRAIN).expect("a publisher of scans");
+        FutureScan { latest, publisher, sent: AtomicBool::new(false) }
+    }
+
+    fn act(&self, sim_s: f64) {
+        if sim_s < FUTURE_SCAN_AT_S || self.sent.load(Ordering::SeqCst) {
+            return;
+        }
+        if let Some(mut scan) = rover_runtime::sync::lock(&self.latest).take() {
+            scan.header.stamp.sec += 86_400;
+            rover_runtime::publish_or_warn(&self.publisher, &topics::TERRAIN, scan);
+            self.sent.store(true, Ordering::SeqCst);
+        }
+    }
+}
+
+/// Deactivates the decision node at [`HOLD_AT_S`] and activates it [`HOLD_S`] later through its
+/// lifecycle services, as `ros2 lifecycle set` does; notes when each transition was done.
+struct Hold {
+    decision: Arc<LifecycleClient>,
+    telemetry: Latest<Telemetry>,
+    busy: Arc<AtomicBool>,
+    /// When the deactivation and the activation were done: the simulated time, and how many
+    /// telemetry frames had come (one a frame; a respawned bridge numbers its frames afresh).
+    done_at: Arc<Mutex<Vec<(f64, usize)>>>,
+}
+
+impl Hold {
+    fn new(decision: LifecycleClient, telemetry: Latest<Telemetry>) -> Self {
+        Hold { decision: Arc::new(decision), telemetry, busy: Arc::default(), done_at: Arc::default() }
+    }
+
+    /// Asks for the transition due at `sim_s`, if one is and none is under way.
+    fn act(&self, sim_s: f64) {
+        let done = rover_runtime::sync::lock(&self.done_at).clone();
+        let due = match done.as_slice() {
+            [] if sim_s >= HOLD_AT_S => (State::Active, Transition::Deactivate),
+            [(deactivated_s, _)] if sim_s >= deactivated_s + HOLD_S => (State::Inactive, Transition::Activate),
+            _ => return,
+        };
+        if self.busy.swap(true, Ordering::SeqCst) {
+            return;
+        }
+        let (decision, busy, done_at) = (self.decision.clone(), self.busy.clone(), self.done_at.clone());
+        let telemetry = self.telemetry.clone();
+        tokio::spawn(async move {
+            if decision.change(due.0, due.1).await {
+                rover_runtime::sync::lock(&done_at).push((sim_s, telemetry.count()));
+            }
+            busy.store(false, Ordering::SeqCst);
+        });
+    }
+
+    /// The deactivation and the activation, once both were done.
+    fn done(&self) -> Option<[(f64, usize); 2]> {
+        rover_runtime::sync::lock(&self.done_at).as_slice().try_into().ok()
+    }
+}
+
+/// Whether, from [`STOP_WITHIN_FRAMES`] after telemetry frame number `from` (counted as they
+/// came) until `until`, every frame shows the rover below 0.2 m/s with the brake on.
+fn held_still(telemetry: &[Telemetry], from: usize, until: usize) -> Result<usize, String> {
+    let held = telemetry.get(from + STOP_WITHIN_FRAMES..until).unwrap_or_default();
+    match held.iter().find(|t| t.speed_mps.abs() >= 0.2 || t.brake <= 0.0) {
+        _ if held.is_empty() => Err(format!("no telemetry between the frames {from} and {until} that came")),
+        Some(moving) => Err(format!("the rover moves while the decision node is inactive: {moving:?}")),
+        None => Ok(held.len()),
+    }
+}
 
 fn chaos_seed() -> u64 {
     std::env::var("CHAOS_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or_else(|| {
@@ -68,12 +174,18 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
     let runtime = test_runtime(&domain);
     let (mut observer, _) = runtime.node::<rover_runtime::NoParams>("chaos_observer").expect("observer node");
     let map_stats = Latest::subscribe(&mut observer, &topics::MAP_STATS);
+    let telemetry = Latest::subscribe(&mut observer, &topics::TELEMETRY);
+    let decision = observer.lifecycle_client("/decision").expect("a client of the decision's lifecycle");
     let log_dir = std::env::temp_dir().join(format!("rover-test-chaos-{}", std::process::id()));
-    let config = GraphConfig { respawn: true, ..graph_config(&domain, log_dir.clone()) };
+    let ros_args = ["-p", "autostart:=false", "-p", "use_sim_time:=true"].map(String::from).to_vec();
+    let config = GraphConfig { respawn: true, ros_args, ..graph_config(&domain, log_dir.clone()) };
+    let future_scan = FutureScan::new(&mut observer);
+    let _manager = support::start_process(&support::rover(), &["lifecycle-manager"], &domain, "lifecycle-manager");
     let logs = config.clone();
     let world = rover_sim::procgen::procedural_world(WORLD_SEED);
     let samples = world.samples.len();
     let sim_config = SimConfig { max_sim_seconds: Some(1200.0), ..SimConfig::default() };
+    let hold = Hold::new(decision, telemetry.clone());
     let mut chaos = Chaos::each_node_once(FIRST_SLOT_S, SLOT_S, seed);
     println!("kills: {:?}", chaos.kills());
     let started = Instant::now();
@@ -81,6 +193,8 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
     let mut restarts = Vec::new();
     let outcome = run_graph_mission(&runtime, config, world, sim_config, |progress, graph| {
         chaos.act(progress.sim_seconds, graph);
+        hold.act(progress.sim_seconds);
+        future_scan.act(progress.sim_seconds);
         mapped_pct.push((progress.sim_seconds, progress.mapped_pct));
         restarts = Node::ALL.iter().map(|node| (node.name(), graph.restarts(node.name()))).collect();
     })
@@ -104,6 +218,7 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
         assert!(log(name).contains("started again"), "the log of {name} goes on after the restart");
     }
     assert!(log("mapping").contains("restored the map from"), "mapping restored its snapshot:\n{}", log("mapping"));
+    assert!(log("mapping").contains(" s after this node's clock"), "the future scan was skipped");
     assert!(log("decision").contains("resuming a mission"), "the new decision node resumed:\n{}", log("decision"));
     assert!(log("decision").contains("recalled the exploration from"), "the new decision node read its snapshot");
     let home = check_map_stats(&map_stats.all()).unwrap_or_else(|problem| panic!("{problem}"));
@@ -123,6 +238,10 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
             "the mapped share dropped {drop:.2} points after {kill:?}, {usual_drop:.2} at most elsewhere"
         );
     }
+    let [(deactivated_s, from), (activated_s, until)] =
+        hold.done().expect("the decision node was deactivated and activated again");
+    let held = held_still(&telemetry.all(), from, until).unwrap_or_else(|problem| panic!("{problem}"));
+    println!("decision inactive from {deactivated_s:.1} to {activated_s:.1} sim s: {held} frames held still");
     let timeline = &result.timeline;
     assert_eq!(timeline.collected_at_s.len(), result.collected, "a time for each collection: {timeline:?}");
     assert!(timeline.collected_at_s.windows(2).all(|w| w[0] <= w[1]), "in order: {timeline:?}");

@@ -234,6 +234,38 @@ fn rover_graph_starts_a_killed_node_again_and_mapping_carries_on_from_its_snapsh
 }
 
 #[test]
+fn rover_graph_without_autostart_has_the_manager_bring_the_graph_and_a_respawned_node_up() {
+    support::assert_isolated();
+    let domain = Domain::reserve();
+    let watcher = Watcher::start(&domain, "/managed");
+    let log_dir = std::env::temp_dir().join(format!("rover-graph-managed-test-{}", std::process::id()));
+    let options = ["--sim", "5", "--no-autostart"];
+    let mut launcher =
+        Launcher::start(&mut rover_graph(&domain, "/managed", &log_dir, &options), "rover-graph-managed");
+    assert!(watcher.graph_runs(), "the managed graph did not come up; launcher output:\n{}", launcher.output());
+    let started = started_processes(&launcher.output());
+    let names: Vec<&str> = started.iter().map(|(name, _, _)| name.as_str()).collect();
+    let expected: Vec<&str> = rover::processes::nodes::node_names().chain(["lifecycle_manager", "sim"]).collect();
+    assert_eq!(names, expected);
+    assert!(command_line(pid_of(&started, "decision")).contains("-p autostart:=false"));
+
+    send_signal(pid_of(&started, "decision"), Signal::SIGKILL);
+    let manager_log = log_dir.join("lifecycle_manager.log");
+    let brought_up_again = eventually(Duration::from_secs(30), || {
+        let log = std::fs::read_to_string(&manager_log).unwrap_or_default();
+        log.matches("/managed/decision: configured and active").count() == 2
+    });
+    let log = std::fs::read_to_string(&manager_log).unwrap_or_default();
+    assert!(brought_up_again, "the respawned decision node was not brought up again:\n{log}");
+    let commands_before = watcher.drive.all().len();
+    assert!(
+        eventually(Duration::from_secs(20), || watcher.drive.all().len() > commands_before + 30),
+        "no drive commands after the decision node came back"
+    );
+    launcher.interrupt_cleanly();
+}
+
+#[test]
 fn rover_graph_without_respawn_stops_every_node_when_one_exits() {
     support::assert_isolated();
     let domain = Domain::reserve();
@@ -278,6 +310,7 @@ fn rover_graph_help_names_its_options() {
         "--sim SEED",
         "--log-dir",
         "--no-respawn",
+        "--no-autostart",
         "-- ROS_ARG",
     ] {
         assert!(help.contains(option), "--help does not mention {option}:\n{help}");
@@ -309,16 +342,23 @@ fn the_launch_file_is_valid_python() {
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
 }
 
+/// The real `ros2 launch` of the launch file on the test's domain under `namespace`, with the
+/// simulator on world `seed` and the launch arguments `extra`.
+fn ros2_launch(domain: &Domain, namespace: &str, seed: &str, extra: &[&str]) -> Command {
+    let mut command = Command::new(support::ros2_cli());
+    command.arg("launch").arg(launch_scripts().join("rover.launch.py"));
+    command.arg(format!("rover:={}", rover().display()));
+    command.args([format!("namespace:={namespace}"), "sim:=true".into(), format!("seed:={seed}")]);
+    command.arg(format!("port:={}", domain.port())).args(extra);
+    command.env("ROS_DOMAIN_ID", domain.id.to_string()).env("PYTHONUNBUFFERED", "1");
+    command
+}
+
 #[test]
 fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint_leaves_no_process_behind() {
     let Some(domain) = support::ros2_domain_or_skip() else { return };
     let watcher = Watcher::start(&domain, "/launched");
-    let mut command = Command::new(support::ros2_cli());
-    command.arg("launch").arg(launch_scripts().join("rover.launch.py"));
-    command.arg(format!("rover:={}", rover().display()));
-    command.args(["namespace:=/launched", "sim:=true", "seed:=6", &format!("port:={}", domain.port())]);
-    command.env("ROS_DOMAIN_ID", domain.id.to_string()).env("PYTHONUNBUFFERED", "1");
-    let mut launcher = Launcher::start(&mut command, "ros2-launch");
+    let mut launcher = Launcher::start(&mut ros2_launch(&domain, "/launched", "6", &[]), "ros2-launch");
     assert!(watcher.graph_runs(), "no frames on /launched/rover/telemetry; ros2 launch output:\n{}", launcher.output());
     let launched = launched_processes(&launcher.output());
     let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
@@ -330,19 +370,20 @@ fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint
     assert!(respawned, "ros2 launch did not start the killed mapping node again:\n{}", launcher.output());
     let launched = launched_processes(&launcher.output());
     assert_eq!(launched.last().map(|(name, _)| name.as_str()), Some("mapping"), "{}", launcher.output());
-    // The new mapping node handles SIGINT once it is up: its memory read, restored or not.
-    let memory_read = |line: &str| {
-        line.starts_with("[mapping-") && (line.contains("no snapshot at") || line.contains("restored the map from"))
-    };
-    let up = eventually(Duration::from_secs(15), || launcher.output().lines().filter(|l| memory_read(l)).count() >= 2);
+    // The new mapping node is up once it is active again, its memory read (restored or not).
+    let activated = |line: &str| line.starts_with("[mapping-") && line.contains("lifecycle: inactive -> active");
+    let up = eventually(Duration::from_secs(15), || launcher.output().lines().filter(|l| activated(l)).count() >= 2);
     assert!(up, "the new mapping node did not start:\n{}", launcher.output());
 
     let interrupted = std::time::Instant::now();
     let status = launcher.interrupt();
     let output = launcher.output();
+    let running: Vec<&str> =
+        launched.iter().filter(|(_, pid)| is_running(*pid)).map(|(name, _)| name.as_str()).collect();
     assert!(
         status.is_some_and(|s| s.code().is_some()),
-        "ros2 launch did not exit by itself on SIGINT ({status:?}, None: still running after 30 s):\n{output}"
+        "ros2 launch did not exit by itself on SIGINT ({status:?}, None: still running after 30 s; \
+         its processes still running: {running:?}):\n{output}"
     );
     eprintln!(
         "ros2 launch: {} processes, stopped {:.1} s after SIGINT",
@@ -356,4 +397,22 @@ fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint
         assert!(clean, "{name} did not finish cleanly:\n{output}");
         assert!(!is_running(*pid), "{name} (pid {pid}) still runs after ros2 launch exited");
     }
+}
+
+#[test]
+fn ros2_launch_with_autostart_false_runs_the_lifecycle_manager_that_brings_the_graph_up() {
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
+    let watcher = Watcher::start(&domain, "/managed_launch");
+    let mut command = ros2_launch(&domain, "/managed_launch", "7", &["autostart:=false"]);
+    let mut launcher = Launcher::start(&mut command, "ros2-launch-managed");
+    assert!(watcher.graph_runs(), "the managed graph did not come up; ros2 launch output:\n{}", launcher.output());
+    let output = launcher.output();
+    let names: Vec<String> = launched_processes(&output).into_iter().map(|(name, _)| name).collect();
+    let expected: Vec<&str> = rover::processes::nodes::node_names().chain(["lifecycle_manager", "sim"]).collect();
+    assert_eq!(names, expected, "{output}");
+    for node in rover::processes::nodes::node_names() {
+        let up = format!("/managed_launch/{node}: configured and active");
+        assert!(output.contains(&up), "no `{up}` in\n{output}");
+    }
+    assert!(launcher.interrupt().is_some_and(|s| s.code().is_some()), "ros2 launch did not exit on SIGINT");
 }

@@ -2,21 +2,22 @@
 //! `ros2 daemon start` first, then the graph in separate processes with the headless simulator
 //! (`launch_scripts/rover-graph --sim 0`), then `ros2 node list`, `topic list -t`, `topic echo
 //! --once` (telemetry, the latched map and static transforms, odom, `/clock`), `topic hz`, `topic info -v`,
-//! `param list/get/set` and `interface show`, each checked on its output. The graph runs with
+//! `param list/get/set`, `interface show` and `lifecycle nodes/get/list/set` (the decision node
+//! deactivated, so that the rover stops, and activated again), each checked on its output. The graph runs with
 //! `use_sim_time:=true`, so its stamps must be the simulated time of `/clock`, not the wall clock. The CLI comes from the wheels of
 //! `../shared/ros2-python` that `tools/setup-ros` installs into `.venv`.
 
 mod support;
 
 use std::path::Path;
-use std::process::Command;
 use std::time::{Duration, Instant};
 
-use support::{Domain, STOP_TIMEOUT, eventually, ros2_cli, rover, start_process};
+use support::ros2::{Daemon, assert_contains, echoed_value, ros2, ros2_ok, ros2_with_env};
+use support::{Domain, STOP_TIMEOUT, eventually, rover, start_process};
 
 /// Every topic of the graph but `/clock` (checked on its own) with its type, as
 /// `ros2 topic list -t` prints it.
-const TOPICS: [&str; 20] = [
+const TOPICS: [&str; 21] = [
     "/camera/image_raw/compressed [sensor_msgs/msg/CompressedImage]",
     "/camera/image_raw [sensor_msgs/msg/Image]",
     "/camera/camera_info [sensor_msgs/msg/CameraInfo]",
@@ -36,68 +37,21 @@ const TOPICS: [&str; 20] = [
     "/rover/mode [rover_msgs/msg/DecisionState]",
     "/rover/plan [nav_msgs/msg/Path]",
     "/cmd_vel [geometry_msgs/msg/Twist]",
+    "/goal_pose [geometry_msgs/msg/PoseStamped]",
     "/diagnostics [diagnostic_msgs/msg/DiagnosticArray]",
 ];
-
-/// The output (stdout and stderr) of a `ros2` command on `domain`, stopped with SIGINT after
-/// `limit`, and whether it exited with status 0.
-fn ros2(domain: &Domain, limit: Duration, args: &[&str]) -> (bool, String) {
-    let output = Command::new("timeout")
-        .args(["--signal=INT", "--kill-after=5", &format!("{}", limit.as_secs_f64())])
-        .arg(ros2_cli())
-        .args(args)
-        .env("ROS_DOMAIN_ID", domain.id.to_string())
-        .env("PYTHONUNBUFFERED", "1")
-        .output()
-        .expect("run ros2");
-    let text = format!("{}{}", String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
-    (output.status.success(), text)
-}
-
-/// A `ros2` command that must succeed within 30 s; its output.
-fn ros2_ok(domain: &Domain, args: &[&str]) -> String {
-    let (ok, output) = ros2(domain, Duration::from_secs(30), args);
-    assert!(ok, "`ros2 {}` failed:\n{output}", args.join(" "));
-    output
-}
 
 /// Stamps below this many seconds are simulated time; the wall clock is past 1.7e9 s.
 const SIM_TIME_LIMIT_S: i64 = 1_000_000;
 
 /// The first `sec:` value of a `ros2 topic echo` output.
 fn first_sec(output: &str) -> Option<i64> {
-    output.lines().find_map(|line| line.trim().strip_prefix("sec: ")).and_then(|sec| sec.trim().parse().ok())
+    echoed_value(output, "sec")
 }
 
 fn assert_sim_time(output: &str, what: &str) {
     let sec = first_sec(output);
     assert!(sec.is_some_and(|sec| sec < SIM_TIME_LIMIT_S), "{what}: not stamped in simulated time:\n{output}");
-}
-
-fn assert_contains(output: &str, expected: &[&str], what: &str) {
-    for line in expected {
-        assert!(output.contains(line), "{what}: no `{line}` in\n{output}");
-    }
-}
-
-/// The `ros2` daemon of a domain, stopped when dropped.
-struct Daemon<'a> {
-    domain: &'a Domain,
-}
-
-impl<'a> Daemon<'a> {
-    fn start(domain: &'a Domain) -> Daemon<'a> {
-        ros2_ok(domain, &["daemon", "start"]);
-        let daemon = Daemon { domain };
-        assert_contains(&ros2_ok(domain, &["daemon", "status"]), &["The daemon is running"], "ros2 daemon status");
-        daemon
-    }
-}
-
-impl Drop for Daemon<'_> {
-    fn drop(&mut self) {
-        let _ = ros2(self.domain, Duration::from_secs(15), &["daemon", "stop"]);
-    }
 }
 
 #[test]
@@ -141,6 +95,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
         let hz = scope.spawn(|| ros2(domain, Duration::from_secs(20), &["topic", "hz", "/rover/telemetry"]).1);
         let info = scope.spawn(|| ros2_ok(domain, &["topic", "info", "-v", "/map"]));
         let interface = scope.spawn(|| ros2_ok(domain, &["interface", "show", "rover_msgs/msg/Telemetry"]));
+        let lifecycle = scope.spawn(|| lifecycle_of_the_decision_node(domain));
         let params = scope.spawn(|| {
             let list = ros2_ok(domain, &["param", "list", "/bridge"]);
             let before = ros2_ok(domain, &["param", "get", "/bridge", "teleop_timeout_ms"]);
@@ -221,6 +176,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
             &["std_msgs/Header header", "uint64 frame", "uint8 samples_remaining"],
             "interface show",
         );
+        check_lifecycle(&lifecycle.join().unwrap());
         let (list, before, set, after, refused, described) = params.join().unwrap();
         assert_contains(&list, &["teleop_timeout_ms", "diagnostics_period_ms", "port"], "ros2 param list /bridge");
         assert_contains(&before, &["Double value is: 500.0"], "ros2 param get");
@@ -246,6 +202,73 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
         graph.log_text()
     );
     eprintln!("ros2 command line test: {:.1} s", started.elapsed().as_secs_f64());
+}
+
+/// What `ros2 lifecycle` printed as it took the decision node down to inactive and back up.
+struct LifecycleOutputs {
+    nodes: String,
+    active: String,
+    listed: String,
+    refused: String,
+    deactivated: String,
+    inactive: String,
+    telemetry_while_inactive: String,
+    activated: String,
+    active_again: String,
+}
+
+/// `ros2 lifecycle nodes`, `get`, `list` and `set` on the decision node: deactivate it, read the
+/// rover's telemetry once it has had time to stop, activate it again.
+fn lifecycle_of_the_decision_node(domain: &Domain) -> LifecycleOutputs {
+    let nodes = ros2_ok(domain, &["lifecycle", "nodes"]);
+    let active = ros2_ok(domain, &["lifecycle", "get", "/decision"]);
+    let listed = ros2_ok(domain, &["lifecycle", "list", "/decision"]);
+    let refused = ros2(domain, Duration::from_secs(30), &["lifecycle", "set", "/decision", "configure"]).1;
+    let deactivated = ros2_ok(domain, &["lifecycle", "set", "/decision", "deactivate"]);
+    let inactive = ros2_ok(domain, &["lifecycle", "get", "/decision"]);
+    std::thread::sleep(Duration::from_secs(3));
+    let telemetry_while_inactive = ros2_ok(domain, &["topic", "echo", "--once", "/rover/telemetry"]);
+    let activated = ros2_ok(domain, &["lifecycle", "set", "/decision", "activate"]);
+    let active_again = ros2_ok(domain, &["lifecycle", "get", "/decision"]);
+    LifecycleOutputs {
+        nodes,
+        active,
+        listed,
+        refused,
+        deactivated,
+        inactive,
+        telemetry_while_inactive,
+        activated,
+        active_again,
+    }
+}
+
+fn check_lifecycle(outputs: &LifecycleOutputs) {
+    for node in rover::processes::nodes::node_names().map(|name| format!("/{name}")) {
+        assert!(
+            outputs.nodes.lines().any(|l| l.trim() == node.as_str()),
+            "`ros2 lifecycle nodes` lacks {node}:\n{}",
+            outputs.nodes
+        );
+    }
+    assert_contains(&outputs.active, &["active [3]"], "ros2 lifecycle get, at start");
+    assert_contains(
+        &outputs.listed,
+        &["- deactivate [4]", "- shutdown [7]", "Start: active", "Goal: deactivating"],
+        "ros2 lifecycle list",
+    );
+    assert_contains(&outputs.refused, &["Unknown transition requested", "deactivate [4]"], "configure while active");
+    assert_contains(&outputs.deactivated, &["Transitioning successful"], "ros2 lifecycle set deactivate");
+    assert_contains(&outputs.inactive, &["inactive [2]"], "ros2 lifecycle get, deactivated");
+    let telemetry = &outputs.telemetry_while_inactive;
+    let speed_mps = echoed_value::<f64>(telemetry, "speed_mps").expect("speed_mps in the telemetry");
+    let brake = echoed_value::<f64>(telemetry, "brake").expect("brake in the telemetry");
+    assert!(
+        speed_mps.abs() < 0.2 && brake > 0.0,
+        "the rover still moves with the decision node inactive:\n{telemetry}"
+    );
+    assert_contains(&outputs.activated, &["Transitioning successful"], "ros2 lifecycle set activate");
+    assert_contains(&outputs.active_again, &["active [3]"], "ros2 lifecycle get, activated again");
 }
 
 #[test]
@@ -285,4 +308,115 @@ async fn a_sensor_data_publisher_reaches_the_loops_readers() {
     let answers: Vec<_> = replies.all().into_iter().filter(|reply| reply.frame == 7).collect();
     assert!(!answers.is_empty(), "no drive command answered the sensor-data telemetry; ros2 topic pub:\n{published}");
     assert!(answers.iter().all(|reply| reply.brake == 7.0 && (reply.throttle - 0.003).abs() < 1e-6));
+}
+
+/// With `ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST` on both sides, the `ros2` command line (Fast
+/// DDS) and a node of the graph still find each other on the one host.
+#[test]
+fn the_ros2_command_line_finds_a_node_when_both_keep_discovery_on_this_host() {
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
+    let localhost = [("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")];
+    let log =
+        std::env::temp_dir().join(format!("rover-test-{}-localhost-pickup-{}.log", domain.id, std::process::id()));
+    let mut command = std::process::Command::new(rover());
+    command.arg("pickup").env("ROS_DOMAIN_ID", domain.id.to_string()).envs(localhost);
+    let mut pickup = support::Process::spawn("localhost-pickup", command, log).expect("start the pickup node");
+    let mut nodes = String::new();
+    let found = eventually(Duration::from_secs(30), || {
+        nodes = ros2_with_env(&domain, &localhost, Duration::from_secs(15), &["node", "list", "--no-daemon"]).1;
+        nodes.contains("/pickup")
+    });
+    assert!(found, "`ros2 node list` on LOCALHOST did not list /pickup:\n{nodes}\nnode log:\n{}", pickup.log_text());
+    let status = pickup.interrupt(STOP_TIMEOUT);
+    assert!(status.is_some_and(|s| s.success()), "pickup did not stop cleanly: {status:?}\n{}", pickup.log_text());
+}
+
+/// A node started with `autostart:=false` waits unconfigured, with no publisher of its data, and
+/// `ros2 lifecycle set` brings it up (the publisher appears) and shuts it down: the pickup node,
+/// alone.
+#[test]
+fn a_node_started_without_autostart_comes_up_through_ros2_lifecycle_set() {
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
+    let args = ["pickup", "--ros-args", "-p", "autostart:=false"];
+    let mut pickup = start_process(&rover(), &args, &domain, "lifecycle-pickup");
+    let mut state = String::new();
+    let listed = eventually(Duration::from_secs(30), || {
+        state = ros2(&domain, Duration::from_secs(15), &["lifecycle", "get", "/pickup"]).1;
+        state.contains('[')
+    });
+    assert!(listed, "`ros2 lifecycle get /pickup` found no state:\n{state}\nnode log:\n{}", pickup.log_text());
+    assert_contains(&state, &["unconfigured [1]"], "ros2 lifecycle get, autostart false");
+    // With no endpoint at all on it, the topic is unknown to the graph: no publisher either.
+    let publishers = |count: &str| {
+        let expected = format!("Publisher count: {count}");
+        let mut info = String::new();
+        let seen = eventually(Duration::from_secs(20), || {
+            info = ros2(&domain, Duration::from_secs(15), &["topic", "info", "/rover/pickup"]).1;
+            info.contains(&expected) || (count == "0" && info.contains("Unknown topic '/rover/pickup'"))
+        });
+        assert!(seen, "`ros2 topic info /rover/pickup`: no `{expected}` in\n{info}");
+    };
+    publishers("0");
+    let set = |transition: &str, state: &str| {
+        let set = ros2_ok(&domain, &["lifecycle", "set", "/pickup", transition]);
+        assert_contains(&set, &["Transitioning successful"], &format!("ros2 lifecycle set {transition}"));
+        assert_contains(&ros2_ok(&domain, &["lifecycle", "get", "/pickup"]), &[state], transition);
+    };
+    set("configure", "inactive [2]");
+    publishers("1");
+    set("activate", "active [3]");
+    set("shutdown", "finalized [4]");
+    let status = pickup.interrupt(STOP_TIMEOUT);
+    assert!(status.is_some_and(|s| s.success()), "pickup did not stop cleanly: {status:?}\n{}", pickup.log_text());
+}
+
+/// A graph started unconfigured (`rover all -p autostart:=false`) holds the rover with the brake;
+/// `rover lifecycle-manager` brings its five nodes up in start order, and the rover drives.
+#[test]
+fn the_lifecycle_manager_brings_an_unconfigured_graph_up_and_the_rover_drives() {
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
+    let port = domain.port().to_string();
+    let port_param = format!("bridge:port:={port}");
+    let args = ["all", "--ros-args", "-p", "autostart:=false", "-p", &port_param];
+    let mut graph = start_process(&rover(), &args, &domain, "manager-graph");
+    let mut sim = start_process(&rover(), &["sim", "--seed", "0", "--port", &port], &domain, "manager-sim");
+    let states = || -> Vec<String> {
+        rover::processes::nodes::node_names()
+            .map(|name| ros2(&domain, Duration::from_secs(15), &["lifecycle", "get", &format!("/{name}")]).1)
+            .collect()
+    };
+    let mut seen = Vec::new();
+    let unconfigured = eventually(Duration::from_secs(30), || {
+        seen = states();
+        seen.iter().all(|state| state.contains("unconfigured [1]"))
+    });
+    assert!(unconfigured, "not every node waits unconfigured: {seen:?}\ngraph log:\n{}", graph.log_text());
+    let held = ros2_ok(&domain, &["topic", "echo", "--once", "/rover/telemetry"]);
+    let brake = echoed_value::<f64>(&held, "brake").expect("brake in the telemetry");
+    assert!(brake > 0.0, "the unconfigured graph does not hold the rover:\n{held}");
+
+    let mut manager = start_process(&rover(), &["lifecycle-manager"], &domain, "manager");
+    let active = eventually(Duration::from_secs(60), || {
+        seen = states();
+        seen.iter().all(|state| state.contains("active [3]") && !state.contains("inactive"))
+    });
+    assert!(active, "the manager did not bring every node up: {seen:?}\nmanager log:\n{}", manager.log_text());
+    let mut telemetry = String::new();
+    let drives = eventually(Duration::from_secs(60), || {
+        telemetry = ros2_ok(&domain, &["topic", "echo", "--once", "/rover/telemetry"]);
+        echoed_value::<f64>(&telemetry, "speed_mps").is_some_and(|speed| speed > 0.3)
+    });
+    assert!(drives, "the rover does not drive once the graph is up:\n{telemetry}\ngraph log:\n{}", graph.log_text());
+    let order: Vec<usize> = rover::processes::nodes::node_names()
+        .map(|name| manager.log_text().find(&format!("/{name}: configured and active")).unwrap_or(usize::MAX))
+        .collect();
+    assert!(order.windows(2).all(|pair| pair[0] < pair[1]), "not brought up in start order:\n{}", manager.log_text());
+    for process in [&mut manager, &mut sim, &mut graph] {
+        let status = process.interrupt(STOP_TIMEOUT);
+        assert!(
+            status.is_some_and(|s| s.success()),
+            "a process did not stop cleanly: {status:?}\n{}",
+            process.log_text()
+        );
+    }
 }

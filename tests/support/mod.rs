@@ -3,6 +3,8 @@
 #![allow(dead_code)]
 
 pub mod echo_sim;
+pub mod ros2;
+pub mod two_hosts;
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -95,6 +97,7 @@ impl Domain {
         for id in 1..=200u16 {
             let lock = dir.join(format!("{id}"));
             if File::create_new(&lock).is_ok() {
+                stop_ros2_daemon_on(id);
                 return Domain { id, lock };
             }
         }
@@ -109,7 +112,22 @@ impl Domain {
 
 impl Drop for Domain {
     fn drop(&mut self) {
+        stop_ros2_daemon_on(self.id);
         let _ = std::fs::remove_file(&self.lock);
+    }
+}
+
+/// Stops the `ros2` daemon of domain `id` if one runs: `ros2` commands start one when none runs,
+/// and a daemon left by an earlier test would show that test's participants to the next one.
+fn stop_ros2_daemon_on(id: u16) {
+    let daemon = std::net::SocketAddr::from(([127, 0, 0, 1], 11511 + id));
+    if std::net::TcpStream::connect_timeout(&daemon, Duration::from_millis(200)).is_ok() {
+        let _ = Command::new("timeout")
+            .args(["--kill-after=5", "15", &ros2_cli().to_string_lossy(), "daemon", "stop"])
+            .env("ROS_DOMAIN_ID", id.to_string())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status();
     }
 }
 
@@ -170,7 +188,9 @@ pub fn test_runtime(domain: &Domain) -> rover_runtime::Runtime {
         .expect("create the test's DDS participant")
 }
 
-/// Keeps the latest message of a topic, received by a subscription in the test process.
+/// Keeps the latest message of a topic, received by a subscription in the test process; a clone
+/// sees the same messages.
+#[derive(Clone)]
 pub struct Latest<M> {
     latest: std::sync::Arc<std::sync::Mutex<Vec<M>>>,
 }
@@ -191,6 +211,11 @@ impl<M: rover_msgs::RosMessage> Latest<M> {
     /// Every message received so far.
     pub fn all(&self) -> Vec<M> {
         self.latest.lock().unwrap().clone()
+    }
+
+    /// How many messages were received so far.
+    pub fn count(&self) -> usize {
+        self.latest.lock().unwrap().len()
     }
 
     /// The last message received, if any.
