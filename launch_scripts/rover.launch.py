@@ -75,6 +75,8 @@ def arguments():
         ('seed', '0', "seed of the headless simulator's world", None),
         ('log_level', '', 'log level of every node (default: RUST_LOG, else info)', None),
         ('respawn', 'true', 'start a node that dies again', on_off),
+        ('autostart', 'true', 'nodes configure and activate themselves; false: they start unconfigured '
+         'and rover lifecycle-manager brings them up in order', on_off),
         ('state_dir', '', 'folder of the mapping and decision snapshots (default: a new temporary one)', None),
         ('use_sim_time', 'false', "stamp every node's messages with the simulated time of /clock", on_off),
     ]
@@ -89,6 +91,8 @@ def node_command(name, value, state_dir):
            '-r', '__ns:=' + value('namespace'), '-p', 'use_sim_time:=' + value('use_sim_time')]
     if value('log_level'):
         cmd += ['--log-level', value('log_level')]
+    if value('autostart') == 'false':
+        cmd += ['-p', 'autostart:=false']
     if name == 'bridge':
         cmd += ['-p', 'port:=' + value('port')]
     if name in ('mapping', 'decision'):
@@ -102,7 +106,8 @@ def simulator_command(value):
 
 
 def processes(context):
-    """One process per node, plus the simulator with sim:=true."""
+    """One process per node, plus the lifecycle manager with autostart:=false and the simulator
+    with sim:=true."""
     def value(name):
         return LaunchConfiguration(name).perform(context)
 
@@ -112,6 +117,11 @@ def processes(context):
                               sigterm_timeout='5', sigkill_timeout='5',
                               respawn=respawn, respawn_delay=RESPAWN_DELAY_S)
                for name in node_names(value('rover'))]
+    if value('autostart') == 'false':
+        manager = [value('rover'), 'lifecycle-manager', '--ros-args', '-r', '__ns:=' + value('namespace')]
+        actions.append(ExecuteProcess(cmd=manager, name='lifecycle_manager', output='screen',
+                                      sigterm_timeout='5', sigkill_timeout='5',
+                                      respawn=respawn, respawn_delay=RESPAWN_DELAY_S))
     if value('sim') == 'true':
         actions.append(ExecuteProcess(cmd=simulator_command(value), name='sim', output='screen',
                                       sigterm_timeout='5', sigkill_timeout='5'))

@@ -1,15 +1,19 @@
-# Source this file (after tools/setup-ros) to use rclpy and the rover_msgs and tf2_msgs Python modules:
+# Source this file (after tools/setup-ros) to use rclpy and the Python modules of rover_msgs and tools/ros:
 #   source tools/ros-env.sh
 _rover_repo=$(cd "$(dirname "${BASH_SOURCE[0]:-$0}")/.." && pwd)
 export VIRTUAL_ENV="$_rover_repo/.venv"
 export PATH="$VIRTUAL_ENV/bin:$PATH"
 _rover_install="$_rover_repo/target/ros_ws/install"
-export AMENT_PREFIX_PATH="$_rover_install/rover_msgs:$_rover_install/tf2_msgs:$VIRTUAL_ENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
 # The Python of .venv (tools/setup-ros takes python3.11, or python3 without it) names the folders.
 _rover_python=$(cd "$VIRTUAL_ENV/lib" 2>/dev/null && ls -d python3.* 2>/dev/null | head -n 1)
 _rover_python=${_rover_python:-python3.11}
-export PYTHONPATH="$_rover_install/rover_msgs/lib/$_rover_python/site-packages:$_rover_install/tf2_msgs/lib/$_rover_python/site-packages${PYTHONPATH:+:$PYTHONPATH}"
-export LD_LIBRARY_PATH="$_rover_install/rover_msgs/lib:$_rover_install/tf2_msgs/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+export AMENT_PREFIX_PATH="$VIRTUAL_ENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
+for _rover_package in rover_msgs tf2_msgs nav2_msgs; do
+  _rover_prefix="$_rover_install/$_rover_package"
+  export AMENT_PREFIX_PATH="$_rover_prefix:$AMENT_PREFIX_PATH"
+  export PYTHONPATH="$_rover_prefix/lib/$_rover_python/site-packages${PYTHONPATH:+:$PYTHONPATH}"
+  export LD_LIBRARY_PATH="$_rover_prefix/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+done
 export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
 export ROS_DISTRO=kilted
-unset _rover_repo _rover_install _rover_python
+unset _rover_repo _rover_install _rover_python _rover_package _rover_prefix
