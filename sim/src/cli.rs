@@ -8,9 +8,10 @@ use rover_msgs::unity::FRAME_PERIOD_S;
 use crate::look::Look;
 use crate::procgen::procedural_world;
 use crate::sim::{SimConfig, SimReport, Simulator};
+use crate::start::{random_start, starting_at};
 use crate::unity_world::{UnityFiles, unity_world};
 use crate::wire::client::{ClientConfig, run_client};
-use crate::world::World;
+use crate::world::{StartPose, World};
 
 /// Which world to simulate: the options every command that builds a world shares.
 #[derive(Debug, Clone, Default, clap::Args)]
@@ -39,6 +40,14 @@ pub struct WorldArgs {
     /// the sun, colours and texture within what those frames show.
     #[arg(long, default_value_t = 0, value_name = "N")]
     pub appearance_seed: u64,
+    /// Where the rover starts, instead of the world's start: X,Y,YAW in metres and degrees
+    /// counter-clockwise from +x, on drivable ground (e.g. 60.5,100.5,180). The start is home.
+    #[arg(long, value_name = "X,Y,YAW", allow_hyphen_values = true, conflicts_with = "random_start")]
+    pub start: Option<StartPose>,
+    /// Start at a pose drawn for the seed: anywhere on the floor reachable from the world's
+    /// start, clear of walls, rocks and samples, facing any way. The start is home.
+    #[arg(long)]
+    pub random_start: bool,
 }
 
 impl WorldArgs {
@@ -64,7 +73,16 @@ impl WorldArgs {
                 unity_world(&files, seed).with_context(|| format!("the world of {}", self.describe()))?
             }
         };
-        Ok(world.with_look(Look::from_seed(self.appearance_seed)))
+        let world = world.with_look(Look::from_seed(self.appearance_seed));
+        let start = match self.start {
+            Some(start) => Some(start),
+            None if self.random_start => Some(random_start(&world, seed)?),
+            None => None,
+        };
+        Ok(match start {
+            Some(start) => starting_at(world, start)?,
+            None => world,
+        })
     }
 
     /// A short description of the world, for logs.
@@ -77,6 +95,11 @@ impl WorldArgs {
         }
         if self.appearance_seed != 0 {
             text += &format!(", appearance seed {}", self.appearance_seed);
+        }
+        if let Some(start) = self.start {
+            text += &format!(", start ({}, {}) yaw {} deg", start.x_m, start.y_m, start.yaw_deg);
+        } else if self.random_start {
+            text += ", a random start per seed";
         }
         text
     }

@@ -15,6 +15,7 @@ pub mod random;
 pub mod render;
 mod rock_survey;
 pub mod sim;
+mod start;
 mod terrain;
 pub mod unity_world;
 pub mod wire;

@@ -17,6 +17,7 @@ use crate::samples::SampleMemory;
 mod approach;
 mod commands;
 mod explore;
+mod look_around;
 mod maps;
 mod navigate;
 mod pickup;
@@ -27,6 +28,7 @@ mod tests;
 
 pub use commands::CommandAnswer;
 use explore::Widening;
+use look_around::LookAround;
 use maps::Maps;
 use navigate::Navigation;
 pub use navigate::{GoalFailure, NavigationEnd, NavigationProgress};
@@ -215,6 +217,7 @@ pub struct Machine {
     steering: Steering,
     watches: Watches,
     widening: Widening,
+    look_around: LookAround,
     /// The mission has started (at once unless `start_mission` is false).
     started: bool,
     /// Held by a pause.
@@ -252,6 +255,7 @@ impl Machine {
             steering: Steering::default(),
             watches: Watches::default(),
             widening: Widening::default(),
+            look_around: LookAround::default(),
         }
     }
 
@@ -413,6 +417,7 @@ impl Machine {
         if mode == Mode::Explore && matches!(status.mode, Mode::ApproachSample | Mode::Pickup) {
             self.explorer.resume_after_detour(self.frame);
         }
+        self.look_around.interrupt();
         self.state = state;
         status.mode = mode;
         status.reason = reason.to_string();

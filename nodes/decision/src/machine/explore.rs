@@ -38,6 +38,7 @@ impl Machine {
         let from = PlanStart { map: &self.maps.planning, at: &obs.position, frame: obs.frame, params: p };
         if let Some(waypoint) = self.explorer.waypoint(&from, home) {
             self.widening.walled_in_recoveries = 0;
+            self.look_around.interrupt();
             let bearing = obs.position.bearing_to(waypoint);
             tracing::trace!(
                 bearing_deg = bearing.to_degrees(),
@@ -50,7 +51,10 @@ impl Machine {
         if self.maps.planning.version() == 0 {
             return self.steering.around_obstacles(0.0, p.max_speed_mps, obs.speed_mps, &obs.free, p);
         }
-        let brake = p.brake;
+        if let Some(turn) = self.look_around(obs) {
+            return turn;
+        }
+        let brake = self.params.brake;
         if self.explorer.walled_in() && self.widening.walled_in_recoveries < WALLED_IN_RECOVERIES {
             self.widening.walled_in_recoveries += 1;
             self.start_recovery(obs, "walled in by the map (a restart next to a rock?): backing out");
