@@ -58,8 +58,8 @@ impl WorldArgs {
             None => procedural_world(seed),
             Some(map) => {
                 let read = |path: &Path| {
-                    rover_imaging::read_file_at_most(path, rover_imaging::MAX_IMAGE_FILE_BYTES)
-                        .with_context(|| format!("cannot read {}", path.display()))
+                    rover_files::read_at_most(path, rover_imaging::MAX_IMAGE_FILE_BYTES)
+                        .context("cannot read a world file")
                 };
                 let read_optional = |path: &Option<PathBuf>| path.as_deref().map(read).transpose();
                 let (map_png, floor_png) = (read(map)?, read_optional(&self.floor)?);

@@ -12,6 +12,8 @@ use rover_msgs::unity::ReportedState;
 
 /// The log's file name inside a dataset folder.
 pub const LOG_FILE: &str = "robot_log.csv";
+/// Largest recording log read, bytes: a frame takes under 200 bytes, so some million frames.
+const MAX_LOG_BYTES: u64 = 256 << 20;
 
 /// The log's columns in the order the simulator writes them.
 const COLUMNS: [&str; 10] =
@@ -29,7 +31,7 @@ pub struct RecordedFrame {
 impl RecordedFrame {
     /// Reads the frame's JPEG.
     pub fn jpeg(&self) -> anyhow::Result<Vec<u8>> {
-        std::fs::read(&self.image).with_context(|| format!("cannot read {}", self.image.display()))
+        Ok(rover_files::read_at_most(&self.image, rover_imaging::MAX_IMAGE_FILE_BYTES)?)
     }
 
     /// The frame as the simulator would send it, with the image `jpeg`, no samples.
@@ -131,8 +133,8 @@ pub fn read_log(path: &Path) -> anyhow::Result<Recording> {
     } else {
         (path.to_path_buf(), path.parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf))
     };
-    let bytes = std::fs::read(&log).with_context(|| {
-        format!("cannot read {}: expected a dataset folder with {LOG_FILE} and IMG/, or the log itself", log.display())
+    let bytes = rover_files::read_at_most(&log, MAX_LOG_BYTES).with_context(|| {
+        format!("cannot read the recording: expected a dataset folder with {LOG_FILE} and IMG/, or the log itself")
     })?;
     let text = String::from_utf8_lossy(&bytes);
     let recording = parse_log(&text, &dir.join("IMG"), &log)?;

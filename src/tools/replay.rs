@@ -141,7 +141,7 @@ pub fn replay_frames(
 
 /// Reads a ground-truth PNG.
 pub fn read_ground_truth(path: &Path) -> anyhow::Result<Vec<bool>> {
-    let png = std::fs::read(path).map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
+    let png = rover_files::read_at_most(path, rover_imaging::MAX_IMAGE_FILE_BYTES)?;
     ground_truth_from_png(&png).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
 

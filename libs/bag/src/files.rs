@@ -2,9 +2,10 @@
 //! only regular files opened (a FIFO or a device would block or never end), and `metadata.yaml`
 //! replaced atomically so that a crash leaves the old or the new one, never half of one.
 
-use std::fs::{File, OpenOptions};
-use std::io::Write;
+use std::fs::File;
 use std::path::{Component, Path, PathBuf};
+
+use rover_files::{FileError, FileKind};
 
 use crate::BagError;
 
@@ -55,102 +56,34 @@ fn canonical(path: &Path) -> Result<PathBuf, BagError> {
     path.canonicalize().map_err(|e| BagError::io(path, e))
 }
 
-/// What a path is, symbolic links followed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum FileKind {
-    Regular,
-    Directory,
-    Fifo,
-    Device,
-    Socket,
-}
-
-impl FileKind {
-    fn of(file_type: std::fs::FileType) -> Self {
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::FileTypeExt;
-            if file_type.is_fifo() {
-                return FileKind::Fifo;
-            }
-            if file_type.is_socket() {
-                return FileKind::Socket;
-            }
-            if file_type.is_block_device() || file_type.is_char_device() {
-                return FileKind::Device;
-            }
-        }
-        match (file_type.is_file(), file_type.is_dir()) {
-            (true, _) => FileKind::Regular,
-            (_, true) => FileKind::Directory,
-            _ => FileKind::Device,
-        }
-    }
-
-    fn described(self) -> &'static str {
-        match self {
-            FileKind::Regular => "a regular file",
-            FileKind::Directory => "a folder",
-            FileKind::Fifo => "a FIFO",
-            FileKind::Device => "a device",
-            FileKind::Socket => "a socket",
-        }
-    }
-}
-
 /// What `path` is, without opening it (opening a FIFO blocks).
 fn file_kind(path: &Path) -> std::io::Result<FileKind> {
     Ok(FileKind::of(std::fs::metadata(path)?.file_type()))
 }
 
 /// Opens `path` for reading if it is a regular file no longer than `max_bytes`; `what` names the
-/// file in the error. The file is opened without blocking, so a FIFO put in its place after a
-/// check is refused too, not waited on.
+/// file in the error ([`rover_files::open_regular`]).
 pub fn open_regular(path: &Path, what: &str, max_bytes: u64) -> Result<(File, u64), BagError> {
-    let mut options = OpenOptions::new();
-    options.read(true);
-    #[cfg(unix)]
-    std::os::unix::fs::OpenOptionsExt::custom_flags(&mut options, libc::O_NONBLOCK);
-    let file = options.open(path).map_err(|e| BagError::io(path, e))?;
-    let metadata = file.metadata().map_err(|e| BagError::io(path, e))?;
-    let kind = FileKind::of(metadata.file_type());
-    if kind != FileKind::Regular {
-        return Err(BagError::Unsupported {
-            path: path.to_path_buf(),
-            what: format!("{what} that is {} (expected a regular file)", kind.described()),
-        });
-    }
-    if metadata.len() > max_bytes {
-        return Err(BagError::Unsupported {
-            path: path.to_path_buf(),
-            what: format!("{what} of {} bytes (at most {max_bytes} expected)", metadata.len()),
-        });
-    }
-    Ok((file, metadata.len()))
+    rover_files::open_regular(path, max_bytes).map_err(|e| bag_error(e, what))
 }
 
-/// Replaces `path` with `bytes`: written to a temporary file beside it, synced, renamed over it
-/// and the folder synced, so that after a crash or power loss `path` holds the old or the new
-/// bytes whole.
+/// Replaces `path` with `bytes` atomically ([`rover_files::replace_atomically`]).
 pub fn replace_atomically(path: &Path, bytes: &[u8]) -> Result<(), BagError> {
-    let file_name = path.file_name().map(|name| name.to_string_lossy()).unwrap_or_default();
-    let temporary = path.with_file_name(format!(".{file_name}.tmp"));
-    let write = || -> std::io::Result<()> {
-        let mut file = File::create(&temporary)?;
-        file.write_all(bytes)?;
-        file.sync_all()
-    };
-    write().map_err(|e| BagError::io(&temporary, e))?;
-    std::fs::rename(&temporary, path).map_err(|e| BagError::io(path, e))?;
-    sync_folder_of(path)
+    rover_files::replace_atomically(path, bytes).map_err(|e| bag_error(e, "a file"))
 }
 
-/// Syncs the folder of `path`, so that a rename in it survives a power loss.
-fn sync_folder_of(path: &Path) -> Result<(), BagError> {
-    let Some(dir) = path.parent() else { return Ok(()) };
-    #[cfg(unix)]
-    File::open(dir).and_then(|folder| folder.sync_all()).map_err(|e| BagError::io(dir, e))?;
-    Ok(())
+/// The bag's error for `error` on the file that `what` names.
+fn bag_error(error: FileError, what: &str) -> BagError {
+    match error {
+        FileError::Io { path, error } => BagError::Io { path, source: error },
+        FileError::NotRegular { path, kind } => BagError::Unsupported {
+            path,
+            what: format!("{what} that is {} (expected a regular file)", kind.described()),
+        },
+        FileError::TooLarge { path, bytes, max_bytes } => {
+            BagError::Unsupported { path, what: format!("{what} of {bytes} bytes (at most {max_bytes} expected)") }
+        }
+    }
 }
 
 #[cfg(test)]

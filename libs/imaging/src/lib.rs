@@ -88,7 +88,7 @@ fn png_error(error: png::DecodingError) -> ImageError {
 /// file claiming a huge image costs nothing.
 pub const MAX_PNG_PIXELS: u64 = 1 << 22;
 
-/// Largest file [`read_file_at_most`] callers use for an image, bytes.
+/// Largest image file read from a path, bytes.
 pub const MAX_IMAGE_FILE_BYTES: u64 = 16 << 20;
 
 /// The PNG's reader, refused when its header claims more than [`MAX_PNG_PIXELS`].
@@ -105,19 +105,6 @@ fn png_reader(
         return Err(ImageError::Corrupt { format: "PNG", reason });
     }
     Ok(reader)
-}
-
-/// The bytes of the file at `path`, refused when it holds more than `max_bytes`: what a path
-/// names cannot make a reader allocate more than that.
-pub fn read_file_at_most(path: &std::path::Path, max_bytes: u64) -> std::io::Result<Vec<u8>> {
-    use std::io::Read as _;
-    let mut bytes = Vec::new();
-    std::fs::File::open(path)?.take(max_bytes + 1).read_to_end(&mut bytes)?;
-    if bytes.len() as u64 > max_bytes {
-        let message = format!("{} is larger than {max_bytes} bytes, the most read", path.display());
-        return Err(std::io::Error::new(std::io::ErrorKind::InvalidData, message));
-    }
-    Ok(bytes)
 }
 
 /// Reads an 8-bit grayscale, RGB or RGBA PNG as RGB.
@@ -231,16 +218,6 @@ mod tests {
         let grey = encode_png_gray16(&Gray16Image { width: 4, height: 4, data: vec![7; 16] }).unwrap();
         let error = decode_png_gray16(&with_png_size(&grey, 1 << 20, 8)).unwrap_err().to_string();
         assert!(error.contains("1048576x8"), "{error}");
-    }
-
-    #[test]
-    fn a_file_larger_than_the_bound_is_refused_unread() {
-        let path = std::env::temp_dir().join(format!("rover-imaging-bound-{}", std::process::id()));
-        std::fs::write(&path, [1u8; 100]).unwrap();
-        assert_eq!(read_file_at_most(&path, 100).unwrap().len(), 100);
-        let error = read_file_at_most(&path, 99).unwrap_err().to_string();
-        assert!(error.contains("larger than 99 bytes"), "{error}");
-        std::fs::remove_file(path).unwrap();
     }
 
     /// A survey and a map PNG, their bytes mutated: read or refused, never a panic, and what is

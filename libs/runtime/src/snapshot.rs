@@ -30,23 +30,6 @@ pub fn path_in(state_dir: &str, name: &str) -> Option<PathBuf> {
     (!state_dir.is_empty()).then(|| Path::new(state_dir).join(name))
 }
 
-/// Writes `bytes` to `path` atomically: into `path` with `.tmp` appended, synced to disk, then
-/// renamed over `path` and the rename synced (atomic against a crash of the process or of the
-/// machine; the folder is created if need be).
-pub fn write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    if let Some(folder) = path.parent() {
-        std::fs::create_dir_all(folder)?;
-    }
-    let mut temporary = path.as_os_str().to_owned();
-    temporary.push(".tmp");
-    let mut file = std::fs::File::create(&temporary)?;
-    std::io::Write::write_all(&mut file, bytes)?;
-    file.sync_data()?;
-    std::fs::rename(&temporary, path)?;
-    let folder = path.parent().filter(|folder| !folder.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    std::fs::File::open(folder)?.sync_all()
-}
-
 /// The bytes of the snapshot at `path`, `None` when there is none yet; an unreadable file is an
 /// error naming it.
 pub fn read(path: &Path) -> anyhow::Result<Option<Vec<u8>>> {
@@ -99,11 +82,11 @@ impl SnapshotFile {
         self.path.is_some() && self.written_at.is_none_or(|at| at.elapsed() >= every)
     }
 
-    /// Writes `bytes` as the snapshot (atomically, see [`write`]); a failure is logged.
+    /// Writes `bytes` as the snapshot (atomically, see [`rover_files::replace_atomically`]); a failure is logged.
     pub fn save(&mut self, bytes: &[u8]) {
         let Some(path) = &self.path else { return };
         self.written_at = Some(Instant::now());
-        if let Err(e) = write(path, bytes) {
+        if let Err(e) = rover_files::replace_atomically(path, bytes) {
             tracing::warn!("cannot write the snapshot {}: {e}", path.display());
         }
     }
@@ -270,14 +253,12 @@ mod tests {
     }
 
     #[test]
-    fn writing_replaces_the_file_whole() {
+    fn a_snapshot_is_read_once_written_and_none_before() {
         let folder = std::env::temp_dir().join(format!("rover-snapshot-file-test-{}", std::process::id()));
         let path = path_in(folder.to_str().unwrap(), "node.snapshot").unwrap();
         assert_eq!(read(&path).unwrap(), None, "no snapshot yet");
-        write(&path, b"first").unwrap();
-        write(&path, b"second").unwrap();
+        rover_files::replace_atomically(&path, b"second").unwrap();
         assert_eq!(read(&path).unwrap(), Some(b"second".to_vec()));
-        assert!(!path.with_extension("snapshot.tmp").exists(), "no temporary file is left");
         assert_eq!(path_in("", "node.snapshot"), None);
         std::fs::remove_dir_all(&folder).unwrap();
     }

@@ -26,7 +26,7 @@ fn ground_truth(params: &MappingParams) -> anyhow::Result<Option<Vec<bool>>> {
         return Ok(None);
     }
     let path = std::path::Path::new(&params.ground_truth_png);
-    let png = rover_imaging::read_file_at_most(path, rover_imaging::MAX_IMAGE_FILE_BYTES)
+    let png = rover_files::read_at_most(path, rover_imaging::MAX_IMAGE_FILE_BYTES)
         .map_err(|e| anyhow::anyhow!("parameter ground_truth_png = {:?}: {e}", params.ground_truth_png))?;
     let truth = ground_truth_from_png(&png).map_err(|e| anyhow::anyhow!("parameter ground_truth_png: {e}"))?;
     Ok(Some(truth))
