@@ -3,7 +3,7 @@
 use std::process::ExitCode;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
-use rover::processes::nodes::{Node, ROS_ARGS_HELP, node_names, run_all};
+use rover::processes::nodes::{Node, ROS_ARGS_HELP, node_names, run_together};
 use rover::tools::bag::{BagArgs, BagCommand};
 use rover_runtime::params::help_table;
 use rover_runtime::{Runtime, Shutdown, logging, split_ros_args};
@@ -24,6 +24,15 @@ enum Command {
     /// Aim parameters at a node with -p NODE:NAME:=VALUE or a params file.
     #[command(after_help = ROS_ARGS_HELP)]
     All,
+    /// Run the chosen nodes in this one process, on one DDS participant, as a ROS component
+    /// container does: e.g. `rover container bridge perception` beside `rover container mapping
+    /// decision pickup`. Aim parameters at a node with -p NODE:NAME:=VALUE or a params file.
+    #[command(after_help = ROS_ARGS_HELP)]
+    Container {
+        /// The nodes to run, by name (`rover nodes` lists them).
+        #[arg(required = true, value_name = "NODE")]
+        nodes: Vec<Node>,
+    },
     /// Print the name of every node, one a line, in start order (the launchers read this list).
     Nodes,
     /// Bring the graph's nodes, started with -p autostart:=false, up in start order (configure,
@@ -134,7 +143,8 @@ async fn run(
     let shutdown = Shutdown::on_signals();
     match command {
         Command::Node(node) => node.run(dds(participant, ros_args, shutdown)?).await,
-        Command::All => run_all(dds(participant, ros_args, shutdown)?).await,
+        Command::All => run_together(dds(participant, ros_args, shutdown)?, &Node::ALL).await,
+        Command::Container { nodes } => run_together(dds(participant, ros_args, shutdown)?, &nodes).await,
         Command::LifecycleManager => {
             rover::processes::lifecycle_manager::run(dds(participant, ros_args, shutdown)?).await
         }

@@ -420,3 +420,45 @@ fn the_lifecycle_manager_brings_an_unconfigured_graph_up_and_the_rover_drives() 
         );
     }
 }
+
+/// Two containers (`rover container bridge perception`, `rover container mapping decision
+/// pickup`) make the whole graph: `ros2 node list` lists the five nodes and the rover drives;
+/// stopping the second container takes its three nodes away and leaves the first two.
+#[test]
+fn two_containers_make_the_graph_and_each_takes_its_own_nodes_away() {
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
+    let port = domain.port().to_string();
+    let port_param = format!("bridge:port:={port}");
+    let front_args = ["container", "bridge", "perception", "--ros-args", "-p", &port_param];
+    let mut front = start_process(&rover(), &front_args, &domain, "container-front");
+    let mut back = start_process(&rover(), &["container", "mapping", "decision", "pickup"], &domain, "container-back");
+    let _sim = start_process(&rover(), &["sim", "--seed", "0", "--port", &port], &domain, "container-sim");
+    let node_list = || ros2(&domain, Duration::from_secs(15), &["node", "list", "--no-daemon"]).1;
+    let listed = |list: &str, names: &[&str]| names.iter().all(|name| list.lines().any(|line| line.trim() == *name));
+    let (all, front_nodes, back_nodes) = (
+        ["/bridge", "/perception", "/mapping", "/decision", "/pickup"],
+        ["/bridge", "/perception"],
+        ["/mapping", "/decision", "/pickup"],
+    );
+    let mut nodes = String::new();
+    let graph_up = eventually(Duration::from_secs(30), || {
+        nodes = node_list();
+        listed(&nodes, &all)
+    });
+    assert!(graph_up, "not every node listed:\n{nodes}\nfront log:\n{}", front.log_text());
+    let mut telemetry = String::new();
+    let drives = eventually(Duration::from_secs(60), || {
+        telemetry = ros2_ok(&domain, &["topic", "echo", "--once", "/rover/telemetry"]);
+        echoed_value::<f64>(&telemetry, "speed_mps").is_some_and(|speed| speed > 0.3)
+    });
+    assert!(drives, "the rover does not drive:\n{telemetry}\nback log:\n{}", back.log_text());
+    let status = back.interrupt(STOP_TIMEOUT);
+    assert!(status.is_some_and(|s| s.success()), "the container did not stop cleanly:\n{}", back.log_text());
+    let back_gone = eventually(Duration::from_secs(30), || {
+        nodes = node_list();
+        listed(&nodes, &front_nodes) && !back_nodes.iter().any(|name| listed(&nodes, &[name]))
+    });
+    assert!(back_gone, "after the second container stopped:\n{nodes}");
+    let status = front.interrupt(STOP_TIMEOUT);
+    assert!(status.is_some_and(|s| s.success()), "the container did not stop cleanly:\n{}", front.log_text());
+}

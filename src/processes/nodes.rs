@@ -75,16 +75,42 @@ impl Node {
     }
 }
 
+impl std::str::FromStr for Node {
+    type Err = String;
+
+    /// The node of a name as `rover nodes` lists it.
+    fn from_str(name: &str) -> Result<Self, String> {
+        Node::ALL
+            .into_iter()
+            .find(|node| node.name() == name)
+            .ok_or_else(|| format!("no node '{name}'; expected one of {}", node_names().collect::<Vec<_>>().join(", ")))
+    }
+}
+
 /// The names of every node, in start order.
 pub fn node_names() -> impl Iterator<Item = &'static str> {
     Node::ALL.into_iter().map(Node::name)
 }
 
-/// Runs every node on one runtime (`rover all`); the first to fail stops the others.
-pub async fn run_all(runtime: &Runtime) -> anyhow::Result<()> {
-    let result = try_join_all(Node::ALL.map(|node| node.run(runtime))).await;
+/// Runs `nodes` on one runtime (`rover all`, `rover container`), each at most once; the first
+/// to fail stops the others.
+pub async fn run_together(runtime: &Runtime, nodes: &[Node]) -> anyhow::Result<()> {
+    check_each_once(nodes)?;
+    let result = try_join_all(nodes.iter().map(|node| node.run(runtime))).await;
     runtime.shutdown().request();
     result.map(drop)
+}
+
+/// Refuses a node named twice: two nodes of one name would answer each other's services.
+fn check_each_once(nodes: &[Node]) -> anyhow::Result<()> {
+    for (i, node) in nodes.iter().enumerate() {
+        anyhow::ensure!(
+            !nodes[..i].contains(node),
+            "node '{}' given twice: a process runs each node once",
+            node.name()
+        );
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -92,6 +118,20 @@ mod tests {
     use clap::Subcommand as _;
 
     use super::*;
+
+    #[test]
+    fn a_node_is_run_at_most_once_in_a_process() {
+        assert!(check_each_once(&Node::ALL).is_ok());
+        let twice = check_each_once(&[Node::Mapping, Node::Decision, Node::Mapping]).unwrap_err().to_string();
+        assert!(twice.contains("node 'mapping' given twice"), "{twice}");
+    }
+
+    #[test]
+    fn a_node_is_found_by_its_name_and_a_wrong_name_lists_the_right_ones() {
+        assert_eq!("decision".parse::<Node>(), Ok(Node::Decision));
+        let wrong = "brige".parse::<Node>().unwrap_err();
+        assert_eq!(wrong, "no node 'brige'; expected one of bridge, perception, mapping, decision, pickup");
+    }
 
     #[test]
     fn every_node_subcommand_is_in_the_list_under_its_name() {
