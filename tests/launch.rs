@@ -416,3 +416,25 @@ fn ros2_launch_with_autostart_false_runs_the_lifecycle_manager_that_brings_the_g
     }
     assert!(launcher.interrupt().is_some_and(|s| s.code().is_some()), "ros2 launch did not exit on SIGINT");
 }
+
+#[test]
+fn rover_graph_runs_each_group_of_nodes_in_one_container_process() {
+    support::assert_isolated();
+    let domain = Domain::reserve();
+    let watcher = Watcher::start(&domain, "/grouped");
+    let log_dir = std::env::temp_dir().join(format!("rover-graph-groups-test-{}", std::process::id()));
+    let options = ["--sim", "5", "--group", "pickup,decision,mapping", "--group", "bridge,perception"];
+    let mut launcher = Launcher::start(&mut rover_graph(&domain, "/grouped", &log_dir, &options), "rover-graph-groups");
+    assert!(watcher.graph_runs(), "no frames from the grouped graph:\n{}", launcher.output());
+    let started = started_processes(&launcher.output());
+    let names: Vec<&str> = started.iter().map(|(name, _, _)| name.as_str()).collect();
+    assert_eq!(names, ["bridge+perception", "mapping+decision+pickup", "sim"], "{}", launcher.output());
+    let front = command_line(pid_of(&started, "bridge+perception"));
+    assert!(front.contains("container bridge perception --ros-args") && front.contains("-p bridge:port:="), "{front}");
+    let back = command_line(pid_of(&started, "mapping+decision+pickup"));
+    let state_dir = log_dir.join("state");
+    for node in ["mapping", "decision"] {
+        assert!(back.contains(&format!("-p {node}:state_dir:={}", state_dir.display())), "{back}");
+    }
+    launcher.interrupt_cleanly();
+}
