@@ -17,7 +17,7 @@ use support::{Domain, STOP_TIMEOUT, eventually, rover, start_process};
 
 /// Every topic of the graph but `/clock` (checked on its own) with its type, as
 /// `ros2 topic list -t` prints it.
-const TOPICS: [&str; 21] = [
+const TOPICS: [&str; 22] = [
     "/camera/image_raw/compressed [sensor_msgs/msg/CompressedImage]",
     "/camera/image_raw [sensor_msgs/msg/Image]",
     "/camera/camera_info [sensor_msgs/msg/CameraInfo]",
@@ -32,6 +32,7 @@ const TOPICS: [&str; 21] = [
     "/map/image [sensor_msgs/msg/Image]",
     "/rover/map_stats [rover_msgs/msg/MapStats]",
     "/rover/rocks [geometry_msgs/msg/PoseArray]",
+    "/rover/sample_markers [visualization_msgs/msg/MarkerArray]",
     "/rover/drive_cmd [rover_msgs/msg/DriveCommand]",
     "/rover/pickup [rover_msgs/msg/PickupRequest]",
     "/rover/mode [rover_msgs/msg/DecisionState]",
@@ -89,6 +90,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
         let map = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "--no-arr", "/map"]));
         let odom = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/odom"]));
         let tf_static = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/tf_static"]));
+        let markers = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/rover/sample_markers"]));
         // Without the type named: only rosgraph_msgs/msg/Clock may be on /clock.
         let clock = scope.spawn(|| ros2_ok(domain, &["topic", "echo", "--once", "/clock"]));
         let sim_time = scope.spawn(|| ros2_ok(domain, &["param", "get", "/mapping", "use_sim_time"]));
@@ -147,6 +149,8 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
             ],
             "latched static transforms",
         );
+        // The latched markers decode field by field: the first deletes the earlier ones.
+        assert_contains(&markers.join().unwrap(), &["markers:", "frame_id: map", "action: 3", "mesh_file:"], "markers");
         let hz = hz.join().unwrap();
         let rate = hz
             .lines()

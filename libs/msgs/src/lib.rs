@@ -152,6 +152,8 @@ pub mod std_msgs {
         /// Time stamp and coordinate frame of a message.
         "std_msgs" / Header { stamp: crate::builtin_interfaces::Time, frame_id: String }
     }
+    ros_message! { /// A colour, each channel 0 to 1.
+    "std_msgs" / ColorRGBA { r: f32, g: f32, b: f32, a: f32 } }
 
     impl Header {
         /// A header stamped now in `frame_id`.
@@ -272,6 +274,36 @@ pub mod sensor_msgs {
         header: Header, height: u32, width: u32, distortion_model: String, d: Vec<f64>,
         k: [f64; 9], r: [f64; 9], p: [f64; 12], binning_x: u32, binning_y: u32, roi: RegionOfInterest,
     } }
+}
+
+/// `visualization_msgs` messages: the markers that RViz and Foxglove draw.
+pub mod visualization_msgs {
+    use crate::geometry_msgs::{Point, Pose, Vector3};
+    use crate::std_msgs::{ColorRGBA, Header};
+
+    ros_message! { /// A texture coordinate of a mesh.
+    "visualization_msgs" / UVCoordinate { u: f32, v: f32 } }
+    ros_message! { /// A mesh file sent inline.
+    "visualization_msgs" / MeshFile { filename: String, #[serde(with = "serde_bytes")] data: Vec<u8> } }
+    ros_message! { /// A shape to draw in the frame of its header.
+    "visualization_msgs" / Marker {
+        header: Header, ns: String, id: i32, r#type: i32, action: i32, pose: Pose, scale: Vector3,
+        color: ColorRGBA, lifetime: crate::builtin_interfaces::Duration, frame_locked: bool,
+        points: Vec<Point>, colors: Vec<ColorRGBA>, texture_resource: String,
+        texture: crate::sensor_msgs::CompressedImage, uv_coordinates: Vec<UVCoordinate>, text: String,
+        mesh_resource: String, mesh_file: MeshFile, mesh_use_embedded_materials: bool,
+    } }
+    ros_message! { /// Markers published together.
+    "visualization_msgs" / MarkerArray { markers: Vec<Marker> } }
+
+    impl Marker {
+        /// Type: a sphere (or ellipsoid) of `scale` at `pose`.
+        pub const SPHERE: i32 = 2;
+        /// Action: add or replace the marker of this `ns` and `id`.
+        pub const ADD: i32 = 0;
+        /// Action: delete every marker of this `ns` (every marker when `ns` is empty).
+        pub const DELETEALL: i32 = 3;
+    }
 }
 
 /// `tf2_msgs` messages.

@@ -5,7 +5,8 @@
 use crate::commands::{NAVIGATE_TO_POSE, PAUSE_MISSION, RESUME_MISSION, RETURN_HOME, SAMPLE_RETURN, START_MISSION};
 use crate::topics::{
     CAMERA_COMPRESSED, CAMERA_INFO, CAMERA_RAW, CLOCK, CMD_VEL, DIAGNOSTICS, DRIVE_CMD, GOAL_POSE, MAP, MAP_IMAGE,
-    MAP_STATS, MODE, ODOM, PICKUP, PLAN, ROCKS, SAMPLE_TRUTH, TELEMETRY, TERRAIN, TF, TF_STATIC, VISION,
+    MAP_STATS, MODE, ODOM, PICKUP, PLAN, ROCKS, SAMPLE_MARKERS, SAMPLE_TRUTH, TELEMETRY, TERRAIN, TF, TF_STATIC,
+    VISION,
 };
 
 /// One node of the graph: its name and the topics it reads and writes (names as in the topic
@@ -52,7 +53,7 @@ pub static GRAPH: [NodeTopics; 5] = [
     NodeTopics {
         node: "mapping",
         reads: &[TERRAIN.name, SAMPLE_TRUTH.name],
-        writes: &[MAP.name, MAP_IMAGE.name, MAP_STATS.name, ROCKS.name],
+        writes: &[MAP.name, MAP_IMAGE.name, MAP_STATS.name, ROCKS.name, SAMPLE_MARKERS.name],
         serves: &[],
     },
     NodeTopics {

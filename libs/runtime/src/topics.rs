@@ -12,6 +12,7 @@ use rover_msgs::nav_msgs::{OccupancyGrid, Odometry, Path};
 use rover_msgs::rosgraph_msgs::Clock;
 use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image};
 use rover_msgs::tf2_msgs::TFMessage;
+use rover_msgs::visualization_msgs::MarkerArray;
 
 use crate::qos::{latched, reliable};
 
@@ -77,6 +78,7 @@ pub fn visit_all(visitor: &mut impl TopicVisitor) -> anyhow::Result<()> {
     visitor.visit(&MAP_IMAGE)?;
     visitor.visit(&MAP_STATS)?;
     visitor.visit(&ROCKS)?;
+    visitor.visit(&SAMPLE_MARKERS)?;
     visitor.visit(&DRIVE_CMD)?;
     visitor.visit(&PICKUP)?;
     visitor.visit(&MODE)?;
@@ -115,6 +117,8 @@ pub const MAP_IMAGE: Topic<Image> = Topic::new("map/image", reliable(1));
 pub const MAP_STATS: Topic<MapStats> = Topic::new("rover/map_stats", reliable(10));
 /// De-duplicated world positions of detected rock samples.
 pub const ROCKS: Topic<PoseArray> = Topic::new("rover/rocks", latched());
+/// The located rocks and the places of the collected samples, as markers (latched).
+pub const SAMPLE_MARKERS: Topic<MarkerArray> = Topic::new("rover/sample_markers", latched());
 /// Drive commands answering telemetry frames.
 pub const DRIVE_CMD: Topic<DriveCommand> = Topic::per_frame("rover/drive_cmd", reliable(10));
 /// Pickup requests.

@@ -436,8 +436,8 @@ impl WorldMap {
     /// Forgets the rock the arm just picked up: the rock evidence around the arm of a rover at
     /// (x, y) facing `yaw_rad`.
     pub fn forget_picked_rock(&mut self, x_m: f64, y_m: f64, yaw_rad: f64) {
-        let (s, c) = yaw_rad.sin_cos();
-        self.clear_rocks_near(x_m + ARM_REACH_M * c, y_m + ARM_REACH_M * s, SAMPLE_SPREAD_M);
+        let (arm_x_m, arm_y_m) = arm_point(x_m, y_m, yaw_rad);
+        self.clear_rocks_near(arm_x_m, arm_y_m, SAMPLE_SPREAD_M);
     }
 
     /// Forgets the rock evidence within `radius_m` of (x, y), e.g. once the sample there is picked up.
@@ -456,6 +456,12 @@ impl WorldMap {
     }
 }
 
+/// Where the arm of a rover at (x, y) facing `yaw_rad` reaches, world metres: where a sample it
+/// picks up lies.
+pub fn arm_point(x_m: f64, y_m: f64, yaw_rad: f64) -> (f64, f64) {
+    let (s, c) = yaw_rad.sin_cos();
+    (x_m + ARM_REACH_M * c, y_m + ARM_REACH_M * s)
+}
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,7 +10,7 @@ use rover_msgs::std_msgs::Header;
 use rover_msgs::tally::SampleTally;
 use rover_runtime::{Rejections, topics};
 
-use crate::map::{ScanGrid, Update, WorldMap};
+use crate::map::{ScanGrid, Update, WorldMap, arm_point};
 use crate::params::MappingParams;
 use crate::projection::Pose;
 use crate::score::{occupancy_counts, occupancy_scores, samples_located};
@@ -25,6 +25,10 @@ fn order_of(header: &Header, frame: u64) -> ScanOrder {
     (header.stamp.sec, header.stamp.nanosec, frame)
 }
 
+/// At most this many places of collected samples are kept (a world has a handful of samples; a
+/// telemetry that keeps counting pickups cannot grow the list further).
+const MAX_COLLECTED_PLACES: usize = u8::MAX as usize;
+
 /// The mapping node's state: the map, home, the samples collected and what it rejected.
 #[derive(Debug, Clone)]
 pub struct MappingCore {
@@ -38,6 +42,8 @@ pub struct MappingCore {
     /// Rocks picked up, to forget before the scan after the one whose telemetry shows the pickup:
     /// the pickup's place in time and the rover's pose (x, y, yaw).
     picked: Vec<(ScanOrder, [f64; 3])>,
+    /// Where the samples were picked up, world metres.
+    collected_at: Vec<(f64, f64)>,
     rejections: Rejections,
     frames_mapped: u64,
     tilted_frames: u64,
@@ -57,6 +63,7 @@ impl MappingCore {
             home: None,
             last_scan: None,
             picked: Vec::new(),
+            collected_at: Vec::new(),
             rejections: Rejections::default(),
             frames_mapped: 0,
             tilted_frames: 0,
@@ -148,7 +155,11 @@ impl MappingCore {
     fn follow_telemetry(&mut self, telemetry: &Telemetry, order: ScanOrder) {
         self.home.get_or_insert(Home { frame: telemetry.frame, x_m: telemetry.x_m, y_m: telemetry.y_m });
         if self.tally.update(telemetry.samples_remaining) > 0 {
-            self.picked.push((order, [telemetry.x_m, telemetry.y_m, telemetry.yaw_rad as f64]));
+            let yaw_rad = telemetry.yaw_rad as f64;
+            self.picked.push((order, [telemetry.x_m, telemetry.y_m, yaw_rad]));
+            if self.collected_at.len() < MAX_COLLECTED_PLACES {
+                self.collected_at.push(arm_point(telemetry.x_m, telemetry.y_m, yaw_rad));
+            }
         }
     }
 
@@ -247,7 +258,12 @@ impl MappingCore {
 
     /// What a snapshot keeps.
     pub fn memory(&self) -> Memory {
-        Memory { evidence: self.map.gathered(), home: self.home, tally: self.tally }
+        Memory {
+            evidence: self.map.gathered(),
+            home: self.home,
+            tally: self.tally,
+            collected_at: self.collected_at.clone(),
+        }
     }
 
     /// Carries on from `memory`, an earlier node's snapshot.
@@ -255,6 +271,7 @@ impl MappingCore {
         self.map = WorldMap::with_evidence(self.params.map_config(), memory.evidence);
         self.home = memory.home;
         self.tally = memory.tally;
+        self.collected_at = memory.collected_at;
     }
 
     /// What a publication of the map shows, stamped with `header`: the map's cells classified
@@ -263,7 +280,7 @@ impl MappingCore {
         let occupancy = self.map.occupancy();
         let rocks = self.rocks_on(&occupancy);
         let stats = self.stats(&occupancy, &rocks, header);
-        MapPublication { occupancy, stats, rocks }
+        MapPublication { occupancy, stats, rocks, collected_at: self.collected_at.clone() }
     }
 
     /// The statistics of `rover/map_stats` of the map whose cells are `occupancy` and whose rocks
@@ -303,6 +320,8 @@ pub struct MapPublication {
     pub stats: MapStats,
     /// The located rocks, world metres.
     pub rocks: Vec<(f64, f64)>,
+    /// Where the samples were collected, world metres.
+    pub collected_at: Vec<(f64, f64)>,
 }
 
 #[cfg(test)]
@@ -343,6 +362,8 @@ pub(crate) mod test_scans {
 
 #[cfg(test)]
 mod tests {
+    use rover_msgs::body::ARM_REACH_M;
+
     use super::test_scans::{rock_scan, with_samples};
     use super::*;
 
@@ -443,7 +464,10 @@ mod tests {
         let rocks = mapping.rocks();
         assert_eq!(rocks.len(), 1, "{rocks:?}");
         assert!((rocks[0].0 - other.0).hypot(rocks[0].1 - other.1) < 3.0, "the other rock stays: {rocks:?}");
-        assert_eq!(mapping.publication(Header::default()).stats.samples_collected, 1);
+        let publication = mapping.publication(Header::default());
+        assert_eq!(publication.stats.samples_collected, 1);
+        let [(x_m, y_m)] = publication.collected_at[..] else { panic!("{:?}", publication.collected_at) };
+        assert!((x_m - picked.0 - ARM_REACH_M).abs() < 1e-9 && (y_m - picked.1).abs() < 1e-9, "in front of the arm");
     }
 
     #[test]
@@ -458,5 +482,6 @@ mod tests {
         assert_eq!(restarted.map().occupancy(), mapping.map().occupancy());
         restarted.add_scan_at_its_stamp(&with_samples(rock_scan(3, 3, (140.0, 100.0)), 4));
         assert_eq!(restarted.samples_collected(), 2, "a pickup since the snapshot still counts");
+        assert_eq!(restarted.publication(Header::default()).collected_at.len(), 2, "where both were collected");
     }
 }

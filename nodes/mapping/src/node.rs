@@ -16,6 +16,7 @@ use rover_runtime::topics;
 
 use crate::image::{InsetStats, map_inset};
 use crate::mapper::{MapPublication, MappingCore};
+use crate::markers::sample_markers;
 use crate::params::MappingParams;
 use crate::score::ground_truth_from_png;
 use crate::snapshot;
@@ -90,15 +91,23 @@ impl Snapshots {
     }
 }
 
+/// What the node publishes of the samples: the located rocks and where samples were collected,
+/// world metres.
+#[derive(Debug, Clone, PartialEq)]
+struct SampleView {
+    rocks: Vec<(f64, f64)>,
+    collected_at: Vec<(f64, f64)>,
+}
+
 /// The mapping node: every terrain scan into the world map; the map, its image, statistics and
 /// the located rocks published every few scans, and at the latest `publish_max_delay_ms` after a
 /// scan.
 pub struct MappingNode {
     mapping: MappingCore,
     snapshots: Snapshots,
-    /// The rocks last published; `None` until the first publication, so that the latched topic
-    /// says "no rocks yet" from the start.
-    last_rocks: Option<Vec<(f64, f64)>>,
+    /// The rocks and the places of the collected samples last published; `None` until the first
+    /// publication, so that the latched topics say "none yet" from the start.
+    last_samples: Option<SampleView>,
     published_at: Instant,
     /// When the node started (the map image shows the time since).
     started: Instant,
@@ -114,7 +123,13 @@ impl NodeCore for MappingNode {
         let mut mapping = MappingCore::new(settings, truth);
         let mut snapshots = Snapshots::new(&mapping.params().state_dir);
         snapshots.restore(&mut mapping);
-        Ok(MappingNode { mapping, snapshots, last_rocks: None, published_at: Instant::now(), started: Instant::now() })
+        Ok(MappingNode {
+            mapping,
+            snapshots,
+            last_samples: None,
+            published_at: Instant::now(),
+            started: Instant::now(),
+        })
     }
 
     fn inputs() -> Inputs<Self> {
@@ -171,7 +186,7 @@ impl MappingNode {
         self.snapshots.write_if_mission_changed(mapping);
         mapping.mark_published();
         self.published_at = Instant::now();
-        let MapPublication { occupancy, stats, rocks } = mapping.publication(header.clone());
+        let MapPublication { occupancy, stats, rocks, collected_at } = mapping.publication(header.clone());
         if out.wanted(&topics::MAP_IMAGE) {
             let inset = InsetStats {
                 time_s: self.started.elapsed().as_secs_f64(),
@@ -185,9 +200,13 @@ impl MappingNode {
         }
         out.publish(&topics::MAP, occupancy_grid(occupancy, header.clone()));
         out.publish(&topics::MAP_STATS, stats);
-        if self.last_rocks.as_ref() != Some(&rocks) {
-            out.publish(&topics::ROCKS, PoseArray::of_points(header, &rocks));
-            self.last_rocks = Some(rocks);
+        let samples = SampleView { rocks, collected_at };
+        let last = self.last_samples.replace(samples.clone());
+        if last.as_ref().map(|l| &l.rocks) != Some(&samples.rocks) {
+            out.publish(&topics::ROCKS, PoseArray::of_points(header.clone(), &samples.rocks));
+        }
+        if last.as_ref() != Some(&samples) {
+            out.publish(&topics::SAMPLE_MARKERS, sample_markers(&header, &samples.rocks, &samples.collected_at));
         }
     }
 }

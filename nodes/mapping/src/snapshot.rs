@@ -9,7 +9,7 @@ use rover_runtime::snapshot::{Fields, SnapshotError, Writer};
 use crate::map::{CLASSES, Evidence, WEIGHED};
 
 /// The first bytes of a snapshot: the format and its version.
-const MAGIC: &[u8; 8] = b"RVRMAP01";
+const MAGIC: &[u8; 8] = b"RVRMAP02";
 /// The snapshot's file name in the state folder.
 pub const FILE_NAME: &str = "mapping.snapshot";
 
@@ -33,11 +33,14 @@ pub struct Memory {
     pub home: Option<Home>,
     /// The collected count and the last `samples_remaining`.
     pub tally: SampleTally,
+    /// Where the samples were collected, world metres.
+    pub collected_at: Vec<(f64, f64)>,
 }
 
 /// The bytes of `memory`: the magic, the cell count (u64), home (flag u8, frame u64, x f64, y f64),
 /// the tally (collected u32, flag u8, last remaining u8), then per class the hits (u16 per cell),
-/// per weighed class the weights (f32 per cell) and the rock ranges (f32 per cell).
+/// per weighed class the weights (f32 per cell), the rock ranges (f32 per cell), then the places
+/// of the collected samples (count u8, then x f64 and y f64 each).
 pub fn encode(memory: &Memory) -> Vec<u8> {
     let mut out = Writer::new(MAGIC);
     out.bytes.reserve(64 + CELLS * (2 * CLASSES + 4 * WEIGHED + 4));
@@ -54,6 +57,12 @@ pub fn encode(memory: &Memory) -> Vec<u8> {
     evidence.hits.iter().flatten().for_each(|&h| out.u16(h));
     evidence.weight.iter().flatten().for_each(|&w| out.f32(w));
     evidence.rock_range_m.iter().for_each(|&r| out.f32(r));
+    let places = &memory.collected_at[..memory.collected_at.len().min(u8::MAX as usize)];
+    out.u8(places.len() as u8);
+    for &(x_m, y_m) in places {
+        out.f64(x_m);
+        out.f64(y_m);
+    }
     out.bytes
 }
 
@@ -85,11 +94,20 @@ pub fn decode(bytes: &[u8]) -> Result<Memory, SnapshotError> {
             return Err(SnapshotError::BadValue("rock ranges", range_m.to_string(), ">= 0 m or infinite"));
         }
     }
+    let mut collected_at = Vec::new();
+    for _ in 0..fields.u8("collected places")? {
+        let place = (fields.f64("collected places")?, fields.f64("collected places")?);
+        if !(place.0.is_finite() && place.1.is_finite()) {
+            return Err(SnapshotError::BadValue("collected places", format!("{place:?}"), "finite metres"));
+        }
+        collected_at.push(place);
+    }
     fields.finish()?;
     Ok(Memory {
         evidence,
         home: has_home.then_some(home),
         tally: SampleTally::resumed(collected, has_last.then_some(last_remaining)),
+        collected_at,
     })
 }
 
@@ -109,6 +127,7 @@ mod tests {
             evidence,
             home: Some(Home { frame: 3, x_m: 99.7, y_m: 85.2 }),
             tally: SampleTally::resumed(2, Some(4)),
+            collected_at: vec![(97.5, 74.25), (122.0, 51.5)],
         }
     }
 
@@ -116,14 +135,18 @@ mod tests {
     fn a_snapshot_reads_back_as_written() {
         let memory = memory();
         assert_eq!(decode(&encode(&memory)), Ok(memory.clone()));
-        let fresh = Memory { evidence: Evidence::empty(), home: None, tally: SampleTally::default() };
+        let fresh =
+            Memory { evidence: Evidence::empty(), home: None, tally: SampleTally::default(), collected_at: Vec::new() };
         assert_eq!(decode(&encode(&fresh)), Ok(fresh));
     }
 
     #[test]
     fn damaged_snapshots_are_refused_with_the_field_named() {
         let bytes = encode(&memory());
-        assert_eq!(decode(&bytes[..bytes.len() - 1]), Err(SnapshotError::Truncated(bytes.len() - 1, "rock ranges")));
+        assert_eq!(
+            decode(&bytes[..bytes.len() - 1]),
+            Err(SnapshotError::Truncated(bytes.len() - 1, "collected places"))
+        );
         assert_eq!(decode(&bytes[..20]), Err(SnapshotError::Truncated(20, "home frame")));
         assert_eq!(decode(b"GIF89a.."), Err(SnapshotError::NotASnapshot(MAGIC)));
         let mut longer = bytes.clone();
