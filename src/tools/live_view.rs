@@ -42,7 +42,7 @@ const MIN_CLIENT_BACKLOG: i64 = 32;
 /// The message encoding of every channel: ROS 2's CDR.
 const MESSAGE_ENCODING: &str = "cdr";
 /// The topics served (names of the topic table).
-const LIVE_TOPICS: [&str; 11] = [
+pub const LIVE_TOPICS: [&str; 11] = [
     topics::CAMERA_COMPRESSED.name,
     topics::CAMERA_INFO.name,
     topics::ODOM.name,
