@@ -98,6 +98,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
         let info = scope.spawn(|| ros2_ok(domain, &["topic", "info", "-v", "/map"]));
         let interface = scope.spawn(|| ros2_ok(domain, &["interface", "show", "rover_msgs/msg/Telemetry"]));
         let lifecycle = scope.spawn(|| lifecycle_of_the_decision_node(domain));
+        let everyday = scope.spawn(|| everyday_commands(domain));
         let params = scope.spawn(|| {
             let list = ros2_ok(domain, &["param", "list", "/bridge"]);
             let before = ros2_ok(domain, &["param", "get", "/bridge", "teleop_timeout_ms"]);
@@ -181,6 +182,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
             "interface show",
         );
         check_lifecycle(&lifecycle.join().unwrap());
+        check_everyday_commands(&everyday.join().unwrap());
         let (list, before, set, after, refused, described) = params.join().unwrap();
         assert_contains(&list, &["teleop_timeout_ms", "diagnostics_period_ms", "port"], "ros2 param list /bridge");
         assert_contains(&before, &["Double value is: 500.0"], "ros2 param get");
@@ -206,6 +208,55 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
         graph.log_text()
     );
     eprintln!("ros2 command line test: {:.1} s", started.elapsed().as_secs_f64());
+}
+
+/// What the everyday commands printed: `node info`, `service list`, `param dump`, `param load`
+/// of the dump with one value changed, `param get` after it, `topic echo /rosout`.
+struct EverydayOutputs {
+    node_info: String,
+    services: String,
+    dump: String,
+    load: String,
+    loaded: String,
+    rosout: String,
+}
+
+fn everyday_commands(domain: &Domain) -> EverydayOutputs {
+    let node_info = ros2_ok(domain, &["node", "info", "/mapping"]);
+    let services = ros2_ok(domain, &["service", "list"]);
+    let dump = ros2_ok(domain, &["param", "dump", "/pickup"]);
+    let file = std::env::temp_dir().join(format!("rover-ros2-cli-pickup-{}-{}.yaml", domain.id, std::process::id()));
+    // `ros2 param load` of ros2param 0.36.1 counts the parameters it expects from the wildcard
+    // section only (it reads the file without the node's name), so the file holds them under `/**`.
+    let wildcard = dump.replace("/pickup:", "/**:").replace("retry_s: 2.0", "retry_s: 3.5");
+    std::fs::write(&file, wildcard).expect("write the parameter file");
+    let load = ros2(domain, Duration::from_secs(30), &["param", "load", "/pickup", file.to_str().unwrap()]).1;
+    assert!(load.contains("successful"), "ros2 param load of\n{dump}\nprinted\n{load}");
+    let loaded = ros2_ok(domain, &["param", "get", "/pickup", "retry_s"]);
+    let _ = std::fs::remove_file(&file);
+    let rosout = ros2_ok(domain, &["topic", "echo", "--once", "/rosout"]);
+    EverydayOutputs { node_info, services, dump, load, loaded, rosout }
+}
+
+fn check_everyday_commands(outputs: &EverydayOutputs) {
+    let mapping = [
+        "/mapping",
+        "Subscribers:",
+        "/rover/terrain: rover_msgs/msg/TerrainScan",
+        "Publishers:",
+        "/map: nav_msgs/msg/OccupancyGrid",
+        "/rover/sample_markers: visualization_msgs/msg/MarkerArray",
+        "Service Servers:",
+        "/mapping/get_parameters: rcl_interfaces/srv/GetParameters",
+        "/mapping/change_state: lifecycle_msgs/srv/ChangeState",
+    ];
+    assert_contains(&outputs.node_info, &mapping, "ros2 node info /mapping");
+    let services = ["/bridge/set_parameters", "/decision/get_state", "/pickup/list_parameters"];
+    assert_contains(&outputs.services, &services, "ros2 service list");
+    assert_contains(&outputs.dump, &["/pickup:", "ros__parameters:", "retry_s: 2.0"], "ros2 param dump /pickup");
+    assert_contains(&outputs.load, &["Set parameter retry_s successful"], "ros2 param load");
+    assert_contains(&outputs.loaded, &["Double value is: 3.5"], "ros2 param get after the load");
+    assert_contains(&outputs.rosout, &["name: ", "msg: ", "level: "], "ros2 topic echo /rosout");
 }
 
 /// What `ros2 lifecycle` printed as it took the decision node down to inactive and back up.
