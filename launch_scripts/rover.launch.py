@@ -4,17 +4,17 @@
         [rover:=PATH] [port:=4567] [sim:=true] [seed:=0] [log_level:=debug]
         [respawn:=false] [state_dir:=DIR] [use_sim_time:=true]
 
-Every node that `rover nodes` lists runs
-`rover NODE --ros-args --params-file PARAMS -r __ns:=NAMESPACE -p use_sim_time:=USE_SIM_TIME
-[--log-level LEVEL]`; the bridge also gets `-p port:=PORT`. With use_sim_time:=true every node
+Every node that `rover nodes` lists runs as a launch_ros Node: `rover NODE` named NODE in
+NAMESPACE with the parameter file PARAMS and use_sim_time (the bridge also port, mapping and
+decision state_dir) [--log-level LEVEL]. With use_sim_time:=true every node
 stamps with the simulated time the bridge publishes on /clock. With sim:=true the headless simulator (`rover sim --seed SEED
 --port PORT`) drives the graph; without it the bridge waits for the Unity simulator. The DDS
 domain is the environment's ROS_DOMAIN_ID, the log filter RUST_LOG unless log_level is given.
 A node that dies is started again after RESPAWN_DELAY_S (respawn:=false: it stays dead), and the
 mapping and decision nodes carry on from their snapshots in state_dir (default: a new temporary
 folder per launch).
-Uses only the `launch` package (no launch_ros): `rover` is not in an ament package index unless
-the repository was built with colcon, so it is started by path.
+`rover` is not in an ament package index unless the repository was built with colcon, so the
+Node actions start it by path (the rover argument).
 """
 
 import os
@@ -25,6 +25,7 @@ import tempfile
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, ExecuteProcess, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESPAWN_DELAY_S = 0.5
@@ -85,19 +86,21 @@ def arguments():
             for name, default, description, choices in declared]
 
 
-def node_command(name, value, state_dir):
-    """The command line of node `name`; `value` reads a launch argument."""
-    cmd = [value('rover'), name, '--ros-args', '--params-file', value('params_file'),
-           '-r', '__ns:=' + value('namespace'), '-p', 'use_sim_time:=' + value('use_sim_time')]
-    if value('log_level'):
-        cmd += ['--log-level', value('log_level')]
+def node_action(name, value, state_dir, respawn):
+    """Node `name` of the graph as a launch_ros Node: the `rover` subcommand of that name, named,
+    namespaced and given its parameters by launch_ros; `value` reads a launch argument."""
+    own = {'use_sim_time': value('use_sim_time') == 'true'}
     if value('autostart') == 'false':
-        cmd += ['-p', 'autostart:=false']
+        own['autostart'] = False
     if name == 'bridge':
-        cmd += ['-p', 'port:=' + value('port')]
+        own['port'] = int(value('port'))
     if name in ('mapping', 'decision'):
-        cmd += ['-p', 'state_dir:=' + state_dir]
-    return cmd
+        own['state_dir'] = state_dir
+    log_level = ['--log-level', value('log_level')] if value('log_level') else []
+    return Node(executable=value('rover'), arguments=[name], exec_name=name, name=name,
+                namespace=value('namespace'), parameters=[value('params_file'), own],
+                ros_arguments=log_level, output='screen', sigterm_timeout='5', sigkill_timeout='5',
+                respawn=respawn, respawn_delay=RESPAWN_DELAY_S)
 
 
 def simulator_command(value):
@@ -113,15 +116,11 @@ def processes(context):
 
     state_dir = value('state_dir') or tempfile.mkdtemp(prefix='rover-state-')
     respawn = value('respawn') == 'true'
-    actions = [ExecuteProcess(cmd=node_command(name, value, state_dir), name=name, output='screen',
-                              sigterm_timeout='5', sigkill_timeout='5',
-                              respawn=respawn, respawn_delay=RESPAWN_DELAY_S)
-               for name in node_names(value('rover'))]
+    actions = [node_action(name, value, state_dir, respawn) for name in node_names(value('rover'))]
     if value('autostart') == 'false':
-        manager = [value('rover'), 'lifecycle-manager', '--ros-args', '-r', '__ns:=' + value('namespace')]
-        actions.append(ExecuteProcess(cmd=manager, name='lifecycle_manager', output='screen',
-                                      sigterm_timeout='5', sigkill_timeout='5',
-                                      respawn=respawn, respawn_delay=RESPAWN_DELAY_S))
+        actions.append(Node(executable=value('rover'), arguments=['lifecycle-manager'], exec_name='lifecycle_manager',
+                            namespace=value('namespace'), output='screen', sigterm_timeout='5',
+                            sigkill_timeout='5', respawn=respawn, respawn_delay=RESPAWN_DELAY_S))
     if value('sim') == 'true':
         actions.append(ExecuteProcess(cmd=simulator_command(value), name='sim', output='screen',
                                       sigterm_timeout='5', sigkill_timeout='5'))

@@ -363,6 +363,16 @@ fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint
     let launched = launched_processes(&launcher.output());
     let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
     assert_eq!(names, processes(), "{}", launcher.output());
+    for (name, pid) in launched.iter().filter(|(name, _)| name != "sim") {
+        let command = command_line(*pid);
+        let by_launch_ros =
+            [format!("rover {name} --ros-args"), format!("-r __node:={name}"), "-r __ns:=/launched".into()];
+        assert!(
+            by_launch_ros.iter().all(|part| command.contains(part.as_str())),
+            "{name} as a launch_ros Node: {command}"
+        );
+        assert!(command.contains("--params-file"), "{name}: {command}");
+    }
     let mapping = launched.iter().find(|(name, _)| name == "mapping").expect("mapping was launched").1;
     send_signal(mapping, Signal::SIGKILL);
     let respawned =

@@ -8,7 +8,7 @@ _rover_install="$_rover_repo/target/ros_ws/install"
 _rover_python=$(cd "$VIRTUAL_ENV/lib" 2>/dev/null && ls -d python3.* 2>/dev/null | head -n 1)
 _rover_python=${_rover_python:-python3.11}
 export AMENT_PREFIX_PATH="$VIRTUAL_ENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
-for _rover_package in rover_msgs tf2_msgs nav2_msgs; do
+for _rover_package in rover_msgs $(ls "$_rover_repo/tools/ros"); do
   _rover_prefix="$_rover_install/$_rover_package"
   export AMENT_PREFIX_PATH="$_rover_prefix:$AMENT_PREFIX_PATH"
   export PYTHONPATH="$_rover_prefix/lib/$_rover_python/site-packages${PYTHONPATH:+:$PYTHONPATH}"
