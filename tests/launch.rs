@@ -345,8 +345,13 @@ fn the_launch_file_is_valid_python() {
 /// The real `ros2 launch` of the launch file on the test's domain under `namespace`, with the
 /// simulator on world `seed` and the launch arguments `extra`.
 fn ros2_launch(domain: &Domain, namespace: &str, seed: &str, extra: &[&str]) -> Command {
+    ros2_launch_of("rover.launch.py", domain, namespace, seed, extra)
+}
+
+/// [`ros2_launch`] of the launch file `file` of `launch_scripts/`.
+fn ros2_launch_of(file: &str, domain: &Domain, namespace: &str, seed: &str, extra: &[&str]) -> Command {
     let mut command = Command::new(support::ros2_cli());
-    command.arg("launch").arg(launch_scripts().join("rover.launch.py"));
+    command.arg("launch").arg(launch_scripts().join(file));
     command.arg(format!("rover:={}", rover().display()));
     command.args([format!("namespace:={namespace}"), "sim:=true".into(), format!("seed:={seed}")]);
     command.arg(format!("port:={}", domain.port())).args(extra);
@@ -363,16 +368,7 @@ fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint
     let launched = launched_processes(&launcher.output());
     let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
     assert_eq!(names, processes(), "{}", launcher.output());
-    for (name, pid) in launched.iter().filter(|(name, _)| name != "sim") {
-        let command = command_line(*pid);
-        let by_launch_ros =
-            [format!("rover {name} --ros-args"), format!("-r __node:={name}"), "-r __ns:=/launched".into()];
-        assert!(
-            by_launch_ros.iter().all(|part| command.contains(part.as_str())),
-            "{name} as a launch_ros Node: {command}"
-        );
-        assert!(command.contains("--params-file"), "{name}: {command}");
-    }
+    assert_launched_by_launch_ros(&launched, "/launched");
     let mapping = launched.iter().find(|(name, _)| name == "mapping").expect("mapping was launched").1;
     send_signal(mapping, Signal::SIGKILL);
     let respawned =
@@ -447,4 +443,33 @@ fn rover_graph_runs_each_group_of_nodes_in_one_container_process() {
         assert!(back.contains(&format!("-p {node}:state_dir:={}", state_dir.display())), "{back}");
     }
     launcher.interrupt_cleanly();
+}
+
+/// Every node of `launched` (all but the simulator) was started by launch_ros: named, namespaced
+/// into `namespace` and given a parameter file.
+fn assert_launched_by_launch_ros(launched: &[(String, u32)], namespace: &str) {
+    for (name, pid) in launched.iter().filter(|(name, _)| name != "sim") {
+        let command = command_line(*pid);
+        let parts = [format!("rover {name} --ros-args"), format!("-r __node:={name}"), format!("-r __ns:={namespace}")];
+        assert!(parts.iter().all(|part| command.contains(part.as_str())), "{name} as a launch_ros node: {command}");
+        assert!(command.contains("--params-file"), "{name}: {command}");
+    }
+}
+
+#[test]
+fn ros2_launch_of_the_xml_launch_file_starts_the_same_graph() {
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
+    let watcher = Watcher::start(&domain, "/xml");
+    let rover_arg = format!("rover:={}", rover().display());
+    let mut command = ros2_launch_of("rover.launch.xml", &domain, "/xml", "3", &[&rover_arg]);
+    let mut launcher = Launcher::start(&mut command, "ros2-launch-xml");
+    assert!(watcher.graph_runs(), "no frames on /xml/rover/telemetry; ros2 launch output:\n{}", launcher.output());
+    let launched = launched_processes(&launcher.output());
+    let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
+    assert_eq!(names, processes(), "the XML file's nodes are `rover nodes`:\n{}", launcher.output());
+    assert_launched_by_launch_ros(&launched, "/xml");
+    assert!(launcher.interrupt().is_some_and(|s| s.code().is_some()), "ros2 launch did not exit on SIGINT");
+    for (name, pid) in &launched {
+        assert!(!is_running(*pid), "{name} (pid {pid}) still runs after ros2 launch exited");
+    }
 }
