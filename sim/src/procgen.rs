@@ -3,12 +3,12 @@
 //! data files. As in the Unity world, the flat floor reaches a little beyond the navigable map
 //! into the foot of the walls, and the map counts no ground a boulder stands on or overhangs.
 
-use std::collections::VecDeque;
-
 use crate::boulder::{Boulder, BoulderKind, BoulderSpec, Cap};
 use crate::obstacle::Obstacle;
 use crate::random::SplitMix64;
-use crate::world::{Ground, SAMPLE_COUNT, Sample, StartPose, WORLD_SIZE, World, WorldPlan, neighbours4, widen_floor};
+use crate::world::{
+    Ground, SAMPLE_COUNT, Sample, StartPose, WORLD_SIZE, World, WorldPlan, neighbours4, reached_from, widen_floor,
+};
 
 /// Keep canyons this far from the edge of the world, cells.
 const BORDER_CELLS: f64 = 12.0;
@@ -112,25 +112,9 @@ fn inside(ix: i64, iy: i64) -> bool {
     ix >= 1 && iy >= 1 && ix < WORLD_SIZE as i64 - 1 && iy < WORLD_SIZE as i64 - 1
 }
 
-/// The floor cells reachable from `from`.
-fn reached(floor: &[bool], from: usize) -> Vec<bool> {
-    let mut seen = vec![false; floor.len()];
-    let mut queue = VecDeque::from([from]);
-    seen[from] = true;
-    while let Some(cell) = queue.pop_front() {
-        for next in neighbours4(cell) {
-            if floor[next] && !seen[next] {
-                seen[next] = true;
-                queue.push_back(next);
-            }
-        }
-    }
-    seen
-}
-
 /// Number of floor cells reachable from `from`.
 fn reachable(floor: &[bool], from: usize) -> usize {
-    reached(floor, from).iter().filter(|&&r| r).count()
+    reached_from(floor, from).iter().filter(|&&r| r).count()
 }
 
 /// Islands of one to four cells in open floor where boulders will stand, never cutting the floor
@@ -286,7 +270,7 @@ mod tests {
             let drivable: Vec<bool> = (0..map.len())
                 .map(|i| world.is_drivable((i % WORLD_SIZE) as f64 + 0.5, (i / WORLD_SIZE) as f64 + 0.5))
                 .collect();
-            let reached = reached(&drivable, start);
+            let reached = reached_from(&drivable, start);
             let stranded = (0..map.len()).filter(|&i| map[i] && !reached[i]).count();
             assert!(stranded * 100 < navigable, "seed {seed}: {stranded} navigable cells cannot be reached");
             assert!(reachable(&drivable, start) > navigable + 200, "seed {seed}: the floor is wider than the map");

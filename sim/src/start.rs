@@ -5,7 +5,7 @@
 use std::str::FromStr;
 
 use crate::random::{SplitMix64, mix64};
-use crate::world::{StartPose, WORLD_SIZE, World, neighbours4};
+use crate::world::{StartPose, WORLD_SIZE, World, reached_from};
 
 /// Every 1 m cell within this many cells of a random start is drivable all over: the rover does
 /// not start touching a wall or a rock.
@@ -64,7 +64,7 @@ pub fn starting_at(mut world: World, start: StartPose) -> Result<World, StartErr
 /// around and no sample near, and a heading drawn from the full circle.
 pub fn random_start(world: &World, seed: u64) -> Result<StartPose, StartError> {
     let drivable = world.drivable_cells();
-    let reachable = reachable_from(&drivable, cell_of(world.start.x_m, world.start.y_m));
+    let reachable = reached_from(&drivable, cell_of(world.start.x_m, world.start.y_m));
     let candidates: Vec<usize> = (0..drivable.len())
         .filter(|&cell| reachable[cell] && has_room_around(&drivable, cell) && far_from_samples(world, cell))
         .collect();
@@ -84,22 +84,6 @@ fn cell_of(x_m: f64, y_m: f64) -> usize {
 
 fn cell_centre(cell: usize) -> (f64, f64) {
     ((cell % WORLD_SIZE) as f64 + 0.5, (cell / WORLD_SIZE) as f64 + 0.5)
-}
-
-/// The drivable cells connected to `from` (which counts as reachable itself).
-fn reachable_from(drivable: &[bool], from: usize) -> Vec<bool> {
-    let mut reachable = vec![false; drivable.len()];
-    reachable[from] = true;
-    let mut queue = vec![from];
-    while let Some(cell) = queue.pop() {
-        for next in neighbours4(cell) {
-            if drivable[next] && !reachable[next] {
-                reachable[next] = true;
-                queue.push(next);
-            }
-        }
-    }
-    reachable
 }
 
 fn has_room_around(drivable: &[bool], cell: usize) -> bool {

@@ -354,6 +354,22 @@ pub fn neighbours4(index: usize) -> impl Iterator<Item = usize> {
         .map(|(nx, ny)| ny as usize * WORLD_SIZE + nx as usize)
 }
 
+/// The cells of `floor` connected to `from` through their 4-neighbours (`from` counts as reached).
+pub fn reached_from(floor: &[bool], from: usize) -> Vec<bool> {
+    let mut seen = vec![false; floor.len()];
+    let mut queue = vec![from];
+    seen[from] = true;
+    while let Some(cell) = queue.pop() {
+        for next in neighbours4(cell) {
+            if floor[next] && !seen[next] {
+                seen[next] = true;
+                queue.push(next);
+            }
+        }
+    }
+    seen
+}
+
 /// A mask that is true on the cells of columns `columns` in rows `rows`, for tests.
 #[cfg(test)]
 pub(crate) fn rectangle(columns: std::ops::Range<usize>, rows: std::ops::Range<usize>) -> Vec<bool> {
