@@ -24,10 +24,9 @@ pub(crate) struct Discovery {
 impl Discovery {
     /// The discovery the environment asks for; a value ROS does not know is an error naming it.
     pub(crate) fn from_env() -> anyhow::Result<Self> {
-        let localhost_only = std::env::var(LOCALHOST_ONLY_VARIABLE).ok();
-        let range =
-            DiscoveryRange::from_values(std::env::var(RANGE_VARIABLE).ok().as_deref(), localhost_only.as_deref())?;
-        let without_peers = localhost_only.as_deref() == Some("1") || range == DiscoveryRange::Off;
+        let localhost_only = std::env::var(LOCALHOST_ONLY_VARIABLE).is_ok_and(|value| value == "1");
+        let range = DiscoveryRange::from_values(std::env::var(RANGE_VARIABLE).ok().as_deref(), localhost_only)?;
+        let without_peers = localhost_only || range == DiscoveryRange::Off;
         let peers = if without_peers { StaticPeers::default() } else { StaticPeers::from_env()? };
         Ok(Discovery { range, peers })
     }
@@ -56,9 +55,10 @@ enum DiscoveryRange {
 }
 
 impl DiscoveryRange {
-    /// The range for the values of `ROS_AUTOMATIC_DISCOVERY_RANGE` and `ROS_LOCALHOST_ONLY`.
-    fn from_values(range: Option<&str>, localhost_only: Option<&str>) -> anyhow::Result<Self> {
-        if localhost_only == Some("1") {
+    /// The range for the value of `ROS_AUTOMATIC_DISCOVERY_RANGE`, or for `ROS_LOCALHOST_ONLY=1`
+    /// (`localhost_only`).
+    fn from_values(range: Option<&str>, localhost_only: bool) -> anyhow::Result<Self> {
+        if localhost_only {
             tracing::warn!(
                 "{LOCALHOST_ONLY_VARIABLE}=1 is deprecated (use {RANGE_VARIABLE}=LOCALHOST); discovery stays on \
                  this host"
@@ -95,12 +95,12 @@ mod tests {
 
     #[test]
     fn the_range_is_read_as_ros_reads_it() {
-        assert_eq!(DiscoveryRange::from_values(None, None).unwrap(), DiscoveryRange::Subnet);
-        assert_eq!(DiscoveryRange::from_values(Some("SYSTEM_DEFAULT"), None).unwrap(), DiscoveryRange::Subnet);
-        assert_eq!(DiscoveryRange::from_values(Some("LOCALHOST"), Some("0")).unwrap(), DiscoveryRange::Localhost);
-        assert_eq!(DiscoveryRange::from_values(Some("OFF"), None).unwrap(), DiscoveryRange::Off);
-        assert_eq!(DiscoveryRange::from_values(Some("SUBNET"), Some("1")).unwrap(), DiscoveryRange::Localhost);
-        let error = DiscoveryRange::from_values(Some("localhost"), None).unwrap_err().to_string();
+        assert_eq!(DiscoveryRange::from_values(None, false).unwrap(), DiscoveryRange::Subnet);
+        assert_eq!(DiscoveryRange::from_values(Some("SYSTEM_DEFAULT"), false).unwrap(), DiscoveryRange::Subnet);
+        assert_eq!(DiscoveryRange::from_values(Some("LOCALHOST"), false).unwrap(), DiscoveryRange::Localhost);
+        assert_eq!(DiscoveryRange::from_values(Some("OFF"), false).unwrap(), DiscoveryRange::Off);
+        assert_eq!(DiscoveryRange::from_values(Some("SUBNET"), true).unwrap(), DiscoveryRange::Localhost);
+        let error = DiscoveryRange::from_values(Some("localhost"), false).unwrap_err().to_string();
         assert!(error.contains("ROS_AUTOMATIC_DISCOVERY_RANGE=\"localhost\"") && error.contains("expected"), "{error}");
     }
 }
