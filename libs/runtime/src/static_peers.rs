@@ -34,12 +34,19 @@ impl StaticPeers {
         Self::parse(&std::env::var(PEERS_VARIABLE).unwrap_or_default())
     }
 
+    /// Reads `peers`; a host is taken at its IPv4 addresses (the relay and RustDDS's transport
+    /// speak IPv4), and one with IPv6 addresses only is an error naming it.
     fn parse(peers: &str) -> anyhow::Result<Self> {
         let hosts = peers.split(';').map(str::trim).filter(|host| !host.is_empty());
         let resolve = |host: &str| {
             let addresses =
                 (host, 0).to_socket_addrs().with_context(|| format!("{PEERS_VARIABLE}: cannot resolve {host:?}"))?;
-            Ok(addresses.map(|address| address.ip()).collect::<Vec<_>>())
+            let ipv4: Vec<IpAddr> = addresses.map(|address| address.ip()).filter(IpAddr::is_ipv4).collect();
+            anyhow::ensure!(
+                !ipv4.is_empty(),
+                "{PEERS_VARIABLE}: {host:?} has no IPv4 address; DDS here speaks IPv4 only"
+            );
+            Ok(ipv4)
         };
         let addresses = hosts.map(resolve).collect::<anyhow::Result<Vec<_>>>()?.concat();
         Ok(StaticPeers { addresses })
@@ -59,7 +66,7 @@ impl StaticPeers {
     /// must announce them for the peers to answer).
     pub(crate) fn local_addresses(&self, domain: u16) -> Vec<IpAddr> {
         let local_to = |peer: &IpAddr| {
-            let socket = UdpSocket::bind(SocketAddr::new(unspecified_like(peer), 0)).ok()?;
+            let socket = UdpSocket::bind(SocketAddr::from((Ipv4Addr::UNSPECIFIED, 0))).ok()?;
             socket.connect(SocketAddr::new(*peer, discovery_port(domain, 0))).ok()?;
             socket.local_addr().ok().map(|address| address.ip())
         };
@@ -107,14 +114,6 @@ impl StaticPeers {
     }
 }
 
-/// The unspecified address of `peer`'s family.
-fn unspecified_like(peer: &IpAddr) -> IpAddr {
-    match peer {
-        IpAddr::V4(_) => IpAddr::V4(Ipv4Addr::UNSPECIFIED),
-        IpAddr::V6(_) => IpAddr::V6(std::net::Ipv6Addr::UNSPECIFIED),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -126,6 +125,8 @@ mod tests {
         assert!(StaticPeers::parse("").unwrap().is_empty());
         let error = StaticPeers::parse("no-such-host.invalid").unwrap_err().to_string();
         assert!(error.contains("ROS_STATIC_PEERS") && error.contains("no-such-host.invalid"), "{error}");
+        let ipv6 = StaticPeers::parse("10.0.0.7;::1").unwrap_err().to_string();
+        assert!(ipv6.contains("\"::1\" has no IPv4 address"), "{ipv6}");
     }
 
     #[test]
