@@ -21,7 +21,7 @@ fn two_hosts(args: &[&str]) -> Command {
     support::with_default_sigint(&mut command)
         .args(args)
         .env("ROVER", support::rover())
-        .env("LINK_EMULATOR", env!("CARGO_BIN_EXE_link_emulator"))
+        .env("LINK_EMULATOR", support::link_emulator())
         .stdin(Stdio::null());
     command
 }

@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod echo_sim;
+pub mod launched;
 pub mod ros2;
 pub mod two_hosts;
 
@@ -153,9 +154,31 @@ pub fn rover() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_rover"))
 }
 
-/// The echo node binary.
+/// The echo node, a test helper (`tests/helpers/echo_node.rs`).
 pub fn echo_node() -> PathBuf {
-    PathBuf::from(env!("CARGO_BIN_EXE_echo_node"))
+    helper("echo_node")
+}
+
+/// The link emulator of `tools/two-hosts`, a test helper (`tests/helpers/link_emulator.rs`).
+pub fn link_emulator() -> PathBuf {
+    helper("link_emulator")
+}
+
+/// The example target `name` of this package's build profile: `cargo test` builds the examples,
+/// `cargo bench` does not, so a missing one is built here.
+fn helper(name: &str) -> PathBuf {
+    let profile_dir = rover().parent().expect("the rover binary sits in a profile folder").to_path_buf();
+    let path = profile_dir.join("examples").join(name);
+    if !path.exists() {
+        let mut build = Command::new(env!("CARGO"));
+        build.args(["build", "--quiet", "--example", name]).current_dir(env!("CARGO_MANIFEST_DIR"));
+        if profile_dir.ends_with("release") {
+            build.arg("--release");
+        }
+        let status = build.status().unwrap_or_else(|e| panic!("cannot run cargo to build {name}: {e}"));
+        assert!(status.success(), "cargo build --example {name} failed");
+    }
+    path
 }
 
 /// Waits until a TCP server accepts connections on `port`.
