@@ -3,6 +3,7 @@
     ros2 launch launch_scripts/rover.launch.py [namespace:=/rover1] [params_file:=FILE]
         [rover:=PATH] [port:=4567] [sim:=true] [seed:=0] [log_level:=debug]
         [respawn:=false] [state_dir:=DIR] [use_sim_time:=true]
+        [groups:='bridge,perception mapping,decision,pickup']
 
 Every node that `rover nodes` lists runs as a launch_ros Node: `rover NODE` named NODE in
 NAMESPACE with the parameter file PARAMS and use_sim_time (the bridge also port, mapping and
@@ -10,7 +11,9 @@ decision state_dir) [--log-level LEVEL]. With use_sim_time:=true every node
 stamps with the simulated time the bridge publishes on /clock. With sim:=true the headless simulator (`rover sim --seed SEED
 --port PORT`) drives the graph; without it the bridge waits for the Unity simulator. The DDS
 domain is the environment's ROS_DOMAIN_ID, the log filter RUST_LOG unless log_level is given.
-A node that dies is started again after RESPAWN_DELAY_S (respawn:=false: it stays dead), and the
+With groups (space-separated, each a comma-separated list of nodes) each group runs in one
+process, `rover container NODE...`, and every other node alone.
+A process that dies is started again after RESPAWN_DELAY_S (respawn:=false: it stays dead), and the
 mapping and decision nodes carry on from their snapshots in state_dir (default: a new temporary
 folder per launch).
 `rover` is not in an ament package index unless the repository was built with colcon, so the
@@ -57,10 +60,14 @@ def colcon_installed_rover():
     return candidate if os.access(candidate, os.X_OK) else None
 
 
-def node_names(rover):
-    """The nodes of the graph in start order, as `rover nodes` lists them."""
-    listed = subprocess.run([rover, 'nodes'], stdin=subprocess.DEVNULL, capture_output=True, text=True, check=True)
-    return listed.stdout.split()
+def process_groups(rover, groups):
+    """The graph's processes, each a list of nodes, as `rover nodes --group GROUP...` lists them:
+    each of the space-separated `groups` together, every other node alone, in start order."""
+    command = [rover, 'nodes'] + ['--group=' + group for group in groups.split()]
+    listed = subprocess.run(command, stdin=subprocess.DEVNULL, capture_output=True, text=True)
+    if listed.returncode != 0:
+        raise RuntimeError('groups:=%r: %s' % (groups, listed.stderr.strip().splitlines()[0]))
+    return [line.split() for line in listed.stdout.splitlines() if line.strip()]
 
 
 def arguments():
@@ -80,15 +87,16 @@ def arguments():
          'and rover lifecycle-manager brings them up in order', on_off),
         ('state_dir', '', 'folder of the mapping and decision snapshots (default: a new temporary one)', None),
         ('use_sim_time', 'false', "stamp every node's messages with the simulated time of /clock", on_off),
+        ('groups', '', 'nodes that share a process, e.g. "bridge,perception mapping,decision,pickup" '
+         '(default: each node alone)', None),
     ]
     return [DeclareLaunchArgument(name, default_value=default, description=description,
                                   **({'choices': choices} if choices else {}))
             for name, default, description, choices in declared]
 
 
-def node_action(name, value, state_dir, respawn):
-    """Node `name` of the graph as a launch_ros Node: the `rover` subcommand of that name, named,
-    namespaced and given its parameters by launch_ros; `value` reads a launch argument."""
+def own_parameters(name, value, state_dir):
+    """The parameters the launcher gives node `name` beside the parameter file."""
     own = {'use_sim_time': value('use_sim_time') == 'true'}
     if value('autostart') == 'false':
         own['autostart'] = False
@@ -96,11 +104,30 @@ def node_action(name, value, state_dir, respawn):
         own['port'] = int(value('port'))
     if name in ('mapping', 'decision'):
         own['state_dir'] = state_dir
+    return own
+
+
+def process_action(group, value, state_dir, respawn):
+    """The process of the nodes `group` as a launch_ros Node: `rover NODE`, named by launch_ros,
+    for one node; `rover container NODE...` for several, each node's own parameters aimed at it
+    (-p NODE:NAME:=VALUE). Namespaced and given the parameter file by launch_ros; `value` reads
+    a launch argument."""
     log_level = ['--log-level', value('log_level')] if value('log_level') else []
-    return Node(executable=value('rover'), arguments=[name], exec_name=name, name=name,
-                namespace=value('namespace'), parameters=[value('params_file'), own],
-                ros_arguments=log_level, output='screen', sigterm_timeout='5', sigkill_timeout='5',
-                respawn=respawn, respawn_delay=RESPAWN_DELAY_S)
+    common = dict(executable=value('rover'), namespace=value('namespace'), output='screen', sigterm_timeout='5',
+                  sigkill_timeout='5', respawn=respawn, respawn_delay=RESPAWN_DELAY_S)
+    if len(group) == 1:
+        name = group[0]
+        return Node(arguments=[name], exec_name=name, name=name, ros_arguments=log_level,
+                    parameters=[value('params_file'), own_parameters(name, value, state_dir)], **common)
+    aimed = [arg for name in group for key, own in own_parameters(name, value, state_dir).items()
+             for arg in ('-p', '%s:%s:=%s' % (name, key, yaml_value(own)))]
+    return Node(arguments=['container'] + group, exec_name='+'.join(group), parameters=[value('params_file')],
+                ros_arguments=aimed + log_level, **common)
+
+
+def yaml_value(value):
+    """A parameter value as -p NAME:=VALUE reads it."""
+    return str(value).lower() if isinstance(value, bool) else str(value)
 
 
 def simulator_command(value):
@@ -109,14 +136,15 @@ def simulator_command(value):
 
 
 def processes(context):
-    """One process per node, plus the lifecycle manager with autostart:=false and the simulator
-    with sim:=true."""
+    """One process per node or group of nodes, plus the lifecycle manager with autostart:=false
+    and the simulator with sim:=true."""
     def value(name):
         return LaunchConfiguration(name).perform(context)
 
     state_dir = value('state_dir') or tempfile.mkdtemp(prefix='rover-state-')
     respawn = value('respawn') == 'true'
-    actions = [node_action(name, value, state_dir, respawn) for name in node_names(value('rover'))]
+    groups = process_groups(value('rover'), value('groups'))
+    actions = [process_action(group, value, state_dir, respawn) for group in groups]
     if value('autostart') == 'false':
         actions.append(Node(executable=value('rover'), arguments=['lifecycle-manager'], exec_name='lifecycle_manager',
                             namespace=value('namespace'), output='screen', sigterm_timeout='5',

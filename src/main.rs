@@ -3,7 +3,7 @@
 use std::process::ExitCode;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
-use rover::processes::nodes::{Node, ROS_ARGS_HELP, node_names, run_together};
+use rover::processes::nodes::{Group, Node, ROS_ARGS_HELP, processes, run_together};
 use rover::tools::bag::{BagArgs, BagCommand};
 use rover_runtime::params::help_table;
 use rover_runtime::{Runtime, Shutdown, logging, split_ros_args};
@@ -33,8 +33,14 @@ enum Command {
         #[arg(required = true, value_name = "NODE")]
         nodes: Vec<Node>,
     },
-    /// Print the name of every node, one a line, in start order (the launchers read this list).
-    Nodes,
+    /// Print the name of every node, one a line, in start order (the launchers read this list);
+    /// with --group, one process a line: its nodes, space-separated.
+    Nodes {
+        /// Run these nodes in one process, e.g. --group bridge,perception; repeatable; every other
+        /// node runs alone.
+        #[arg(long = "group", value_name = "NODE,NODE...")]
+        groups: Vec<Group>,
+    },
     /// Bring the graph's nodes, started with -p autostart:=false, up in start order (configure,
     /// then activate), as Nav2's lifecycle manager does; then bring up any node that comes back
     /// unconfigured (respawned), until Ctrl-C.
@@ -149,8 +155,10 @@ async fn run(
             rover::processes::lifecycle_manager::run(dds(participant, ros_args, shutdown)?).await
         }
         Command::DdsFirewall(args) => rover::tools::dds_firewall::run(&args),
-        Command::Nodes => {
-            node_names().for_each(|name| println!("{name}"));
+        Command::Nodes { groups } => {
+            for process in processes(&groups)? {
+                println!("{}", process.iter().map(|node| node.name()).collect::<Vec<_>>().join(" "));
+            }
             Ok(())
         }
         Command::Replay(args) if args.via_dds => {

@@ -8,16 +8,17 @@
 mod support;
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::Command;
 use std::time::Duration;
 
 use nix::sys::signal::Signal;
 use rover::processes::graph::send_signal;
 use rover::processes::nodes::Node;
-use rover_msgs::msg::{DriveCommand, Telemetry};
-use rover_runtime::ros_args::Remap;
-use rover_runtime::{RosArgs, RosNode, Runtime, Shutdown, topics};
-use support::{Domain, Latest, eventually, rover};
+use support::launched::{Launcher, Watcher, command_line, is_running, launched_processes};
+use support::{Domain, eventually, rover};
+
+/// How long a whole procedural mission of a launched graph may take, wall clock.
+const MISSION_LIMIT: Duration = Duration::from_secs(240);
 
 /// The processes a launcher with the simulator starts: every node, then the simulator.
 fn processes() -> Vec<&'static str> {
@@ -26,96 +27,6 @@ fn processes() -> Vec<&'static str> {
 
 fn launch_scripts() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("launch_scripts")
-}
-
-/// A subscriber in namespace `namespace` of the test's domain.
-struct Watcher {
-    telemetry: Latest<Telemetry>,
-    drive: Latest<DriveCommand>,
-    _node: RosNode,
-    /// Its tasks go before the DDS participant they use.
-    _tokio: tokio::runtime::Runtime,
-    _runtime: Runtime,
-}
-
-impl Watcher {
-    fn start(domain: &Domain, namespace: &str) -> Watcher {
-        let tokio = tokio::runtime::Runtime::new().expect("a tokio runtime");
-        let _entered = tokio.enter();
-        let remap = Remap { node: None, from: "__ns".into(), to: namespace.into() };
-        let ros_args = RosArgs { remaps: vec![remap], ..RosArgs::default() };
-        let runtime = Runtime::on_domain(domain.id, ros_args, Shutdown::new()).expect("the test's DDS participant");
-        let (mut node, _) = runtime.node::<rover_runtime::NoParams>("launch_watcher").expect("create the watcher node");
-        let telemetry = Latest::subscribe(&mut node, &topics::TELEMETRY);
-        let drive = Latest::subscribe(&mut node, &topics::DRIVE_CMD);
-        Watcher { telemetry, drive, _node: node, _runtime: runtime, _tokio: tokio }
-    }
-
-    /// Waits until frames flow and the decision node answers them.
-    fn graph_runs(&self) -> bool {
-        eventually(Duration::from_secs(45), || self.telemetry.all().len() >= 30 && self.drive.all().len() >= 10)
-    }
-}
-
-/// A launcher process whose output goes to a file.
-struct Launcher {
-    child: Child,
-    output: PathBuf,
-}
-
-impl Launcher {
-    /// Starts `command` with SIGINT at its default action (see [`support::with_default_sigint`]).
-    fn start(command: &mut Command, what: &str) -> Launcher {
-        let output = std::env::temp_dir().join(format!("rover-launch-{what}-{}.out", std::process::id()));
-        let file = std::fs::File::create(&output).expect("create the launcher's output file");
-        let stderr = file.try_clone().expect("share the output file");
-        let child = support::with_default_sigint(command)
-            .stdin(Stdio::null())
-            .stdout(file)
-            .stderr(stderr)
-            .spawn()
-            .unwrap_or_else(|e| panic!("start the {what} launcher: {e}"));
-        Launcher { child, output }
-    }
-
-    fn output(&self) -> String {
-        std::fs::read_to_string(&self.output).unwrap_or_default()
-    }
-
-    /// Sends SIGINT and checks that the launcher exits with 0; returns its output.
-    fn interrupt_cleanly(&mut self) -> String {
-        let status = self.interrupt();
-        let output = self.output();
-        assert_eq!(
-            status.and_then(|s| s.code()),
-            Some(0),
-            "rover-graph's exit on SIGINT: {status:?}; output:\n{output}"
-        );
-        output
-    }
-
-    /// Sends SIGINT and waits up to 30 s; returns how the launcher exited, if it did.
-    fn interrupt(&mut self) -> Option<ExitStatus> {
-        send_signal(self.child.id(), Signal::SIGINT);
-        let exited = eventually(Duration::from_secs(30), || self.child.try_wait().ok().flatten().is_some());
-        exited.then(|| self.child.wait().ok()).flatten()
-    }
-}
-
-impl Drop for Launcher {
-    fn drop(&mut self) {
-        if self.child.try_wait().ok().flatten().is_none() {
-            send_signal(self.child.id(), Signal::SIGINT);
-            if !eventually(Duration::from_secs(15), || self.child.try_wait().ok().flatten().is_some()) {
-                let _ = self.child.kill();
-                let _ = self.child.wait();
-            }
-        }
-    }
-}
-
-fn is_running(pid: u32) -> bool {
-    Path::new(&format!("/proc/{pid}")).exists()
 }
 
 /// The `(name, pid, log)` lines `rover-graph: started NAME pid PID log LOG` of the output.
@@ -129,13 +40,6 @@ fn started_processes(output: &str) -> Vec<(String, u32, PathBuf)> {
             (fields[0].to_string(), fields[2].parse().expect("a pid"), PathBuf::from(fields[4]))
         })
         .collect()
-}
-
-/// The command line of a running process, its arguments joined by spaces.
-fn command_line(pid: u32) -> String {
-    std::fs::read(format!("/proc/{pid}/cmdline"))
-        .map(|b| String::from_utf8_lossy(&b).replace('\0', " "))
-        .unwrap_or_default()
 }
 
 /// `rover-graph` on the test's domain with the launcher options `options` (e.g. `--sim 4`).
@@ -289,6 +193,15 @@ fn rover_graph_without_respawn_stops_every_node_when_one_exits() {
 }
 
 #[test]
+fn rover_nodes_with_groups_prints_one_process_a_line() {
+    let output = Command::new(rover()).args(["nodes", "--group", "pickup,bridge", "--group=perception"]).output();
+    let output = output.expect("run rover nodes");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let printed = String::from_utf8_lossy(&output.stdout);
+    assert_eq!(printed.lines().collect::<Vec<_>>(), ["bridge pickup", "perception", "mapping", "decision"]);
+}
+
+#[test]
 fn rover_nodes_prints_every_node_in_start_order_for_the_launchers() {
     let output = Command::new(rover()).arg("nodes").output().expect("run rover nodes");
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
@@ -315,20 +228,6 @@ fn rover_graph_help_names_its_options() {
     ] {
         assert!(help.contains(option), "--help does not mention {option}:\n{help}");
     }
-}
-
-/// The `(name, pid)` of every process `ros2 launch` started: its lines
-/// `[INFO] [NAME-N]: process started with pid [PID]`.
-fn launched_processes(output: &str) -> Vec<(String, u32)> {
-    output
-        .lines()
-        .filter_map(|line| line.strip_prefix("[INFO] ["))
-        .filter_map(|rest| rest.split_once("]: process started with pid ["))
-        .map(|(name, pid)| {
-            let name = name.rsplit_once('-').map_or(name, |(name, _)| name);
-            (name.to_string(), pid.trim_end_matches(']').parse().expect("a pid"))
-        })
-        .collect()
 }
 
 #[test]
@@ -457,13 +356,16 @@ fn assert_launched_by_launch_ros(launched: &[(String, u32)], namespace: &str) {
 }
 
 #[test]
-fn ros2_launch_of_the_xml_launch_file_starts_the_same_graph() {
+fn ros2_launch_of_the_xml_launch_file_runs_the_same_graph_through_a_whole_mission() {
     let Some(domain) = support::ros2_domain_or_skip() else { return };
     let watcher = Watcher::start(&domain, "/xml");
     let rover_arg = format!("rover:={}", rover().display());
     let mut command = ros2_launch_of("rover.launch.xml", &domain, "/xml", "3", &[&rover_arg]);
     let mut launcher = Launcher::start(&mut command, "ros2-launch-xml");
-    assert!(watcher.graph_runs(), "no frames on /xml/rover/telemetry; ros2 launch output:\n{}", launcher.output());
+    let end = watcher.mission_completes(MISSION_LIMIT);
+    let end =
+        end.unwrap_or_else(|e| panic!("the XML-launched mission: {e}; ros2 launch output:\n{}", launcher.output()));
+    eprintln!("rover.launch.xml, seed 3: {end:?}");
     let launched = launched_processes(&launcher.output());
     let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
     assert_eq!(names, processes(), "the XML file's nodes are `rover nodes`:\n{}", launcher.output());
@@ -472,4 +374,39 @@ fn ros2_launch_of_the_xml_launch_file_starts_the_same_graph() {
     for (name, pid) in &launched {
         assert!(!is_running(*pid), "{name} (pid {pid}) still runs after ros2 launch exited");
     }
+}
+
+#[test]
+fn ros2_launch_with_groups_runs_bridge_and_perception_in_one_process_the_rest_in_another_through_a_mission() {
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
+    let watcher = Watcher::start(&domain, "/two_processes");
+    let groups = "groups:=bridge,perception mapping,decision,pickup";
+    let mut command = ros2_launch(&domain, "/two_processes", "4", &[groups]);
+    let mut launcher = Launcher::start(&mut command, "ros2-launch-groups");
+    let end = watcher.mission_completes(MISSION_LIMIT);
+    let end =
+        end.unwrap_or_else(|e| panic!("the two-process mission: {e}; ros2 launch output:\n{}", launcher.output()));
+    eprintln!("rover.launch.py groups, seed 4: {end:?}");
+    let launched = launched_processes(&launcher.output());
+    let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
+    assert_eq!(names, ["bridge+perception", "mapping+decision+pickup", "sim"], "{}", launcher.output());
+    let back = command_line(launched[1].1);
+    let aimed =
+        ["container mapping decision pickup --ros-args", "-p mapping:state_dir:=", "-p decision:use_sim_time:=false"];
+    assert!(aimed.iter().all(|part| back.contains(part)) && back.contains("-r __ns:=/two_processes"), "{back}");
+    assert!(!back.contains("__node:="), "a container keeps its nodes' own names: {back}");
+    assert!(launcher.interrupt().is_some_and(|s| s.code().is_some()), "ros2 launch did not exit on SIGINT");
+    for (name, pid) in &launched {
+        assert!(!is_running(*pid), "{name} (pid {pid}) still runs after ros2 launch exited");
+    }
+}
+
+#[test]
+fn ros2_launch_refuses_a_group_naming_no_node() {
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
+    let output =
+        ros2_launch(&domain, "/bad_group", "0", &["groups:=bridge,perceptoin"]).output().expect("run ros2 launch");
+    let text = format!("{}{}", String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    assert!(!output.status.success(), "{text}");
+    assert!(text.contains("no node 'perceptoin'; expected one of bridge, perception"), "{text}");
 }

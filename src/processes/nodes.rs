@@ -13,8 +13,8 @@ pub const ROS_ARGS_HELP: &str = "ROS arguments (after the subcommand's own optio
   -p autostart:=false leaves the node unconfigured until `ros2 lifecycle set NODE configure` and `activate`.
 Environment: ROS_DOMAIN_ID (default 0) selects the DDS domain; RUST_LOG filters the log.";
 
-/// A node of the graph, run by the `rover` subcommand of its name.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Subcommand)]
+/// A node of the graph, run by the `rover` subcommand of its name; ordered as they start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, clap::Subcommand)]
 pub enum Node {
     /// Run the bridge node: Socket.IO server for the simulator, telemetry and camera topics out,
     /// drive and pickup commands back.
@@ -92,6 +92,48 @@ pub fn node_names() -> impl Iterator<Item = &'static str> {
     Node::ALL.into_iter().map(Node::name)
 }
 
+/// A group of nodes as one argument, `NODE,NODE...` (`rover nodes --group`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Group(pub Vec<Node>);
+
+impl std::str::FromStr for Group {
+    type Err = String;
+
+    fn from_str(list: &str) -> Result<Self, String> {
+        let nodes = list.split(',').map(str::trim).filter(|name| !name.is_empty()).map(str::parse);
+        let nodes = nodes.collect::<Result<Vec<Node>, String>>()?;
+        if nodes.is_empty() {
+            return Err(format!("no node in '{list}'; expected NODE,NODE..."));
+        }
+        Ok(Group(nodes))
+    }
+}
+
+/// The processes of a graph whose `groups` each run in one process: every group's nodes
+/// together, every other node alone, each process in start order of its nodes and the processes
+/// in start order of their first node. Refuses a node in two groups.
+pub fn processes(groups: &[Group]) -> anyhow::Result<Vec<Vec<Node>>> {
+    let grouped: Vec<Node> = groups.iter().flat_map(|group| group.0.iter().copied()).collect();
+    check_each_once(&grouped).map_err(|_| anyhow::anyhow!("{}", in_two_groups(&grouped)))?;
+    let mut processes: Vec<Vec<Node>> = groups.iter().map(|group| sorted(&group.0)).collect();
+    processes.extend(Node::ALL.into_iter().filter(|node| !grouped.contains(node)).map(|node| vec![node]));
+    processes.sort_by_key(|process| process[0]);
+    Ok(processes)
+}
+
+/// `nodes` in start order.
+fn sorted(nodes: &[Node]) -> Vec<Node> {
+    let mut nodes = nodes.to_vec();
+    nodes.sort();
+    nodes
+}
+
+/// The message for a node that is in two groups.
+fn in_two_groups(grouped: &[Node]) -> String {
+    let twice = grouped.iter().enumerate().find(|(i, node)| grouped[..*i].contains(node)).map(|(_, node)| node.name());
+    format!("node '{}' is in two groups: a node runs in one process", twice.unwrap_or_default())
+}
+
 /// Runs `nodes` on one runtime (`rover all`, `rover container`), each at most once; the first
 /// to fail stops the others.
 pub async fn run_together(runtime: &Runtime, nodes: &[Node]) -> anyhow::Result<()> {
@@ -124,6 +166,26 @@ mod tests {
         assert!(check_each_once(&Node::ALL).is_ok());
         let twice = check_each_once(&[Node::Mapping, Node::Decision, Node::Mapping]).unwrap_err().to_string();
         assert!(twice.contains("node 'mapping' given twice"), "{twice}");
+    }
+
+    #[test]
+    fn groups_make_one_process_each_and_every_other_node_runs_alone_in_start_order() {
+        let groups: Vec<Group> = ["pickup,mapping", "perception , bridge"].map(|g| g.parse().unwrap()).to_vec();
+        let grouped = processes(&groups).unwrap();
+        let names: Vec<Vec<&str>> = grouped.iter().map(|p| p.iter().map(|n| n.name()).collect()).collect();
+        assert_eq!(names, [vec!["bridge", "perception"], vec!["mapping", "pickup"], vec!["decision"]]);
+        let alone: Vec<usize> = processes(&[]).unwrap().iter().map(Vec::len).collect();
+        assert_eq!(alone, [1; 5]);
+    }
+
+    #[test]
+    fn a_group_with_a_wrong_name_or_a_node_in_two_groups_is_refused() {
+        let wrong = "bridge,brige".parse::<Group>().unwrap_err();
+        assert_eq!(wrong, "no node 'brige'; expected one of bridge, perception, mapping, decision, pickup");
+        assert!(" , ".parse::<Group>().unwrap_err().contains("expected NODE,NODE"));
+        let groups: Vec<Group> = ["bridge,mapping", "mapping,decision"].map(|g| g.parse().unwrap()).to_vec();
+        let twice = processes(&groups).unwrap_err().to_string();
+        assert_eq!(twice, "node 'mapping' is in two groups: a node runs in one process");
     }
 
     #[test]
