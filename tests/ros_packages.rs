@@ -1,5 +1,5 @@
-//! The `package.xml` files: only packages that install something runnable or usable by ROS tools
-//! are ROS packages. The root `rover` (format 3, `ament_cargo`, built by colcon-ros-cargo) installs
+//! The `package.xml` files and `COLCON_IGNORE` markers: only packages that install something
+//! runnable or usable by ROS tools are ROS packages, and colcon sees only those. The root `rover` (format 3, `ament_cargo`, built by colcon-ros-cargo) installs
 //! the executable and agrees with its Cargo manifest (name, version, licence); `rover_msgs` is the
 //! interface package. The library crates the executable compiles from their paths carry none.
 
@@ -69,5 +69,25 @@ fn library_crates_are_not_ros_packages() {
     assert!(
         libraries_with_package_xml.is_empty(),
         "libraries that install nothing runnable: {libraries_with_package_xml:?}"
+    );
+}
+
+#[test]
+fn colcon_ignores_every_crate_but_the_two_packages() {
+    let metadata = metadata();
+    let packages = metadata["packages"].as_array().expect("packages");
+    let msgs = Path::new(env!("CARGO_MANIFEST_DIR")).join("libs/msgs");
+    let seen_by_colcon: Vec<String> = packages
+        .iter()
+        .filter(|p| p["name"] != "rover")
+        .map(|p| {
+            Path::new(p["manifest_path"].as_str().expect("manifest_path")).parent().expect("a folder").to_path_buf()
+        })
+        .filter(|folder| *folder != msgs && !folder.join("COLCON_IGNORE").exists())
+        .map(|folder| folder.display().to_string())
+        .collect();
+    assert!(
+        seen_by_colcon.is_empty(),
+        "crates colcon-cargo would build on their own (add a COLCON_IGNORE): {seen_by_colcon:?}"
     );
 }
