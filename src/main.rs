@@ -109,7 +109,11 @@ fn main() -> ExitCode {
     };
     // The demo's own log would break its progress line: warnings only, unless asked otherwise.
     let quiet = matches!(cli.command, Command::Demo(_)) && std::env::var_os("RUST_LOG").is_none();
-    logging::init(ros_args.log_level.as_deref().or(quiet.then_some("warn")));
+    let mut logs = ros_args.logs.clone();
+    if quiet && logs.level.is_none() {
+        logs.level = Some("warn");
+    }
+    logging::init(&logs);
     let runtime = match tokio::runtime::Builder::new_multi_thread().enable_all().build() {
         Ok(runtime) => runtime,
         Err(e) => {

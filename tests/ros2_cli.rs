@@ -2,9 +2,12 @@
 //! `ros2 daemon start` first, then the graph in separate processes with the headless simulator
 //! (`launch_scripts/rover-graph --sim 0`), then `ros2 node list`, `topic list -t`, `topic echo
 //! --once` (telemetry, the latched map and static transforms, odom, `/clock`), `topic hz`, `topic info -v`,
-//! `param list/get/set`, `interface show` and `lifecycle nodes/get/list/set` (the decision node
+//! `param list/get/set/dump/load`, `node info`, `service list`, `doctor --report` (every QoS pair
+//! compatible), `interface show` and `lifecycle nodes/get/list/set` (the decision node
 //! deactivated, so that the rover stops, and activated again), each checked on its output. The graph runs with
-//! `use_sim_time:=true`, so its stamps must be the simulated time of `/clock`, not the wall clock. The CLI comes from the wheels of
+//! `use_sim_time:=true`, so its stamps must be the simulated time of `/clock`, not the wall clock.
+//! A node's WARN reaches `ros2 topic echo /rosout`, and the logging ROS arguments
+//! (`--log-level NODE:=LEVEL`, `--disable-rosout-logs`, `--disable-stdout-logs`) are obeyed. The CLI comes from the wheels of
 //! `../shared/ros2-python` that `tools/setup-ros` installs into `.venv`.
 
 mod support;
@@ -211,7 +214,7 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
 }
 
 /// What the everyday commands printed: `node info`, `service list`, `param dump`, `param load`
-/// of the dump with one value changed, `param get` after it, `topic echo /rosout`.
+/// of the dump with one value changed, `param get` after it, `topic echo /rosout`, `doctor --report`.
 struct EverydayOutputs {
     node_info: String,
     services: String,
@@ -219,6 +222,7 @@ struct EverydayOutputs {
     load: String,
     loaded: String,
     rosout: String,
+    doctor: String,
 }
 
 fn everyday_commands(domain: &Domain) -> EverydayOutputs {
@@ -235,7 +239,8 @@ fn everyday_commands(domain: &Domain) -> EverydayOutputs {
     let loaded = ros2_ok(domain, &["param", "get", "/pickup", "retry_s"]);
     let _ = std::fs::remove_file(&file);
     let rosout = ros2_ok(domain, &["topic", "echo", "--once", "/rosout"]);
-    EverydayOutputs { node_info, services, dump, load, loaded, rosout }
+    let doctor = ros2_ok(domain, &["doctor", "--report"]);
+    EverydayOutputs { node_info, services, dump, load, loaded, rosout, doctor }
 }
 
 fn check_everyday_commands(outputs: &EverydayOutputs) {
@@ -257,6 +262,14 @@ fn check_everyday_commands(outputs: &EverydayOutputs) {
     assert_contains(&outputs.load, &["Set parameter retry_s successful"], "ros2 param load");
     assert_contains(&outputs.loaded, &["Double value is: 3.5"], "ros2 param get after the load");
     assert_contains(&outputs.rosout, &["name: ", "msg: ", "level: "], "ros2 topic echo /rosout");
+    let report = ["RMW MIDDLEWARE", "QOS COMPATIBILITY LIST", "TOPIC LIST", "topic               : /rover/telemetry"];
+    assert_contains(&outputs.doctor, &report, "ros2 doctor --report");
+    let pairs = outputs.doctor.lines().filter(|line| line.starts_with("compatibility status")).collect::<Vec<_>>();
+    assert!(
+        !pairs.is_empty() && pairs.iter().all(|line| line.ends_with(": OK")),
+        "ros2 doctor --report: every publisher/subscriber pair's QoS must be compatible:\n{}",
+        outputs.doctor
+    );
 }
 
 /// What `ros2 lifecycle` printed as it took the decision node down to inactive and back up.
@@ -516,4 +529,43 @@ fn two_containers_make_the_graph_and_each_takes_its_own_nodes_away() {
     assert!(back_gone, "after the second container stopped:\n{nodes}");
     let status = front.interrupt(STOP_TIMEOUT);
     assert!(status.is_some_and(|s| s.success()), "the container did not stop cleanly:\n{}", front.log_text());
+}
+
+/// A telemetry frame with a NaN speed, which the pickup and perception nodes reject with a WARN.
+const NAN_TELEMETRY: &str = "{frame: 1, speed_mps: .nan}";
+
+#[test]
+fn a_nodes_warning_reaches_rosout_and_the_log_arguments_choose_where_each_nodes_log_goes() {
+    let Some(domain) = support::ros2_domain_or_skip() else { return };
+    let _daemon = Daemon::start(&domain);
+    let pickup_args = ["pickup", "--ros-args", "--log-level", "pickup:=WARN"];
+    let mut pickup = start_process(&rover(), &pickup_args, &domain, "logs-pickup");
+    let perception_args = ["perception", "--ros-args", "--disable-rosout-logs", "--disable-stdout-logs"];
+    let mut perception = start_process(&rover(), &perception_args, &domain, "logs-perception");
+    let listed = eventually(Duration::from_secs(30), || {
+        let nodes = ros2(&domain, Duration::from_secs(20), &["node", "list"]).1;
+        nodes.contains("/pickup") && nodes.contains("/perception")
+    });
+    assert!(listed, "the pickup and perception nodes are not listed");
+
+    let echo = ["topic", "echo", "/rosout", "rcl_interfaces/msg/Log", "--filter", "m.level == 30"];
+    let warnings = std::thread::scope(|scope| {
+        let domain = &domain;
+        let echoed = scope.spawn(|| ros2(domain, Duration::from_secs(15), &echo).1);
+        std::thread::sleep(Duration::from_secs(3));
+        let publish = ["topic", "pub", "-w", "2", "--times", "3", "/rover/telemetry", "rover_msgs/msg/Telemetry"];
+        ros2_ok(domain, &[&publish[..], &[NAN_TELEMETRY]].concat());
+        echoed.join().expect("the echo thread")
+    });
+    let rejected = "rejected a rover/telemetry message: field `speed_mps` = NaN";
+    assert_contains(&warnings, &["level: 30", "name: pickup", rejected], "WARN on /rosout");
+    assert!(!warnings.contains("name: perception"), "perception's /rosout logs are disabled:\n{warnings}");
+
+    for process in [&mut pickup, &mut perception] {
+        assert!(process.interrupt(STOP_TIMEOUT).is_some_and(|s| s.success()), "{} on SIGINT", process.name);
+    }
+    let pickup_log = pickup.log_text();
+    assert!(pickup_log.contains(rejected) && !pickup_log.contains(" INFO node{"), "pickup at WARN:\n{pickup_log}");
+    let perception_log = perception.log_text();
+    assert!(!perception_log.contains("perception"), "perception's console logs are disabled:\n{perception_log}");
 }

@@ -8,7 +8,8 @@ use rover_runtime::params::{NodeParams, ParamSpec};
 
 /// The help on ROS arguments that the node subcommands print.
 pub const ROS_ARGS_HELP: &str = "ROS arguments (after the subcommand's own options):
-  --ros-args [-r FROM:=TO]... [-p NAME:=VALUE]... [--params-file FILE]... [--log-level LEVEL] [--]
+  --ros-args [-r FROM:=TO]... [-p NAME:=VALUE]... [--params-file FILE]... [--log-level [NODE:=]LEVEL]...
+             [--disable-rosout-logs] [--disable-stdout-logs] [--]
   -r __ns:=/NAMESPACE and -r __node:=NAME rename a node; prefix a rule with NODE: to aim it at one node.
   -p autostart:=false leaves the node unconfigured until `ros2 lifecycle set NODE configure` and `activate`.
 Environment: ROS_DOMAIN_ID (default 0) selects the DDS domain; RUST_LOG filters the log.";

@@ -17,7 +17,7 @@ fn main() -> anyhow::Result<()> {
         );
         return Ok(());
     }
-    logging::init(ros_args.log_level.as_deref());
+    logging::init(&ros_args.logs);
     tokio::runtime::Runtime::new()?.block_on(async move {
         let runtime = Runtime::new(ros_args, Shutdown::on_signals())?;
         let (mut node, _params) = runtime.node::<NoParams>("echo")?;

@@ -81,7 +81,7 @@ impl Args {
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    logging::init(None);
+    logging::init(&rover_runtime::ros_args::LogArgs::default());
     let impairment = args.impairment()?;
     let a = open_tun_in(&args.netns_a, &args.device)?;
     let b = open_tun_in(&args.netns_b, &args.device)?;

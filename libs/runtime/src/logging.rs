@@ -1,6 +1,7 @@
 //! Logging through `tracing`: console output filtered by `RUST_LOG` (or `--log-level`) and capped
 //! in size, and every event of the project's own crates also published on `/rosout` by the node it
-//! belongs to.
+//! belongs to. `--log-level NODE:=LEVEL` sets one node's level, up or down; the console and
+//! `/rosout` can each be turned off ([`LogArgs`]).
 
 use std::io::Write;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -15,6 +16,7 @@ use tracing_subscriber::registry::LookupSpan;
 use tracing_subscriber::util::SubscriberInitExt;
 use tracing_subscriber::{EnvFilter, Layer};
 
+use crate::ros_args::LogArgs;
 use crate::sync::lock;
 
 /// Directives that mute the DDS and Socket.IO stacks' chatter; `RUST_LOG` or `--log-level` come after
@@ -67,6 +69,9 @@ impl<W: Write> Write for Capped<'_, W> {
     }
 }
 
+/// The prefix of the project's own crates' log targets: their events are the nodes' ROS log.
+const OWN_TARGETS: &str = "rover";
+
 /// Name of the span that tags events with the node they belong to (field `name`).
 pub const NODE_SPAN: &str = "node";
 
@@ -76,21 +81,55 @@ fn handles() -> &'static Mutex<Vec<(String, NodeLoggingHandle)>> {
     ROSOUT_HANDLES.get_or_init(|| Mutex::new(Vec::new()))
 }
 
-/// Installs the global subscriber: level `info` unless `RUST_LOG` says otherwise, and `log_level`
-/// (from `--ros-args --log-level`) overrides both. Calling it again is harmless.
-pub fn init(log_level: Option<&str>) {
-    let requested = log_level.map(str::to_string).or_else(|| std::env::var("RUST_LOG").ok()).unwrap_or_default();
-    let requested = if requested.trim().is_empty() { "info".to_string() } else { requested };
-    let filter = EnvFilter::try_new(format!("info,{QUIET_DEPENDENCIES},{requested}")).unwrap_or_else(|e| {
-        eprintln!("ignoring the log filter {requested:?}: {e}");
+/// Installs the global subscriber: level `info` unless `RUST_LOG` says otherwise, `--log-level`
+/// overrides both, and `--log-level NODE:=LEVEL` sets one node's events. Calling it again is harmless.
+pub fn init(logs: &LogArgs) {
+    let rust_log = std::env::var("RUST_LOG").ok();
+    let directives = filter_directives(logs, rust_log.as_deref());
+    let filter = EnvFilter::try_new(&directives).unwrap_or_else(|e| {
+        eprintln!("ignoring the log filter {rust_log:?}: {e}");
         EnvFilter::new(format!("info,{QUIET_DEPENDENCIES}"))
     });
     let ansi = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let console = logs
+        .console
+        .then(|| tracing_subscriber::fmt::layer().with_writer(capped_stderr).with_target(false).with_ansi(ansi));
     let _ = tracing_subscriber::registry()
-        .with(tracing_subscriber::fmt::layer().with_writer(capped_stderr).with_target(false).with_ansi(ansi))
-        .with(RosoutLayer)
+        .with(NodeSpans::new(logs, rust_log.as_deref()))
+        .with(console)
+        .with(logs.rosout.then_some(RosoutLayer))
         .with(filter)
         .try_init();
+}
+
+/// The `EnvFilter` directives of `logs` with `RUST_LOG` set to `rust_log`: the dependencies
+/// quietened, then the level asked for (`--log-level`, else `RUST_LOG`, else info), then each
+/// node's level for the project's events in that node's span (the DDS stack keeps the process's).
+fn filter_directives(logs: &LogArgs, rust_log: Option<&str>) -> String {
+    let requested = logs.level.map(str::to_string).or_else(|| rust_log.map(str::to_string)).unwrap_or_default();
+    let requested = if requested.trim().is_empty() { "info".to_string() } else { requested };
+    let mut directives = format!("info,{QUIET_DEPENDENCIES},{requested}");
+    for (logger, level) in &logs.node_levels {
+        directives.push_str(&format!(",{OWN_TARGETS}[{NODE_SPAN}{{name={}}}]={level}", node_name_pattern(logger)));
+    }
+    directives
+}
+
+/// The pattern of the fully qualified node names a ROS logger name stands for: `rover1.bridge`
+/// (or `/rover1/bridge`) is that node, a bare `bridge` the node of that name in any namespace.
+fn node_name_pattern(logger: &str) -> String {
+    let name = logger.trim_start_matches('/').replace('.', "/");
+    if name.contains('/') { format!("/{name}") } else { format!(".*/{name}") }
+}
+
+/// Whether the fully qualified node name `node` is the one a ROS logger name means.
+fn logger_names(logger: &str, node: &str) -> bool {
+    let name = logger.trim_start_matches('/').replace('.', "/");
+    if name.contains('/') {
+        node.trim_start_matches('/') == name
+    } else {
+        node.rsplit('/').next() == Some(name.as_str())
+    }
 }
 
 fn capped_stderr() -> Capped<'static, std::io::Stderr> {
@@ -107,11 +146,27 @@ pub(crate) fn unregister_rosout(node: &str) {
     lock(handles()).retain(|(name, _)| name != node);
 }
 
+/// The fully qualified name of the node a span belongs to, kept in the span's extensions.
 struct NodeName(String);
 
-struct RosoutLayer;
+/// Tags each node span with its node's name, and holds to `--log-level NODE:=LEVEL` the events
+/// of a node it names: the project's at that level, up or down, the DDS stack's at the process's
+/// (the filter lets in all that a louder level may need).
+struct NodeSpans {
+    node_levels: Vec<(String, &'static str)>,
+    process: EnvFilter,
+}
 
-impl<S: Subscriber + for<'a> LookupSpan<'a>> Layer<S> for RosoutLayer {
+impl NodeSpans {
+    fn new(logs: &LogArgs, rust_log: Option<&str>) -> Self {
+        let process_only = LogArgs { node_levels: Vec::new(), ..logs.clone() };
+        let process = EnvFilter::try_new(filter_directives(&process_only, rust_log))
+            .unwrap_or_else(|_| EnvFilter::new(format!("info,{QUIET_DEPENDENCIES}")));
+        NodeSpans { node_levels: logs.node_levels.clone(), process }
+    }
+}
+
+impl<S: Subscriber + for<'a> LookupSpan<'a>> Layer<S> for NodeSpans {
     fn on_new_span(&self, attrs: &tracing::span::Attributes<'_>, id: &tracing::span::Id, ctx: Context<'_, S>) {
         if attrs.metadata().name() != NODE_SPAN {
             return;
@@ -123,14 +178,39 @@ impl<S: Subscriber + for<'a> LookupSpan<'a>> Layer<S> for RosoutLayer {
         }
     }
 
+    fn event_enabled(&self, event: &Event<'_>, ctx: Context<'_, S>) -> bool {
+        if self.node_levels.is_empty() {
+            return true;
+        }
+        let Some(node) = node_of(event, &ctx) else { return true };
+        let Some((_, level)) = self.node_levels.iter().rev().find(|(logger, _)| logger_names(logger, &node)) else {
+            return true;
+        };
+        let metadata = event.metadata();
+        if metadata.target().starts_with(OWN_TARGETS) {
+            level.parse::<tracing::Level>().is_ok_and(|max| *metadata.level() <= max)
+        } else {
+            Layer::<S>::enabled(&self.process, metadata, ctx)
+        }
+    }
+}
+
+/// The fully qualified name of the node whose span `event` happened in, if any.
+fn node_of<S: Subscriber + for<'a> LookupSpan<'a>>(event: &Event<'_>, ctx: &Context<'_, S>) -> Option<String> {
+    ctx.event_scope(event)
+        .and_then(|scope| scope.from_root().find_map(|span| span.extensions().get::<NodeName>().map(|n| n.0.clone())))
+}
+
+/// Publishes the project's events on `/rosout`, each by the node it belongs to.
+struct RosoutLayer;
+
+impl<S: Subscriber + for<'a> LookupSpan<'a>> Layer<S> for RosoutLayer {
     fn on_event(&self, event: &Event<'_>, ctx: Context<'_, S>) {
         let metadata = event.metadata();
-        if !metadata.target().starts_with("rover") {
+        if !metadata.target().starts_with(OWN_TARGETS) {
             return;
         }
-        let node = ctx.event_scope(event).and_then(|scope| {
-            scope.from_root().find_map(|span| span.extensions().get::<NodeName>().map(|n| n.0.clone()))
-        });
+        let node = node_of(event, &ctx);
         let handles = lock(handles());
         let handle = match node {
             Some(node) => handles.iter().find(|(name, _)| *name == node),
@@ -197,7 +277,86 @@ impl Visit for MessageVisitor {
 
 #[cfg(test)]
 mod tests {
+    use std::sync::Arc;
+
     use super::*;
+
+    /// The messages of the events that pass a subscriber set up as [`init`] does for `logs`,
+    /// each emitted at `level` in the span of node `node`.
+    fn passed(logs: &LogArgs, events: &[(&str, tracing::Level)]) -> Vec<String> {
+        passed_of(logs, || {
+            for (node, level) in events {
+                let _span = tracing::info_span!("node", name = %node).entered();
+                match *level {
+                    tracing::Level::DEBUG => tracing::debug!("{node} debug"),
+                    tracing::Level::INFO => tracing::info!("{node} info"),
+                    _ => tracing::warn!("{node} warn"),
+                }
+            }
+        })
+    }
+
+    /// The messages of the events `emit` makes that pass a subscriber set up as [`init`] does.
+    fn passed_of(logs: &LogArgs, emit: impl FnOnce()) -> Vec<String> {
+        let seen = Arc::new(Mutex::new(Vec::new()));
+        let subscriber = tracing_subscriber::registry()
+            .with(NodeSpans::new(logs, None))
+            .with(Recorder(seen.clone()))
+            .with(EnvFilter::new(filter_directives(logs, None)));
+        tracing::subscriber::with_default(subscriber, emit);
+        lock(&seen).clone()
+    }
+
+    /// Records the message of every event it sees.
+    struct Recorder(Arc<Mutex<Vec<String>>>);
+
+    impl<S: Subscriber> Layer<S> for Recorder {
+        fn on_event(&self, event: &Event<'_>, _: Context<'_, S>) {
+            let mut visitor = MessageVisitor::default();
+            event.record(&mut visitor);
+            lock(&self.0).push(visitor.text());
+        }
+    }
+
+    #[test]
+    fn a_node_log_level_raises_or_lowers_that_node_only_in_any_namespace_or_one() {
+        use tracing::Level;
+        let logs = LogArgs {
+            node_levels: vec![("bridge".into(), "debug"), ("rover1.mapping".into(), "warn")],
+            ..LogArgs::default()
+        };
+        let events = [
+            ("/rover1/bridge", Level::DEBUG),
+            ("/perception", Level::DEBUG),
+            ("/perception", Level::INFO),
+            ("/rover1/mapping", Level::INFO),
+            ("/rover1/mapping", Level::WARN),
+            ("/rover2/mapping", Level::INFO),
+        ];
+        let passed = passed(&logs, &events);
+        let expected = ["/rover1/bridge debug", "/perception info", "/rover1/mapping warn", "/rover2/mapping info"];
+        assert_eq!(passed, expected);
+    }
+
+    #[test]
+    fn a_louder_node_level_leaves_the_dds_stack_at_the_process_level() {
+        let logs = LogArgs { node_levels: vec![("pickup".into(), "debug")], ..LogArgs::default() };
+        let passed = passed_of(&logs, || {
+            let _span = tracing::info_span!("node", name = "/pickup").entered();
+            tracing::debug!(target: "ros2_client::node", "dds debug");
+            tracing::warn!(target: "ros2_client::node", "dds warn");
+            tracing::debug!("own debug");
+        });
+        assert_eq!(passed, ["dds warn", "own debug"]);
+    }
+
+    #[test]
+    fn the_process_log_level_comes_from_log_level_then_rust_log_then_info() {
+        let logs = LogArgs { level: Some("warn"), ..LogArgs::default() };
+        assert!(filter_directives(&logs, Some("debug")).ends_with(",warn"));
+        assert!(filter_directives(&LogArgs::default(), Some("rover_bridge=debug")).ends_with(",rover_bridge=debug"));
+        assert!(filter_directives(&LogArgs::default(), Some(" ")).ends_with(",info"));
+    }
 
     #[test]
     fn the_console_log_stops_with_a_notice_once_its_budget_is_spent() {

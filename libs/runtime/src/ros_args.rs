@@ -1,4 +1,6 @@
-//! The ROS 2 command-line arguments: `--ros-args -r from:=to -p name:=value --params-file FILE`.
+//! The ROS 2 command-line arguments: `--ros-args -r from:=to -p name:=value --params-file FILE`,
+//! and the logging ones: `--log-level [LOGGER:=]LEVEL`, `--disable-rosout-logs`,
+//! `--disable-stdout-logs`, `--disable-external-lib-logs` (and their `--enable-` forms).
 //!
 //! Everything between `--ros-args` and a lone `--` (or the end) belongs to ROS; the rest is left for
 //! the program's own parser. A remap or parameter may be restricted to one node with a `node:` prefix,
@@ -15,8 +17,14 @@ pub enum RosArgsError {
     /// A remap or parameter is not of the form `name:=value`.
     #[error("`{0}` is not of the form NAME:=VALUE")]
     NotAnAssignment(String),
-    /// An argument inside `--ros-args` that ROS does not know.
-    #[error("unknown ROS argument `{0}` (expected -r/--remap, -p/--param, --params-file, --log-level or --)")]
+    /// A log level that is not one of ROS's.
+    #[error("`--log-level {0}`: expected debug, info, warn, error or fatal, or LOGGER:=LEVEL (e.g. bridge:=debug)")]
+    LogLevel(String),
+    /// An argument inside `--ros-args` that ROS does not know, or that means nothing here.
+    #[error(
+        "unknown ROS argument `{0}` (expected -r/--remap, -p/--param, --params-file, --log-level, \
+         --disable-rosout-logs, --disable-stdout-logs, --disable-external-lib-logs or --)"
+    )]
     Unknown(String),
 }
 
@@ -51,8 +59,28 @@ pub struct RosArgs {
     pub params: Vec<ParamOverride>,
     /// Parameter YAML files in command-line order (later wins).
     pub params_files: Vec<PathBuf>,
-    /// `--log-level` value, if given.
-    pub log_level: Option<String>,
+    /// The logging arguments.
+    pub logs: LogArgs,
+}
+
+/// What `--ros-args` say about the logs of the process.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogArgs {
+    /// `--log-level LEVEL`: the level of every log, as `tracing` names it.
+    pub level: Option<&'static str>,
+    /// `--log-level LOGGER:=LEVEL`, in order: the level of one node's log. LOGGER is the node's
+    /// ROS logger name, its name (`bridge`, in any namespace) or namespace and name (`rover1.bridge`).
+    pub node_levels: Vec<(String, &'static str)>,
+    /// Whether nodes publish their log on `/rosout` (`--disable-rosout-logs`).
+    pub rosout: bool,
+    /// Whether the process writes its log to the console, stderr (`--disable-stdout-logs`).
+    pub console: bool,
+}
+
+impl Default for LogArgs {
+    fn default() -> Self {
+        LogArgs { level: None, node_levels: Vec::new(), rosout: true, console: true }
+    }
 }
 
 /// Splits `argv` into the program's own arguments and the parsed ROS arguments.
@@ -82,8 +110,13 @@ pub fn split_ros_args(argv: Vec<String>) -> Result<(Vec<String>, RosArgs), RosAr
                     ros.params_files.push(PathBuf::from(file));
                 }
                 "--log-level" => {
-                    ros.log_level = Some(args.next().ok_or_else(|| RosArgsError::MissingValue(arg.clone()))?);
+                    let value = args.next().ok_or_else(|| RosArgsError::MissingValue(arg.clone()))?;
+                    ros.logs.set_level(&value)?;
                 }
+                "--disable-rosout-logs" | "--enable-rosout-logs" => ros.logs.rosout = arg.starts_with("--enable"),
+                "--disable-stdout-logs" | "--enable-stdout-logs" => ros.logs.console = arg.starts_with("--enable"),
+                // The external library is rcl's log file; no node here writes one.
+                "--disable-external-lib-logs" | "--enable-external-lib-logs" => {}
                 other if other.contains(":=") => {
                     let (node, from, to) = parse_assignment("-r", Some(other.to_string()))?;
                     ros.remaps.push(Remap { node, from, to });
@@ -93,6 +126,35 @@ pub fn split_ros_args(argv: Vec<String>) -> Result<(Vec<String>, RosArgs), RosAr
         }
     }
     Ok((own, ros))
+}
+
+impl LogArgs {
+    /// Applies one `--log-level` value: `LEVEL` or `LOGGER:=LEVEL`.
+    fn set_level(&mut self, value: &str) -> Result<(), RosArgsError> {
+        let bad = || RosArgsError::LogLevel(value.to_string());
+        match value.split_once(":=") {
+            None => self.level = Some(tracing_level(value).ok_or_else(bad)?),
+            Some((logger, level)) => {
+                let ros_name = |c: char| c.is_ascii_alphanumeric() || c == '_' || c == '.' || c == '/';
+                if logger.is_empty() || !logger.chars().all(ros_name) {
+                    return Err(bad());
+                }
+                self.node_levels.push((logger.to_string(), tracing_level(level).ok_or_else(bad)?));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The `tracing` level of a ROS log level, in any case; ROS's `fatal` is `tracing`'s `error`.
+fn tracing_level(ros_level: &str) -> Option<&'static str> {
+    match ros_level.to_ascii_lowercase().as_str() {
+        "debug" => Some("debug"),
+        "info" => Some("info"),
+        "warn" | "warning" => Some("warn"),
+        "error" | "fatal" => Some("error"),
+        _ => None,
+    }
 }
 
 fn parse_assignment(option: &str, value: Option<String>) -> Result<(Option<String>, String, String), RosArgsError> {
@@ -192,6 +254,39 @@ pub(crate) mod tests {
         );
     }
 
+    #[test]
+    fn log_levels_are_read_as_ros_writes_them_for_the_process_or_one_node() {
+        let argv = [
+            "x",
+            "--ros-args",
+            "--log-level",
+            "WARN",
+            "--log-level",
+            "bridge:=Debug",
+            "--log-level",
+            "rover1.mapping:=fatal",
+        ];
+        let (_, ros) = split_ros_args(strings(&argv)).unwrap();
+        assert_eq!(ros.logs.level, Some("warn"));
+        assert_eq!(ros.logs.node_levels, [("bridge".to_string(), "debug"), ("rover1.mapping".to_string(), "error")]);
+        for bad in ["loud", "bridge:=loud", ":=debug", "a b:=debug"] {
+            let error = split_ros_args(strings(&["x", "--ros-args", "--log-level", bad])).unwrap_err();
+            assert_eq!(error, RosArgsError::LogLevel(bad.into()));
+            assert!(error.to_string().contains("expected debug, info, warn, error or fatal"), "{error}");
+        }
+    }
+
+    #[test]
+    fn rosout_and_console_logs_can_be_turned_off_and_on_again() {
+        let (_, ros) =
+            split_ros_args(strings(&["x", "--ros-args", "--disable-rosout-logs", "--disable-stdout-logs"])).unwrap();
+        assert_eq!((ros.logs.rosout, ros.logs.console), (false, false));
+        let argv = ["x", "--ros-args", "--disable-rosout-logs", "--enable-rosout-logs", "--disable-external-lib-logs"];
+        let (_, ros) = split_ros_args(strings(&argv)).unwrap();
+        assert_eq!((ros.logs.rosout, ros.logs.console), (true, true));
+        assert_eq!(split_ros_args(strings(&["x"])).unwrap().1.logs, LogArgs::default());
+    }
+
     /// Fuzz targets: any argument vector splits into own and ROS arguments or gives an error,
     /// never a panic; own arguments keep their order and no parsed rule has an empty name.
     mod fuzz {
@@ -201,7 +296,18 @@ pub(crate) mod tests {
 
         /// An argument: an option the parser knows, an assignment, or any text.
         fn argument() -> impl Strategy<Value = String> {
-            let options = vec!["--ros-args", "--", "-r", "--remap", "-p", "--param", "--params-file", "--log-level"];
+            let options = vec![
+                "--ros-args",
+                "--",
+                "-r",
+                "--remap",
+                "-p",
+                "--param",
+                "--params-file",
+                "--log-level",
+                "--disable-rosout-logs",
+                "--disable-stdout-logs",
+            ];
             prop_oneof![
                 3 => proptest::sample::select(options).prop_map(String::from),
                 3 => "[a-z/~:=_]{0,12}",
