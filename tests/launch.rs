@@ -387,6 +387,15 @@ fn ros2_launch_with_groups_runs_bridge_and_perception_in_one_process_the_rest_in
     let end =
         end.unwrap_or_else(|e| panic!("the two-process mission: {e}; ros2 launch output:\n{}", launcher.output()));
     eprintln!("rover.launch.py groups, seed 4: {end:?}");
+    // The latched sample markers, decoded by rclpy in the ros2 command line: one sphere per sample
+    // in the last message. RustDDS 0.15.1 hands a late joiner every sample its writer kept while
+    // no reader acknowledged them, not only the last, so the echo runs a while and the last counts.
+    let topic = "/two_processes/rover/sample_markers";
+    let echo = ["topic", "echo", topic, "visualization_msgs/msg/MarkerArray"];
+    let markers = support::ros2::ros2(&domain, Duration::from_secs(8), &echo).1;
+    let last = markers.rsplit("\n---").find(|message| message.contains("markers:")).unwrap_or_default();
+    let spheres = last.matches("ns: collected").count();
+    assert_eq!(spheres, end.samples_collected as usize, "collected samples as markers, last message:\n{last}");
     let launched = launched_processes(&launcher.output());
     let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
     assert_eq!(names, ["bridge+perception", "mapping+decision+pickup", "sim"], "{}", launcher.output());

@@ -41,6 +41,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rover_msgs.msg import DecisionState, DriveCommand, MapStats, PickupRequest, Telemetry, TerrainScan
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from tf2_msgs.msg import TFMessage
+from visualization_msgs.msg import Marker, MarkerArray
 
 WIDTH, HEIGHT = 320, 160
 MAP_SIDE = 200
@@ -86,6 +87,7 @@ TOPICS = [
     GraphTopic("map/image", Image, publisher="mapping", subscriber="bridge"),
     GraphTopic("rover/map_stats", MapStats, publisher="mapping"),
     GraphTopic("rover/rocks", PoseArray, publisher="mapping", subscriber="decision"),
+    GraphTopic("rover/sample_markers", MarkerArray, publisher="mapping", latched=True),
     GraphTopic("rover/drive_cmd", DriveCommand, publisher="decision", subscriber="bridge", per_frame=True),
     GraphTopic("rover/pickup", PickupRequest, publisher="pickup", subscriber="bridge", timed=False),
     GraphTopic("rover/mode", DecisionState, publisher="decision"),
@@ -153,6 +155,7 @@ class Probe:
         self.telemetry = {}
         self.drive = {}
         self.maps = []
+        self.most_spheres = 0
         self.last_diagnostics = {}
         self.checkers = {
             "/camera/image_raw/compressed": self.check_compressed,
@@ -168,6 +171,7 @@ class Probe:
             "/map/image": lambda m: rgb8_problems(m),
             "/rover/map_stats": self.check_map_stats,
             "/rover/rocks": self.check_rocks,
+            "/rover/sample_markers": self.check_sample_markers,
             "/rover/drive_cmd": self.check_drive,
             "/rover/pickup": lambda m: header_problems(m.header, "base_link"),
             "/rover/mode": self.check_mode,
@@ -329,6 +333,21 @@ class Probe:
             p = pose.position
             if not (finite(p.x, p.y) and 0 <= p.x <= MAP_SIDE and 0 <= p.y <= MAP_SIDE):
                 problems.append(f"rock at ({p.x}, {p.y})")
+        return problems
+
+    def check_sample_markers(self, msg):
+        """A DELETEALL first, then a sphere in the map per located rock or collected sample."""
+        if not msg.markers or msg.markers[0].action != Marker.DELETEALL:
+            return ["the first marker is not a DELETEALL"]
+        problems = []
+        self.most_spheres = max(self.most_spheres, len(msg.markers) - 1)
+        for marker in msg.markers[1:]:
+            problems += header_problems(marker.header, "map")
+            p = marker.pose.position
+            if marker.ns not in ("located", "collected") or marker.type != Marker.SPHERE or marker.action != Marker.ADD:
+                problems.append(f"marker {marker.ns!r} {marker.id}: type {marker.type}, action {marker.action}")
+            elif not (finite(p.x, p.y) and 0 <= p.x <= MAP_SIDE and 0 <= p.y <= MAP_SIDE):
+                problems.append(f"marker {marker.ns!r} {marker.id} at ({p.x}, {p.y})")
         return problems
 
     def check_drive(self, msg):
@@ -695,7 +714,8 @@ def content_results(probe, report):
         count = probe.counts[name]
         problems = probe.problems[name]
         received = count > 0 or not topic.timed
-        report.record(f"content {name}", received and not problems, "; ".join(problems) or f"{count} messages")
+        detail = f"{count} messages" + (f", at most {probe.most_spheres} spheres" if name == "/rover/sample_markers" else "")
+        report.record(f"content {name}", received and not problems, "; ".join(problems) or detail)
     report.record(
         "content jpeg decoding",
         probe.jpegs_decoded > 0 and len(probe.raw_compared) > 0 and probe.tf_matched > 0,
