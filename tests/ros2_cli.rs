@@ -213,11 +213,14 @@ fn the_ros2_command_line_started_before_the_graph_sees_reads_and_configures_it()
     eprintln!("ros2 command line test: {:.1} s", started.elapsed().as_secs_f64());
 }
 
-/// What the everyday commands printed: `node info`, `service list`, `param dump`, `param load`
-/// of the dump with one value changed, `param get` after it, `topic echo /rosout`, `doctor --report`.
+/// What the everyday commands printed: `node info` of each node, `service list -t`, `param dump`,
+/// `param load` of the dump with one value changed, `param get` after it, `topic echo /rosout`,
+/// `doctor --report`; and the dumps of nodes started with `--params-file` of a dump, beside the
+/// originals'.
 struct EverydayOutputs {
-    node_info: String,
+    node_info: Vec<(&'static str, String)>,
     services: String,
+    reproduced: Vec<(String, String)>,
     dump: String,
     load: String,
     loaded: String,
@@ -226,8 +229,11 @@ struct EverydayOutputs {
 }
 
 fn everyday_commands(domain: &Domain) -> EverydayOutputs {
-    let node_info = ros2_ok(domain, &["node", "info", "/mapping"]);
-    let services = ros2_ok(domain, &["service", "list"]);
+    let node_info = rover::processes::nodes::node_names()
+        .map(|node| (node, ros2_ok(domain, &["node", "info", &format!("/{node}")])))
+        .collect();
+    let services = ros2_ok(domain, &["service", "list", "-t"]);
+    let reproduced = ["pickup", "decision"].map(|node| dump_and_copy(domain, node)).to_vec();
     let dump = ros2_ok(domain, &["param", "dump", "/pickup"]);
     let file = std::env::temp_dir().join(format!("rover-ros2-cli-pickup-{}-{}.yaml", domain.id, std::process::id()));
     // `ros2 param load` of ros2param 0.36.1 counts the parameters it expects from the wildcard
@@ -240,24 +246,81 @@ fn everyday_commands(domain: &Domain) -> EverydayOutputs {
     let _ = std::fs::remove_file(&file);
     let rosout = ros2_ok(domain, &["topic", "echo", "--once", "/rosout"]);
     let doctor = ros2_ok(domain, &["doctor", "--report"]);
-    EverydayOutputs { node_info, services, dump, load, loaded, rosout, doctor }
+    EverydayOutputs { node_info, services, reproduced, dump, load, loaded, rosout, doctor }
 }
 
+/// `ros2 param dump /NODE`, and the dump of a copy of the node started in namespace `/copy` with
+/// `--params-file` of that dump (its section keyed `/**`), named as the original.
+fn dump_and_copy(domain: &Domain, node: &str) -> (String, String) {
+    let dump = ros2_ok(domain, &["param", "dump", &format!("/{node}")]);
+    let file = std::env::temp_dir().join(format!("rover-ros2-cli-{node}-{}-{}.yaml", domain.id, std::process::id()));
+    std::fs::write(&file, dump.replace(&format!("/{node}:"), "/**:")).expect("write the dump");
+    let args = [node, "--ros-args", "-r", "__ns:=/copy", "--params-file", file.to_str().unwrap()];
+    let mut copy = start_process(&rover(), &args, domain, &format!("ros2-cli-{node}-copy"));
+    let mut copied = String::new();
+    eventually(Duration::from_secs(30), || {
+        copied = ros2(domain, Duration::from_secs(20), &["param", "dump", &format!("/copy/{node}")]).1;
+        copied.contains("ros__parameters:")
+    });
+    copy.interrupt(STOP_TIMEOUT);
+    let _ = std::fs::remove_file(&file);
+    (dump, copied.replace(&format!("/copy/{node}:"), &format!("/{node}:")))
+}
+
+/// What `ros2 node info /NODE` must list for each node: a topic it publishes, one it takes, and
+/// its services and actions.
+const NODE_INFO: [(&str, &[&str]); 5] = [
+    ("bridge", &["/rover/telemetry: rover_msgs/msg/Telemetry", "/rover/drive_cmd: rover_msgs/msg/DriveCommand"]),
+    (
+        "perception",
+        &[
+            "/camera/image_raw/compressed: sensor_msgs/msg/CompressedImage",
+            "/rover/terrain: rover_msgs/msg/TerrainScan",
+        ],
+    ),
+    (
+        "mapping",
+        &[
+            "/rover/terrain: rover_msgs/msg/TerrainScan",
+            "/map: nav_msgs/msg/OccupancyGrid",
+            "/rover/sample_markers: visualization_msgs/msg/MarkerArray",
+        ],
+    ),
+    (
+        "decision",
+        &[
+            "/map: nav_msgs/msg/OccupancyGrid",
+            "/rover/drive_cmd: rover_msgs/msg/DriveCommand",
+            "Action Servers:",
+            "/navigate_to_pose: nav2_msgs/action/NavigateToPose",
+            "/decision/start_mission: std_srvs/srv/Trigger",
+        ],
+    ),
+    ("pickup", &["/rover/telemetry: rover_msgs/msg/Telemetry", "/rover/pickup: rover_msgs/msg/PickupRequest"]),
+];
+
 fn check_everyday_commands(outputs: &EverydayOutputs) {
-    let mapping = [
-        "/mapping",
-        "Subscribers:",
-        "/rover/terrain: rover_msgs/msg/TerrainScan",
-        "Publishers:",
-        "/map: nav_msgs/msg/OccupancyGrid",
-        "/rover/sample_markers: visualization_msgs/msg/MarkerArray",
-        "Service Servers:",
-        "/mapping/get_parameters: rcl_interfaces/srv/GetParameters",
-        "/mapping/change_state: lifecycle_msgs/srv/ChangeState",
+    for ((node, info), (expected_node, expected)) in outputs.node_info.iter().zip(NODE_INFO) {
+        assert_eq!(*node, expected_node, "the nodes in start order");
+        let common = [
+            "Subscribers:",
+            "Publishers:",
+            "Service Servers:",
+            "/get_parameters: rcl_interfaces/srv/GetParameters",
+            "/change_state: lifecycle_msgs/srv/ChangeState",
+        ];
+        assert_contains(info, &common, &format!("ros2 node info /{node}"));
+        assert_contains(info, expected, &format!("ros2 node info /{node}"));
+    }
+    let services = [
+        "/bridge/set_parameters [rcl_interfaces/srv/SetParameters]",
+        "/decision/get_state [lifecycle_msgs/srv/GetState]",
+        "/pickup/list_parameters [rcl_interfaces/srv/ListParameters]",
     ];
-    assert_contains(&outputs.node_info, &mapping, "ros2 node info /mapping");
-    let services = ["/bridge/set_parameters", "/decision/get_state", "/pickup/list_parameters"];
-    assert_contains(&outputs.services, &services, "ros2 service list");
+    assert_contains(&outputs.services, &services, "ros2 service list -t");
+    for (dump, copied) in &outputs.reproduced {
+        assert_eq!(copied, dump, "a node started with --params-file of a dump has the dumped parameters");
+    }
     assert_contains(&outputs.dump, &["/pickup:", "ros__parameters:", "retry_s: 2.0"], "ros2 param dump /pickup");
     assert_contains(&outputs.load, &["Set parameter retry_s successful"], "ros2 param load");
     assert_contains(&outputs.loaded, &["Double value is: 3.5"], "ros2 param get after the load");
