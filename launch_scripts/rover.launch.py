@@ -3,7 +3,7 @@
     ros2 launch launch_scripts/rover.launch.py [namespace:=/rover1] [params_file:=FILE]
         [rover:=PATH] [port:=4567] [sim:=true] [seed:=0] [log_level:=debug]
         [respawn:=false] [state_dir:=DIR] [use_sim_time:=true]
-        [groups:='bridge,perception mapping,decision,pickup']
+        [groups:='bridge,perception mapping,decision,pickup'] [cmd_vel:=/teleop/cmd_vel]
 
 Every node that `rover nodes` lists runs as a launch_ros Node: `rover NODE` named NODE in
 NAMESPACE with the parameter file PARAMS and use_sim_time (the bridge also port, mapping and
@@ -87,6 +87,7 @@ def arguments():
          'and rover lifecycle-manager brings them up in order', on_off),
         ('state_dir', '', 'folder of the mapping and decision snapshots (default: a new temporary one)', None),
         ('use_sim_time', 'false', "stamp every node's messages with the simulated time of /clock", on_off),
+        ('cmd_vel', 'cmd_vel', "the topic the bridge takes teleoperation's Twist commands from", None),
         ('groups', '', 'nodes that share a process, e.g. "bridge,perception mapping,decision,pickup" '
          '(default: each node alone)', None),
     ]
@@ -118,11 +119,19 @@ def process_action(group, value, state_dir, respawn):
     if len(group) == 1:
         name = group[0]
         return Node(arguments=[name], exec_name=name, name=name, ros_arguments=log_level,
-                    parameters=[value('params_file'), own_parameters(name, value, state_dir)], **common)
+                    parameters=[value('params_file'), own_parameters(name, value, state_dir)],
+                    remappings=own_remappings(name, value), **common)
     aimed = [arg for name in group for key, own in own_parameters(name, value, state_dir).items()
              for arg in ('-p', '%s:%s:=%s' % (name, key, yaml_value(own)))]
+    aimed += [arg for name in group for source, target in own_remappings(name, value)
+              for arg in ('-r', '%s:%s:=%s' % (name, source, target))]
     return Node(arguments=['container'] + group, exec_name='+'.join(group), parameters=[value('params_file')],
                 ros_arguments=aimed + log_level, **common)
+
+
+def own_remappings(name, value):
+    """The topic remappings the launcher gives node `name`: the bridge's cmd_vel."""
+    return [('cmd_vel', value('cmd_vel'))] if name == 'bridge' else []
 
 
 def yaml_value(value):

@@ -262,12 +262,15 @@ fn ros2_launch_of(file: &str, domain: &Domain, namespace: &str, seed: &str, extr
 fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint_leaves_no_process_behind() {
     let Some(domain) = support::ros2_domain_or_skip() else { return };
     let watcher = Watcher::start(&domain, "/launched");
-    let mut launcher = Launcher::start(&mut ros2_launch(&domain, "/launched", "6", &[]), "ros2-launch");
+    let teleop = ["cmd_vel:=/teleop/cmd_vel"];
+    let mut launcher = Launcher::start(&mut ros2_launch(&domain, "/launched", "6", &teleop), "ros2-launch");
     assert!(watcher.graph_runs(), "no frames on /launched/rover/telemetry; ros2 launch output:\n{}", launcher.output());
     let launched = launched_processes(&launcher.output());
     let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
     assert_eq!(names, processes(), "{}", launcher.output());
     assert_launched_by_launch_ros(&launched, "/launched");
+    let bridge = command_line(launched[0].1);
+    assert!(bridge.contains("-r cmd_vel:=/teleop/cmd_vel"), "the bridge's cmd_vel remapped: {bridge}");
     let mapping = launched.iter().find(|(name, _)| name == "mapping").expect("mapping was launched").1;
     send_signal(mapping, Signal::SIGKILL);
     let respawned =
@@ -360,7 +363,8 @@ fn ros2_launch_of_the_xml_launch_file_runs_the_same_graph_through_a_whole_missio
     let Some(domain) = support::ros2_domain_or_skip() else { return };
     let watcher = Watcher::start(&domain, "/xml");
     let rover_arg = format!("rover:={}", rover().display());
-    let mut command = ros2_launch_of("rover.launch.xml", &domain, "/xml", "3", &[&rover_arg]);
+    let mut command =
+        ros2_launch_of("rover.launch.xml", &domain, "/xml", "3", &[&rover_arg, "cmd_vel:=/teleop/cmd_vel"]);
     let mut launcher = Launcher::start(&mut command, "ros2-launch-xml");
     let end = watcher.mission_completes(MISSION_LIMIT);
     let end =
@@ -370,6 +374,8 @@ fn ros2_launch_of_the_xml_launch_file_runs_the_same_graph_through_a_whole_missio
     let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
     assert_eq!(names, processes(), "the XML file's nodes are `rover nodes`:\n{}", launcher.output());
     assert_launched_by_launch_ros(&launched, "/xml");
+    let bridge = command_line(launched[0].1);
+    assert!(bridge.contains("-r cmd_vel:=/teleop/cmd_vel"), "the bridge's cmd_vel remapped: {bridge}");
     assert!(launcher.interrupt().is_some_and(|s| s.code().is_some()), "ros2 launch did not exit on SIGINT");
     for (name, pid) in &launched {
         assert!(!is_running(*pid), "{name} (pid {pid}) still runs after ros2 launch exited");
@@ -381,7 +387,7 @@ fn ros2_launch_with_groups_runs_bridge_and_perception_in_one_process_the_rest_in
     let Some(domain) = support::ros2_domain_or_skip() else { return };
     let watcher = Watcher::start(&domain, "/two_processes");
     let groups = "groups:=bridge,perception mapping,decision,pickup";
-    let mut command = ros2_launch(&domain, "/two_processes", "4", &[groups]);
+    let mut command = ros2_launch(&domain, "/two_processes", "4", &[groups, "cmd_vel:=/teleop/cmd_vel"]);
     let mut launcher = Launcher::start(&mut command, "ros2-launch-groups");
     let end = watcher.mission_completes(MISSION_LIMIT);
     let end =
@@ -399,6 +405,8 @@ fn ros2_launch_with_groups_runs_bridge_and_perception_in_one_process_the_rest_in
     let launched = launched_processes(&launcher.output());
     let names: Vec<&str> = launched.iter().map(|(name, _)| name.as_str()).collect();
     assert_eq!(names, ["bridge+perception", "mapping+decision+pickup", "sim"], "{}", launcher.output());
+    let front = command_line(launched[0].1);
+    assert!(front.contains("-r bridge:cmd_vel:=/teleop/cmd_vel"), "the bridge's cmd_vel remapped: {front}");
     let back = command_line(launched[1].1);
     let aimed =
         ["container mapping decision pickup --ros-args", "-p mapping:state_dir:=", "-p decision:use_sim_time:=false"];
