@@ -118,7 +118,7 @@ def process_action(group, value, state_dir, respawn):
                   sigkill_timeout='5', respawn=respawn, respawn_delay=RESPAWN_DELAY_S)
     if len(group) == 1:
         name = group[0]
-        return Node(arguments=[name], exec_name=name, name=name, ros_arguments=log_level,
+        return Node(arguments=[name], exec_name=name, name=name, ros_arguments=log_level + enclave(name),
                     parameters=[value('params_file'), own_parameters(name, value, state_dir)],
                     remappings=own_remappings(name, value), **common)
     aimed = [arg for name in group for key, own in own_parameters(name, value, state_dir).items()
@@ -132,6 +132,12 @@ def process_action(group, value, state_dir, respawn):
 def own_remappings(name, value):
     """The topic remappings the launcher gives node `name`: the bridge's cmd_vel."""
     return [('cmd_vel', value('cmd_vel'))] if name == 'bridge' else []
+
+
+def enclave(name):
+    """The ROS arguments that give the process `name` its own DDS Security enclave (used when
+    ROS_SECURITY_ENABLE=true; tools/keystore makes them)."""
+    return ['--enclave', '/rover/' + name]
 
 
 def yaml_value(value):
@@ -156,6 +162,7 @@ def processes(context):
     actions = [process_action(group, value, state_dir, respawn) for group in groups]
     if value('autostart') == 'false':
         actions.append(Node(executable=value('rover'), arguments=['lifecycle-manager'], exec_name='lifecycle_manager',
+                            ros_arguments=enclave('lifecycle_manager'),
                             namespace=value('namespace'), output='screen', sigterm_timeout='5',
                             sigkill_timeout='5', respawn=respawn, respawn_delay=RESPAWN_DELAY_S))
     if value('sim') == 'true':

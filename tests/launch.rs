@@ -85,6 +85,7 @@ fn rover_graph_runs_the_graph_with_the_simulator_and_stops_every_process_on_sigi
         if name != "sim" {
             assert!(command.contains(&format!("--params-file {}", params_file.display())), "{name}: {command}");
             assert!(command.contains("-r __ns:=/plain -p bridge:diagnostics_period_ms:=250.0"), "{name}: {command}");
+            assert!(command.ends_with(&format!("--enclave /rover/{name} ")), "{name}'s own enclave: {command}");
         }
         if name == "mapping" || name == "decision" {
             let state_dir = log_dir.join("state");
@@ -348,11 +349,16 @@ fn rover_graph_runs_each_group_of_nodes_in_one_container_process() {
 }
 
 /// Every node of `launched` (all but the simulator) was started by launch_ros: named, namespaced
-/// into `namespace` and given a parameter file.
+/// into `namespace`, given its DDS Security enclave and a parameter file.
 fn assert_launched_by_launch_ros(launched: &[(String, u32)], namespace: &str) {
     for (name, pid) in launched.iter().filter(|(name, _)| name != "sim") {
         let command = command_line(*pid);
-        let parts = [format!("rover {name} --ros-args"), format!("-r __node:={name}"), format!("-r __ns:={namespace}")];
+        let parts = [
+            format!("rover {name} --ros-args"),
+            format!("-r __node:={name}"),
+            format!("-r __ns:={namespace}"),
+            format!("--enclave /rover/{name}"),
+        ];
         assert!(parts.iter().all(|part| command.contains(part.as_str())), "{name} as a launch_ros node: {command}");
         assert!(command.contains("--params-file"), "{name}: {command}");
     }

@@ -110,6 +110,8 @@ impl NodeProcess {
             None => Command::new(&config.rover),
         };
         command.arg(name).arg("--ros-args").args(&config.ros_args);
+        // Its own DDS Security enclave, used when ROS_SECURITY_ENABLE=true.
+        command.args(["--enclave", &crate::processes::nodes::enclave_of(name)]);
         // Aimed at one node each, so they also reach the nodes of `rover all`; the others ignore them.
         command.args(["-p", &format!("bridge:port:={}", config.port)]);
         for node in ["mapping", "decision"] {
@@ -434,5 +436,7 @@ mod tests {
         let (program, args) = line("bridge");
         assert_eq!(program, config.rover.to_string_lossy());
         assert_eq!(args[..2], ["bridge", "--ros-args"]);
+        let enclave = args.iter().position(|arg| arg == "--enclave").map(|i| args[i + 1].as_str());
+        assert_eq!(enclave, Some("/rover/bridge"), "each node has its own enclave");
     }
 }

@@ -9,10 +9,12 @@ use rover_runtime::params::{NodeParams, ParamSpec};
 /// The help on ROS arguments that the node subcommands print.
 pub const ROS_ARGS_HELP: &str = "ROS arguments (after the subcommand's own options):
   --ros-args [-r FROM:=TO]... [-p NAME:=VALUE]... [--params-file FILE]... [--log-level [NODE:=]LEVEL]...
-             [--disable-rosout-logs] [--disable-stdout-logs] [--]
+             [--disable-rosout-logs] [--disable-stdout-logs] [-e ENCLAVE] [--]
   -r __ns:=/NAMESPACE and -r __node:=NAME rename a node; prefix a rule with NODE: to aim it at one node.
   -p autostart:=false leaves the node unconfigured until `ros2 lifecycle set NODE configure` and `activate`.
-Environment: ROS_DOMAIN_ID (default 0) selects the DDS domain; RUST_LOG filters the log.";
+Environment: ROS_DOMAIN_ID (default 0) selects the DDS domain; RUST_LOG filters the log;
+  ROS_SECURITY_ENABLE=true with ROS_SECURITY_KEYSTORE (tools/keystore) secures the participant with
+  the files of its enclave (-e, or ROS_SECURITY_ENCLAVE_OVERRIDE); ROS_SECURITY_STRATEGY=Enforce.";
 
 /// A node of the graph, run by the `rover` subcommand of its name; ordered as they start.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, clap::Subcommand)]
@@ -91,6 +93,11 @@ impl std::str::FromStr for Node {
 /// The names of every node, in start order.
 pub fn node_names() -> impl Iterator<Item = &'static str> {
     Node::ALL.into_iter().map(Node::name)
+}
+
+/// The DDS Security enclave of the process of node `name` (`tools/keystore` makes one per node).
+pub fn enclave_of(name: &str) -> String {
+    format!("/rover/{name}")
 }
 
 /// A group of nodes as one argument, `NODE,NODE...` (`rover nodes --group`).

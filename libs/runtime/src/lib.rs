@@ -26,6 +26,7 @@ pub mod qos;
 pub mod rejections;
 pub mod ros_args;
 pub mod rtps_ports;
+mod security;
 mod services;
 mod shutdown;
 pub mod snapshot;

@@ -18,6 +18,7 @@ use crate::names::NodeIdentity;
 use crate::params::{self, AUTOSTART, Assignment, NodeParams, ParamSpec, ParamValues, USE_SIM_TIME};
 use crate::ros_args::RosArgs;
 use crate::rtps_ports::MAX_DOMAIN_ID;
+use crate::security;
 use crate::shutdown::Shutdown;
 use crate::sync::lock;
 use crate::topics::{self, Topic};
@@ -71,11 +72,18 @@ impl Runtime {
     /// endpoint exists.
     pub fn on_domain(domain_id: u16, ros_args: RosArgs, shutdown: Shutdown) -> anyhow::Result<Self> {
         let discovery = Discovery::from_env()?;
+        let enclave = security::enclave_from(|name| std::env::var(name).ok(), ros_args.enclave.as_deref())?;
         discovery.spawn_relay(domain_id);
-        let participant = discovery
-            .participant(domain_id)
-            .build()
-            .with_context(|| format!("cannot create the DDS participant on domain {domain_id}"))?;
+        let builder = discovery.participant(domain_id);
+        let builder = match &enclave {
+            Some(enclave) => {
+                tracing::info!("DDS Security on: enclave {}", enclave.dir.display());
+                enclave.secure(builder)
+            }
+            None => builder,
+        };
+        let participant =
+            builder.build().with_context(|| format!("cannot create the DDS participant on domain {domain_id}"))?;
         std::thread::sleep(FIRST_ANNOUNCEMENT_WAIT);
         let matches = Matches::follow(&participant);
         let context = Context::from_domain_participant(participant)

@@ -1,6 +1,7 @@
 //! The ROS 2 command-line arguments: `--ros-args -r from:=to -p name:=value --params-file FILE`,
 //! and the logging ones: `--log-level [LOGGER:=]LEVEL`, `--disable-rosout-logs`,
-//! `--disable-stdout-logs`, `--disable-external-lib-logs` (and their `--enable-` forms).
+//! `--disable-stdout-logs`, `--disable-external-lib-logs` (and their `--enable-` forms); and the
+//! DDS Security enclave, `-e`/`--enclave NAME`.
 //!
 //! Everything between `--ros-args` and a lone `--` (or the end) belongs to ROS; the rest is left for
 //! the program's own parser. A remap or parameter may be restricted to one node with a `node:` prefix,
@@ -22,7 +23,7 @@ pub enum RosArgsError {
     LogLevel(String),
     /// An argument inside `--ros-args` that ROS does not know, or that means nothing here.
     #[error(
-        "unknown ROS argument `{0}` (expected -r/--remap, -p/--param, --params-file, --log-level, \
+        "unknown ROS argument `{0}` (expected -r/--remap, -p/--param, --params-file, --log-level, -e/--enclave, \
          --disable-rosout-logs, --disable-stdout-logs, --disable-external-lib-logs or --)"
     )]
     Unknown(String),
@@ -61,6 +62,8 @@ pub struct RosArgs {
     pub params_files: Vec<PathBuf>,
     /// The logging arguments.
     pub logs: LogArgs,
+    /// `-e`/`--enclave`: the DDS Security enclave of the process (see `ROS_SECURITY_ENABLE`).
+    pub enclave: Option<String>,
 }
 
 /// What `--ros-args` say about the logs of the process.
@@ -112,6 +115,9 @@ pub fn split_ros_args(argv: Vec<String>) -> Result<(Vec<String>, RosArgs), RosAr
                 "--log-level" => {
                     let value = args.next().ok_or_else(|| RosArgsError::MissingValue(arg.clone()))?;
                     ros.logs.set_level(&value)?;
+                }
+                "-e" | "--enclave" => {
+                    ros.enclave = Some(args.next().ok_or_else(|| RosArgsError::MissingValue(arg.clone()))?);
                 }
                 "--disable-rosout-logs" | "--enable-rosout-logs" => ros.logs.rosout = arg.starts_with("--enable"),
                 "--disable-stdout-logs" | "--enable-stdout-logs" => ros.logs.console = arg.starts_with("--enable"),
@@ -277,6 +283,18 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn the_enclave_is_read_in_either_form() {
+        let (_, ros) = split_ros_args(strings(&["x", "--ros-args", "-e", "/rover/bridge"])).unwrap();
+        assert_eq!(ros.enclave.as_deref(), Some("/rover/bridge"));
+        let (_, ros) = split_ros_args(strings(&["x", "--ros-args", "--enclave", "/a"])).unwrap();
+        assert_eq!(ros.enclave.as_deref(), Some("/a"));
+        assert_eq!(
+            split_ros_args(strings(&["x", "--ros-args", "-e"])).unwrap_err(),
+            RosArgsError::MissingValue("-e".into())
+        );
+    }
+
+    #[test]
     fn rosout_and_console_logs_can_be_turned_off_and_on_again() {
         let (_, ros) =
             split_ros_args(strings(&["x", "--ros-args", "--disable-rosout-logs", "--disable-stdout-logs"])).unwrap();
@@ -307,6 +325,7 @@ pub(crate) mod tests {
                 "--log-level",
                 "--disable-rosout-logs",
                 "--disable-stdout-logs",
+                "-e",
             ];
             prop_oneof![
                 3 => proptest::sample::select(options).prop_map(String::from),
