@@ -183,8 +183,14 @@ fn bridge_hops(diagnostics: &[DiagnosticArray]) -> Vec<String> {
 
 /// The whole graph, each node its own process, on `domain`.
 fn start_graph(domain: &Domain, label: &str) -> Graph {
+    start_graph_with_env(domain, label, Vec::new())
+}
+
+/// [`start_graph`] with the environment variables `env` for every node.
+fn start_graph_with_env(domain: &Domain, label: &str, env: Vec<(String, String)>) -> Graph {
     let log_dir = std::env::temp_dir().join(format!("rover-loop-latency-{}-{label}", std::process::id()));
-    let graph = Graph::start(support::graph_config(domain, log_dir)).expect("start the graph");
+    let config = rover::processes::graph::GraphConfig { env, ..support::graph_config(domain, log_dir) };
+    let graph = Graph::start(config).expect("start the graph");
     wait_for_port(domain.port(), Duration::from_secs(20));
     graph
 }
@@ -262,6 +268,18 @@ fn main() {
     let ours = print_row("rover graph (5 processes)", &plain.latencies());
     println!("{cpu}");
     let steady = print_steadiness(&steadiness, &plain);
+
+    let keystore = support::keystore("loop-latency");
+    let graph = start_graph_with_env(&domain, "secured", support::security_env(&keystore));
+    let (secured, cpu) = replay_measuring_cpu(&runtime, &domain, 0, &graph.processes().collect::<Vec<_>>());
+    drop(graph);
+    let secured = print_row("rover graph, DDS Security", &secured.latencies());
+    println!("{cpu}");
+    println!(
+        "ratio secured / plain:             p50 {:.2}x  p99 {:.2}x",
+        secured.p50_ms / ours.p50_ms,
+        secured.p99_ms / ours.p99_ms
+    );
 
     let probe = Probe::start(&domain);
     let graph = start_graph(&domain, "probed");

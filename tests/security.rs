@@ -12,23 +12,12 @@ use std::time::Duration;
 
 use support::{Domain, Process, STOP_TIMEOUT, rover};
 
-/// A new keystore named after `name`, made by `tools/keystore create-keystore`.
-fn keystore(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rover-keystore-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/keystore");
-    let status = Command::new(script).arg("create-keystore").arg(&dir).status().expect("run tools/keystore");
-    assert!(status.success(), "tools/keystore create-keystore {} failed", dir.display());
-    dir
-}
-
 /// `program ARGS` on `domain`, secured with `keystore` (enforced) when given.
 fn command(program: &Path, args: &[&str], domain: &Domain, keystore: Option<&Path>) -> Command {
     let mut command = Command::new(program);
     command.args(args).env("ROS_DOMAIN_ID", domain.id.to_string()).env("RUST_LOG", "info");
     if let Some(keystore) = keystore {
-        command.env("ROS_SECURITY_ENABLE", "true").env("ROS_SECURITY_KEYSTORE", keystore);
-        command.env("ROS_SECURITY_STRATEGY", "Enforce");
+        command.envs(support::security_env(keystore));
     }
     command
 }
@@ -64,7 +53,7 @@ fn recorded((mut recorder, bag): (Process, PathBuf)) -> u64 {
 fn a_secured_graph_completes_a_mission_that_only_its_keystore_can_record() {
     support::assert_isolated();
     let domain = Domain::reserve();
-    let (keystore, other_ca) = (keystore("graph"), keystore("other-ca"));
+    let (keystore, other_ca) = (support::keystore("graph"), support::keystore("other-ca"));
     let enrolled = recorder(&domain, Some(&keystore), "enrolled");
     let unsecured = recorder(&domain, None, "unsecured");
     let foreign = recorder(&domain, Some(&other_ca), "other-ca");
@@ -94,7 +83,7 @@ fn a_secured_graph_completes_a_mission_that_only_its_keystore_can_record() {
 fn an_enclave_without_the_permission_cannot_publish_drive_commands() {
     support::assert_isolated();
     let domain = Domain::reserve();
-    let keystore = keystore("permission");
+    let keystore = support::keystore("permission");
     let echo = support::echo_node();
     let mut perception =
         start(&echo, &["--ros-args", "--enclave", "/rover/perception"], &domain, Some(&keystore), "as-perception");
@@ -116,7 +105,7 @@ fn an_enclave_without_the_permission_cannot_publish_drive_commands() {
 fn an_enforced_process_without_its_enclave_stops_naming_the_missing_file() {
     support::assert_isolated();
     let domain = Domain::reserve();
-    let keystore = keystore("missing");
+    let keystore = support::keystore("missing");
     let output = command(&rover(), &["pickup", "--ros-args", "--enclave", "/rover/nowhere"], &domain, Some(&keystore))
         .output()
         .expect("run rover pickup");

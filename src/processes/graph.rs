@@ -31,6 +31,8 @@ pub struct GraphConfig {
     pub respawn: bool,
     /// Nodes started on another host (`None`: all on this one).
     pub remote: Option<RemoteNodes>,
+    /// Environment variables every node gets besides this process's (e.g. `ROS_SECURITY_ENABLE`).
+    pub env: Vec<(String, String)>,
 }
 
 /// Nodes that run on another host, each started through a command prefix that runs a program
@@ -47,7 +49,8 @@ impl GraphConfig {
     /// A graph of this very executable (`rover`), logging into `log_dir`.
     pub fn of_current_exe(port: u16, log_dir: PathBuf) -> anyhow::Result<Self> {
         let rover = std::env::current_exe().context("cannot find the rover executable")?;
-        Ok(GraphConfig { rover, domain_id: None, port, ros_args: Vec::new(), log_dir, respawn: true, remote: None })
+        let (ros_args, env) = (Vec::new(), Vec::new());
+        Ok(GraphConfig { rover, domain_id: None, port, ros_args, log_dir, respawn: true, remote: None, env })
     }
 
     /// The folder where the nodes keep what a restarted node carries on from (the mapping and
@@ -120,6 +123,7 @@ impl NodeProcess {
         if let Some(id) = config.domain_id {
             command.env("ROS_DOMAIN_ID", id.to_string());
         }
+        command.envs(config.env.iter().map(|(name, value)| (name, value)));
         command
     }
 

@@ -80,7 +80,31 @@ pub fn graph_config(domain: &Domain, log_dir: PathBuf) -> rover::processes::grap
         log_dir,
         respawn: false,
         remote: None,
+        env: Vec::new(),
     }
+}
+
+/// A new DDS Security keystore named after `name` (`tools/keystore create-keystore`): one CA and
+/// an enclave per node.
+pub fn keystore(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rover-keystore-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/keystore");
+    let status = Command::new(script).arg("create-keystore").arg(&dir).status().expect("run tools/keystore");
+    assert!(status.success(), "tools/keystore create-keystore {} failed", dir.display());
+    dir
+}
+
+/// The environment that secures a process with `keystore`, enforced.
+pub fn security_env(keystore: &Path) -> Vec<(String, String)> {
+    let keystore = keystore.display().to_string();
+    [
+        ("ROS_SECURITY_ENABLE", "true"),
+        ("ROS_SECURITY_KEYSTORE", keystore.as_str()),
+        ("ROS_SECURITY_STRATEGY", "Enforce"),
+    ]
+    .map(|(name, value)| (name.to_string(), value.to_string()))
+    .to_vec()
 }
 
 /// A DDS domain id (and a TCP port derived from it) reserved for one test.
