@@ -250,6 +250,11 @@ fn print_steadiness(steadiness: &SteadinessRecord, replay: &Replay) -> Percentil
     )
 }
 
+/// Prints the p50 and p99 of `over` as ratios to those of `under`.
+fn print_ratio(label: &str, over: &Percentiles, under: &Percentiles) {
+    println!("{label:<35}p50 {:.2}x  p99 {:.2}x", over.p50_ms / under.p50_ms, over.p99_ms / under.p99_ms);
+}
+
 fn main() {
     support::assert_isolated();
     let runtime = tokio::runtime::Runtime::new().expect("tokio runtime");
@@ -275,11 +280,7 @@ fn main() {
     drop(graph);
     let secured = print_row("rover graph, DDS Security", &secured.latencies());
     println!("{cpu}");
-    println!(
-        "ratio secured / plain:             p50 {:.2}x  p99 {:.2}x",
-        secured.p50_ms / ours.p50_ms,
-        secured.p99_ms / ours.p99_ms
-    );
+    print_ratio("ratio secured / plain:", &secured, &ours);
 
     let probe = Probe::start(&domain);
     let graph = start_graph(&domain, "probed");
@@ -305,11 +306,7 @@ fn main() {
             let (seed, cpu) = replay_measuring_cpu(&runtime, &domain, 1, &[("seed solution", seed_process.pid())]);
             let baseline = print_row("Python seed solution", &seed.latencies());
             println!("{cpu}");
-            println!(
-                "ratio rover / seed solution:       p50 {:.2}x  p99 {:.2}x",
-                ours.p50_ms / baseline.p50_ms,
-                ours.p99_ms / baseline.p99_ms
-            );
+            print_ratio("ratio rover / seed solution:", &ours, &baseline);
             Some(baseline)
         }
         None => {
