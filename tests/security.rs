@@ -1,7 +1,8 @@
 //! DDS Security with keystores made by `tools/keystore` (one CA, an enclave per node): the secured
 //! graph completes a procedural mission (`rover eval`, each node in its own enclave), which a
 //! recorder enrolled in the keystore records, while a recorder without security and one enrolled
-//! by another CA record nothing of it; a node whose enclave may not publish `rover/drive_cmd`
+//! by another CA record nothing of it, and an unsecured `ros2 topic pub` of a standstill on
+//! `cmd_vel` (teleoperation, which the bridge would obey) does not stop it; a node whose enclave may not publish `rover/drive_cmd`
 //! cannot create that publisher; an enforced process without its enclave stops, naming the file.
 
 mod support;
@@ -57,6 +58,11 @@ fn a_secured_graph_completes_a_mission_that_only_its_keystore_can_record() {
     let enrolled = recorder(&domain, Some(&keystore), "enrolled");
     let unsecured = recorder(&domain, None, "unsecured");
     let foreign = recorder(&domain, Some(&other_ca), "other-ca");
+    // Teleoperation that would hold the rover still for the whole mission, were it obeyed.
+    let hold_still = ["topic", "pub", "-r", "20", "/cmd_vel", "geometry_msgs/msg/Twist", "{}"];
+    let intruder =
+        Process::spawn("intruder", command(&support::ros2_cli(), &hold_still, &domain, None), intruder_log(&domain));
+    let intruder = intruder.inspect_err(|e| eprintln!("no unsecured teleop intruder: {e:#}")).ok();
     std::thread::sleep(Duration::from_secs(2));
 
     let args = ["eval", "--procedural", "--seeds", "0", "--json", "--ros-args", "--enclave", "/rover/tools"];
@@ -77,6 +83,15 @@ fn a_secured_graph_completes_a_mission_that_only_its_keystore_can_record() {
     eprintln!("telemetry recorded: enrolled {}, unsecured {}, other CA {}", counts[0], counts[1], counts[2]);
     assert!(counts[0] > 100, "the enrolled recorder got the mission's telemetry: {counts:?}");
     assert_eq!(counts[1..], [0, 0], "participants outside the keystore see nothing");
+    if let Some(mut intruder) = intruder {
+        assert!(intruder.exited().is_none(), "the intruder kept publishing:\n{}", intruder.log_text());
+        intruder.interrupt(STOP_TIMEOUT);
+    }
+}
+
+/// The log file of the unsecured `ros2 topic pub` of the test on `domain`.
+fn intruder_log(domain: &Domain) -> PathBuf {
+    std::env::temp_dir().join(format!("rover-security-{}-intruder-{}.log", domain.id, std::process::id()))
 }
 
 #[test]
