@@ -83,6 +83,33 @@ fn a_cut_link_brakes_the_rover_once_the_silence_limit_has_passed() {
     assert_cleaned_up(&stderr);
 }
 
+#[test]
+fn a_secured_graph_runs_across_the_link_with_the_keystore() {
+    let keystore = support::keystore("two-hosts");
+    let args = [
+        "--procedural",
+        "--seeds",
+        "0",
+        "--max-sim-seconds",
+        "15",
+        "--json",
+        "--ros-args",
+        "--enclave",
+        "/rover/tools",
+    ];
+    let mut command = two_hosts(&args);
+    let Output { status, stdout, stderr } =
+        command.envs(support::security_env(&keystore)).output().expect("run tools/two-hosts");
+    let stderr = String::from_utf8_lossy(&stderr).into_owned();
+    assert!(status.success(), "{stderr}");
+    let runs: serde_json::Value = serde_json::from_slice(&stdout).expect("the eval's JSON");
+    let number = |key: &str| runs[0][key].as_f64().unwrap_or_else(|| panic!("{key} in {runs}"));
+    assert!(number("distance_m") > 1.0, "secured drive commands came back across the link: {runs}");
+    assert!(number("mapped_pct") > 0.0, "the secured mapping node across the link got scans: {runs}");
+    assert!(stderr.contains("DDS Security on: enclave"), "the evaluator was secured: {stderr}");
+    assert_cleaned_up(&stderr);
+}
+
 fn wait_for_line(child: &mut Child, log: &std::path::Path, needle: &str) -> String {
     let found = support::eventually(Duration::from_secs(60), || {
         std::fs::read_to_string(log).is_ok_and(|text| text.contains(needle))
