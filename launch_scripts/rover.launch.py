@@ -1,5 +1,6 @@
 """Launch the rover graph: each node its own process running the `rover` executable.
 
+    ros2 launch rover rover.launch.py [ARGUMENT:=VALUE]...     (installed by colcon)
     ros2 launch launch_scripts/rover.launch.py [namespace:=/rover1] [params_file:=FILE]
         [rover:=PATH] [port:=4567] [sim:=true] [seed:=0] [log_level:=debug]
         [respawn:=false] [state_dir:=DIR] [use_sim_time:=true]
@@ -7,7 +8,8 @@
 
 Every node that `rover nodes` lists runs as a launch_ros Node: `rover NODE` named NODE in
 NAMESPACE with the parameter file PARAMS and use_sim_time (the bridge also port, mapping and
-decision state_dir) [--log-level LEVEL]. With use_sim_time:=true every node
+decision state_dir) [--log-level LEVEL] and its DDS Security enclave /rover/NODE (used when
+ROS_SECURITY_ENABLE=true). The bridge takes teleoperation from the topic cmd_vel (remapped). With use_sim_time:=true every node
 stamps with the simulated time the bridge publishes on /clock. With sim:=true the headless simulator (`rover sim --seed SEED
 --port PORT`) drives the graph; without it the bridge waits for the Unity simulator. The DDS
 domain is the environment's ROS_DOMAIN_ID, the log filter RUST_LOG unless log_level is given.
