@@ -1,6 +1,7 @@
 //! The repository as the ROS 2 package `rover`, as a ROS user meets it after a colcon build
 //! (`tools/colcon-build`, which the README's test command runs before the tests): the real
-//! `ros2 pkg`, `ros2 run`, `ros2 launch` and `ros2 interface` against the install in
+//! `ros2 pkg`, `ros2 run`, `ros2 launch` (a short mission: up to the first sample collected) and
+//! `ros2 interface` against the install in
 //! `target/ros_ws/install`. Skips like `tests/ros2_cli.rs` without the ROS tools, and without the
 //! install unless `ROVER_REQUIRE_ROS` is set.
 
@@ -14,8 +15,8 @@ use support::launched::{Launcher, Watcher, command_line, launched_processes};
 use support::ros2::{Daemon, assert_contains, ros2_ok};
 use support::{Domain, eventually};
 
-/// How long a whole procedural mission of the launched graph may take, wall clock.
-const MISSION_LIMIT: Duration = Duration::from_secs(240);
+/// How long the launched graph may take to collect its first sample, wall clock.
+const SHORT_MISSION_LIMIT: Duration = Duration::from_secs(120);
 
 fn repo() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -113,7 +114,7 @@ fn ros2_run_starts_each_node_and_ctrl_c_stops_it_cleanly() {
 }
 
 #[test]
-fn ros2_launch_of_the_installed_launch_file_runs_a_whole_mission_from_the_install() {
+fn ros2_launch_of_the_installed_launch_file_runs_a_short_mission_from_the_install() {
     let Some(domain) = installed_or_skip() else { return };
     let watcher = Watcher::start(&domain, "/installed");
     let mut command = Command::new(support::ros2_cli());
@@ -121,10 +122,8 @@ fn ros2_launch_of_the_installed_launch_file_runs_a_whole_mission_from_the_instal
     command.arg(format!("port:={}", domain.port()));
     command.env("ROS_DOMAIN_ID", domain.id.to_string()).env("PYTHONUNBUFFERED", "1");
     let mut launcher = Launcher::start(&mut command, "ros2-launch-installed");
-    let end = watcher.mission_completes(MISSION_LIMIT);
-    let end = end
-        .unwrap_or_else(|e| panic!("the installed graph's mission: {e}; ros2 launch output:\n{}", launcher.output()));
-    eprintln!("ros2 launch rover rover.launch.py sim:=true seed:=1: {end:?}");
+    let collected = watcher.collects_a_sample(SHORT_MISSION_LIMIT);
+    assert!(collected, "the installed graph collected no sample; ros2 launch output:\n{}", launcher.output());
     let installed = install_prefix().join("lib/rover/rover");
     let share = install_prefix().join("share/rover/launch_scripts/rover_params.yaml");
     for (name, pid) in launched_processes(&launcher.output()) {

@@ -43,6 +43,11 @@ impl Watcher {
         eventually(Duration::from_secs(45), || self.telemetry.count() >= 30 && self.drive.count() >= 10)
     }
 
+    /// Waits up to `limit` for the first sample collected, as the decision node reports it.
+    pub fn collects_a_sample(&self, limit: Duration) -> bool {
+        eventually(limit, || self.mode.last().is_some_and(|state| state.samples_collected >= 1))
+    }
+
     /// Waits up to `limit` for the decision node to report `done`, then checks that the mission
     /// is complete: no sample left and the rover within [`HOME_RADIUS_M`] of its start. Returns
     /// how it ended, or what is missing.
