@@ -88,7 +88,7 @@ pub fn init(logs: &LogArgs) {
     let directives = filter_directives(logs, rust_log.as_deref());
     let filter = EnvFilter::try_new(&directives).unwrap_or_else(|e| {
         eprintln!("ignoring the log filter {rust_log:?}: {e}");
-        EnvFilter::new(format!("info,{QUIET_DEPENDENCIES}"))
+        fallback_filter()
     });
     let ansi = std::io::IsTerminal::is_terminal(&std::io::stderr());
     let console = logs
@@ -118,18 +118,29 @@ fn filter_directives(logs: &LogArgs, rust_log: Option<&str>) -> String {
 /// The pattern of the fully qualified node names a ROS logger name stands for: `rover1.bridge`
 /// (or `/rover1/bridge`) is that node, a bare `bridge` the node of that name in any namespace.
 fn node_name_pattern(logger: &str) -> String {
-    let name = logger.trim_start_matches('/').replace('.', "/");
+    let name = logger_path(logger);
     if name.contains('/') { format!("/{name}") } else { format!(".*/{name}") }
 }
 
 /// Whether the fully qualified node name `node` is the one a ROS logger name means.
 fn logger_names(logger: &str, node: &str) -> bool {
-    let name = logger.trim_start_matches('/').replace('.', "/");
+    let name = logger_path(logger);
     if name.contains('/') {
         node.trim_start_matches('/') == name
     } else {
         node.rsplit('/').next() == Some(name.as_str())
     }
+}
+
+/// A ROS logger name (`rover1.bridge`, `/rover1/bridge` or `bridge`) as a node path without the
+/// leading slash (`rover1/bridge`, `bridge`).
+fn logger_path(logger: &str) -> String {
+    logger.trim_start_matches('/').replace('.', "/")
+}
+
+/// The filter used when the one asked for does not parse: info, the dependencies quietened.
+fn fallback_filter() -> EnvFilter {
+    EnvFilter::new(format!("info,{QUIET_DEPENDENCIES}"))
 }
 
 fn capped_stderr() -> Capped<'static, std::io::Stderr> {
@@ -160,8 +171,8 @@ struct NodeSpans {
 impl NodeSpans {
     fn new(logs: &LogArgs, rust_log: Option<&str>) -> Self {
         let process_only = LogArgs { node_levels: Vec::new(), ..logs.clone() };
-        let process = EnvFilter::try_new(filter_directives(&process_only, rust_log))
-            .unwrap_or_else(|_| EnvFilter::new(format!("info,{QUIET_DEPENDENCIES}")));
+        let process =
+            EnvFilter::try_new(filter_directives(&process_only, rust_log)).unwrap_or_else(|_| fallback_filter());
         NodeSpans { node_levels: logs.node_levels.clone(), process }
     }
 }
