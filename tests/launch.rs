@@ -382,10 +382,7 @@ fn ros2_launch_of_the_xml_launch_file_runs_the_same_graph_through_a_whole_missio
     assert_launched_by_launch_ros(&launched, "/xml");
     let bridge = command_line(launched[0].1);
     assert!(bridge.contains("-r cmd_vel:=/teleop/cmd_vel"), "the bridge's cmd_vel remapped: {bridge}");
-    assert!(launcher.interrupt().is_some_and(|s| s.code().is_some()), "ros2 launch did not exit on SIGINT");
-    for (name, pid) in &launched {
-        assert!(!is_running(*pid), "{name} (pid {pid}) still runs after ros2 launch exited");
-    }
+    interrupt_and_assert_none_left(&mut launcher, &launched);
 }
 
 #[test]
@@ -418,8 +415,14 @@ fn ros2_launch_with_groups_runs_bridge_and_perception_in_one_process_the_rest_in
         ["container mapping decision pickup --ros-args", "-p mapping:state_dir:=", "-p decision:use_sim_time:=false"];
     assert!(aimed.iter().all(|part| back.contains(part)) && back.contains("-r __ns:=/two_processes"), "{back}");
     assert!(!back.contains("__node:="), "a container keeps its nodes' own names: {back}");
+    interrupt_and_assert_none_left(&mut launcher, &launched);
+}
+
+/// Sends SIGINT to `ros2 launch` and checks that it exits and none of the processes it
+/// `launched` is left running.
+fn interrupt_and_assert_none_left(launcher: &mut Launcher, launched: &[(String, u32)]) {
     assert!(launcher.interrupt().is_some_and(|s| s.code().is_some()), "ros2 launch did not exit on SIGINT");
-    for (name, pid) in &launched {
+    for (name, pid) in launched {
         assert!(!is_running(*pid), "{name} (pid {pid}) still runs after ros2 launch exited");
     }
 }
