@@ -58,8 +58,7 @@ pub(crate) fn enclave_from(
 fn enclave_dir(keystore: &Path, name: &str) -> anyhow::Result<PathBuf> {
     anyhow::ensure!(name.starts_with('/'), "enclave {name:?}: expected an absolute name such as /rover/bridge");
     let parts: Vec<&str> = name.split('/').filter(|part| !part.is_empty()).collect();
-    let valid =
-        |part: &&str| *part != ".." && *part != "." && part.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    let valid = |part: &&str| part.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
     anyhow::ensure!(parts.iter().all(valid), "enclave {name:?}: expected names of letters, digits and _ between /");
     Ok(parts.iter().fold(keystore.join("enclaves"), |dir, part| dir.join(part)))
 }
