@@ -13,7 +13,7 @@ use rover_msgs::geometry_msgs::PoseArray;
 use rover_msgs::msg::{DecisionState, Telemetry};
 use rover_msgs::nav_msgs::OccupancyGrid;
 use rover_runtime::topics::{self, Topic};
-use rover_runtime::{NoParams, RosNode, Runtime, Subscription, spawn_subscriber};
+use rover_runtime::{NoParams, RosNode, Runtime, Shutdown, Subscription, spawn_subscriber};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
 use rover_sim::wire::client::{ClientConfig, run_client};
 use rover_sim::world::World;
@@ -29,6 +29,8 @@ use crate::processes::graph::{Graph, GraphConfig};
 const PROGRESS_PERIOD: Duration = Duration::from_millis(500);
 /// How often dead nodes are looked for (and, with respawn, started again), wall clock.
 const SUPERVISION_PERIOD: Duration = Duration::from_millis(100);
+/// How long the graph's nodes get to be discovered before the mission begins, wall clock.
+const DISCOVERY_LIMIT: Duration = Duration::from_secs(60);
 /// Without a new telemetry frame for this long the graph counts as stalled and the run ends.
 const STALL_LIMIT: Duration = Duration::from_secs(60);
 /// How long each node gets to exit after SIGINT.
@@ -75,10 +77,16 @@ pub async fn run_graph_mission(
     let evaluator = Arc::new(Mutex::new(Evaluator::new(&world)));
     let done = Arc::new(Notify::new());
     let (mut node, _) = runtime.node::<NoParams>("evaluator")?;
-    let subscribers = subscribe_evaluator(&mut node, &evaluator, &done, step_s)?;
+    let subscriptions = EvaluatorSubscriptions::open(&mut node)?;
     let mut graph = Graph::start(config)?;
-    let mut simulator = Simulator::new(world, sim_config);
     let shutdown = runtime.shutdown();
+    if let Err(problem) = wait_for_graph(&node, &subscriptions, &mut graph, &shutdown).await {
+        graph.stop(STOP_TIMEOUT);
+        return Err(problem);
+    }
+    tracing::info!("the graph is discovered; the mission begins");
+    let subscribers = subscriptions.spawn(&node, &evaluator, &done, step_s);
+    let mut simulator = Simulator::new(world, sim_config);
     let stop = async {
         tokio::select! {
             () = done.notified() => tracing::info!("the decision node reports done"),
@@ -152,40 +160,93 @@ fn mission_subscription<M: RosMessage>(node: &mut RosNode, topic: &Topic<M>) -> 
     Ok(subscription)
 }
 
-fn subscribe_evaluator(
-    node: &mut RosNode,
-    evaluator: &Arc<Mutex<Evaluator>>,
-    done: &Arc<Notify>,
-    step_s: f64,
-) -> anyhow::Result<Vec<tokio::task::JoinHandle<()>>> {
-    let span = node.span();
-    let done = done.clone();
-    let on_mode = move |e: &mut Evaluator, state: DecisionState| {
-        if e.on_mode(&state) {
-            done.notify_one();
+/// The evaluator's subscriptions, opened before the graph starts so that none of its messages is
+/// missed.
+struct EvaluatorSubscriptions {
+    map: Subscription<OccupancyGrid>,
+    rocks: Subscription<PoseArray>,
+    telemetry: Subscription<Telemetry>,
+    mode: Subscription<DecisionState>,
+    diagnostics: Subscription<DiagnosticArray>,
+}
+
+impl EvaluatorSubscriptions {
+    fn open(node: &mut RosNode) -> anyhow::Result<Self> {
+        Ok(EvaluatorSubscriptions {
+            map: mission_subscription(node, &topics::MAP)?,
+            rocks: mission_subscription(node, &topics::ROCKS)?,
+            telemetry: mission_subscription(node, &topics::TELEMETRY)?,
+            mode: mission_subscription(node, &topics::MODE)?,
+            diagnostics: mission_subscription(node, &topics::DIAGNOSTICS)?,
+        })
+    }
+
+    /// Resolves once every subscription has matched a publisher: the bridge, mapping and decision
+    /// nodes are discovered (and, with DDS Security, authenticated).
+    async fn matched(&self, node: &RosNode) {
+        futures::join!(
+            node.publisher_matched(&self.map),
+            node.publisher_matched(&self.rocks),
+            node.publisher_matched(&self.telemetry),
+            node.publisher_matched(&self.mode),
+            node.publisher_matched(&self.diagnostics),
+        );
+    }
+
+    fn spawn(
+        self,
+        node: &RosNode,
+        evaluator: &Arc<Mutex<Evaluator>>,
+        done: &Arc<Notify>,
+        step_s: f64,
+    ) -> Vec<tokio::task::JoinHandle<()>> {
+        let span = node.span();
+        let done = done.clone();
+        let on_mode = move |e: &mut Evaluator, state: DecisionState| {
+            if e.on_mode(&state) {
+                done.notify_one();
+            }
+        };
+        vec![
+            spawn_subscriber(self.map, span.clone(), handler(evaluator, |e, m: OccupancyGrid| e.on_map(&m))),
+            spawn_subscriber(self.rocks, span.clone(), handler(evaluator, |e, r: PoseArray| e.on_rocks(&r))),
+            spawn_subscriber(
+                self.telemetry,
+                span.clone(),
+                handler(evaluator, move |e, t: Telemetry| e.on_telemetry(&t, step_s)),
+            ),
+            spawn_subscriber(self.mode, span.clone(), handler(evaluator, on_mode)),
+            spawn_subscriber(self.diagnostics, span, handler(evaluator, |e, d: DiagnosticArray| e.on_diagnostics(&d))),
+        ]
+    }
+}
+
+/// Waits until the evaluator has matched the graph's publishers, so that the simulator's first
+/// frame does not go out to a graph still discovering itself; fails when a node exits or after
+/// [`DISCOVERY_LIMIT`].
+async fn wait_for_graph(
+    node: &RosNode,
+    subscriptions: &EvaluatorSubscriptions,
+    graph: &mut Graph,
+    shutdown: &Shutdown,
+) -> anyhow::Result<()> {
+    let logs = graph.config().log_dir.display().to_string();
+    let mut matched = std::pin::pin!(tokio::time::timeout(DISCOVERY_LIMIT, subscriptions.matched(node)));
+    let mut supervision = tokio::time::interval(SUPERVISION_PERIOD);
+    loop {
+        tokio::select! {
+            found = &mut matched => {
+                return found.map_err(|_| anyhow::anyhow!(
+                    "the evaluator did not discover the graph's nodes within {} s; see the logs in {logs}",
+                    DISCOVERY_LIMIT.as_secs()
+                ));
+            }
+            () = shutdown.wait() => return Ok(()),
+            _ = supervision.tick() => {
+                if let Some((name, status)) = graph.exited().into_iter().next() {
+                    anyhow::bail!("node {name} exited ({status}) before the mission began; see {logs}");
+                }
+            }
         }
-    };
-    Ok(vec![
-        spawn_subscriber(
-            mission_subscription(node, &topics::MAP)?,
-            span.clone(),
-            handler(evaluator, |e, m: OccupancyGrid| e.on_map(&m)),
-        ),
-        spawn_subscriber(
-            mission_subscription(node, &topics::ROCKS)?,
-            span.clone(),
-            handler(evaluator, |e, r: PoseArray| e.on_rocks(&r)),
-        ),
-        spawn_subscriber(
-            mission_subscription(node, &topics::TELEMETRY)?,
-            span.clone(),
-            handler(evaluator, move |e, t: Telemetry| e.on_telemetry(&t, step_s)),
-        ),
-        spawn_subscriber(mission_subscription(node, &topics::MODE)?, span.clone(), handler(evaluator, on_mode)),
-        spawn_subscriber(
-            mission_subscription(node, &topics::DIAGNOSTICS)?,
-            span,
-            handler(evaluator, |e, d: DiagnosticArray| e.on_diagnostics(&d)),
-        ),
-    ])
+    }
 }
