@@ -27,10 +27,9 @@ mod return_home;
 mod tests;
 
 pub use commands::CommandAnswer;
-use explore::Widening;
-use look_around::LookAround;
+use commands::Orders;
+use explore::Search;
 use maps::Maps;
-use navigate::Navigation;
 pub use navigate::{GoalFailure, NavigationEnd, NavigationProgress};
 use recover::Watches;
 
@@ -157,6 +156,18 @@ pub enum Stage {
     Done,
 }
 
+/// What a mode's step decides for one frame.
+enum Next {
+    /// Stay in the mode, with this state, and drive.
+    Stay(State, Drive),
+    /// Enter another mode for a reason, braking this frame.
+    Enter(State, &'static str),
+    /// Enter another mode for a reason and step it in this same frame.
+    EnterAndStep(State, &'static str),
+    /// Leave the mode in state `from` for a recovery, braking this frame.
+    Recover { from: State, reason: &'static str },
+}
+
 #[derive(Debug, Clone)]
 enum State {
     Explore,
@@ -197,6 +208,8 @@ struct Mission {
     /// The status changed since it was last taken ([`Machine::take_change`]).
     changed: bool,
     tally: SampleTally,
+    /// The frame of the last step.
+    frame: u64,
     /// Recalled from an earlier machine: home comes from the mission ([`Machine::resume`]), not
     /// from where the rover happens to stand at this machine's first frame, and until it does
     /// the machine brakes (its map, rocks and tally may not have caught up with the mission).
@@ -209,25 +222,19 @@ pub struct Machine {
     params: DecisionParams,
     state: State,
     mission: Mission,
-    /// The frame of the last step.
-    frame: u64,
     maps: Maps,
     samples: SampleMemory,
     explorer: Explorer,
+    driving: Driving,
+    search: Search,
+    orders: Orders,
+}
+
+/// How the rover drives and whether it gets anywhere: shared by every mode that moves.
+#[derive(Debug, Clone, Default)]
+struct Driving {
     steering: Steering,
     watches: Watches,
-    widening: Widening,
-    look_around: LookAround,
-    /// The mission has started (at once unless `start_mission` is false).
-    started: bool,
-    /// Held by a pause.
-    paused: bool,
-    /// Asked to return home now: no more exploring or detours for samples.
-    sent_home: bool,
-    /// A goal given from outside, driven to in place of the mission.
-    navigation: Option<Navigation>,
-    /// How the last navigation ended, until taken.
-    navigation_end: Option<NavigationEnd>,
     /// Where the rover was at the last frame.
     last_position: Option<Position>,
 }
@@ -239,23 +246,15 @@ impl Machine {
         let mode = if started { Mode::Explore } else { Mode::Idle };
         let status = Status { mode, reason: "start".to_string(), target: None, samples_collected: 0, home: None };
         Machine {
-            started,
-            paused: false,
-            sent_home: false,
-            navigation: None,
-            navigation_end: None,
-            last_position: None,
             params,
             state: State::Explore,
-            mission: Mission { status, changed: true, tally: SampleTally::default(), awaits_home: false },
-            frame: 0,
+            mission: Mission { status, changed: true, tally: SampleTally::default(), frame: 0, awaits_home: false },
             maps: Maps::default(),
             samples: SampleMemory::default(),
             explorer: Explorer::default(),
-            steering: Steering::default(),
-            watches: Watches::default(),
-            widening: Widening::default(),
-            look_around: LookAround::default(),
+            driving: Driving::default(),
+            search: Search::default(),
+            orders: Orders { started, ..Orders::default() },
         }
     }
 
@@ -305,7 +304,7 @@ impl Machine {
     /// Takes a new map, with the cells where the rover got stuck lately marked as obstacles,
     /// unless it says nothing yet (no free cell: the mapping node's first publication).
     pub fn set_map(&mut self, map: Grid) {
-        self.maps.set_map(map, self.frame);
+        self.maps.set_map(map, self.mission.frame);
     }
 
     /// Takes the located rocks, world positions.
@@ -354,7 +353,7 @@ impl Machine {
         if !self.mission.awaits_home {
             self.mission.status.home.get_or_insert((obs.position.x_m, obs.position.y_m));
         }
-        self.frame = obs.frame;
+        self.mission.frame = obs.frame;
         if let Some(rocks) = self.maps.take_arrivals(obs.frame) {
             self.set_rocks(rocks);
         }
@@ -362,7 +361,7 @@ impl Machine {
         self.mission.tally.update(obs.samples_remaining);
         self.mission.status.samples_collected = self.mission.tally.collected();
         let drive = self.decide(obs);
-        self.last_position = Some(obs.position);
+        self.driving.last_position = Some(obs.position);
         self.mission.status.target = self.target();
         tracing::trace!(
             frame = obs.frame,
@@ -376,7 +375,7 @@ impl Machine {
             ?drive,
             "decided"
         );
-        self.watches.last_drive = drive;
+        self.driving.watches.last_drive = drive;
         drive
     }
 
@@ -384,15 +383,15 @@ impl Machine {
     /// from outside (the node inactive), so that the held frames do not count as stuck, and
     /// whenever what the rover does changes.
     pub fn start_afresh(&mut self) {
-        self.steering.reset();
-        self.watches.reset();
+        self.driving.steering.reset();
+        self.driving.watches.reset();
     }
 
     /// Between frames, after the drive command of the last one went out, the rover now at `at`:
     /// makes ahead the path costs the next frame will likely ask for. What the machine decides
     /// does not change, only when the search runs.
     pub fn prepare_next_frame(&mut self, at: &Position) {
-        self.maps.prepare_next_frame(self.frame, at, &self.params);
+        self.maps.prepare_next_frame(self.mission.frame, at, &self.params);
     }
 
     /// The goal of the current mode in the world, if it has one.
@@ -415,9 +414,9 @@ impl Machine {
         let status = &mut self.mission.status;
         tracing::info!("mode {} -> {}: {reason}", status.mode.name(), mode.name());
         if mode == Mode::Explore && matches!(status.mode, Mode::ApproachSample | Mode::Pickup) {
-            self.explorer.resume_after_detour(self.frame);
+            self.explorer.resume_after_detour(self.mission.frame);
         }
-        self.look_around.interrupt();
+        self.search.look_around.interrupt();
         self.state = state;
         status.mode = mode;
         status.reason = reason.to_string();
@@ -427,11 +426,11 @@ impl Machine {
 
     /// The mode shown: a command's hold or navigation over the mission, else the mission's mode.
     fn shown_mode(&self) -> Mode {
-        if self.paused {
+        if self.orders.paused {
             Mode::Paused
-        } else if self.navigation.is_some() {
+        } else if self.orders.navigation.is_some() {
             Mode::Navigate
-        } else if !self.started {
+        } else if !self.orders.started {
             Mode::Idle
         } else {
             self.state.mode()
@@ -456,13 +455,13 @@ impl Machine {
     /// else enters pickup when the arm is busy or a sample is in reach, recovers when in trouble,
     /// and runs the mode's step.
     fn decide(&mut self, obs: &Observation) -> Drive {
-        if self.mission.awaits_home || self.paused {
+        if self.mission.awaits_home || self.orders.paused {
             return Drive::stop(self.params.brake);
         }
-        if let Some(navigation) = self.navigation.take() {
+        if let Some(navigation) = self.orders.navigation.take() {
             return self.navigate(obs, navigation);
         }
-        if !self.started {
+        if !self.orders.started {
             return Drive::stop(self.params.brake);
         }
         let (pickup, done) = (matches!(self.state, State::Pickup { .. }), matches!(self.state, State::Done));
@@ -472,23 +471,44 @@ impl Machine {
         } else if !pickup && !done && !matches!(self.state, State::Recover { .. }) {
             self.check_for_trouble(obs);
         }
-        let drive = match self.state {
-            State::Pickup { since_frame, arm_seen } => self.pickup(obs, since_frame, arm_seen),
-            State::Recover { since_frame, turn_left, then_home } => {
-                self.recover(obs, since_frame, turn_left, then_home)
-            }
-            State::Done => Drive::stop(self.params.brake),
-            // The modes that carry a plan take it out while they step and put it back (or enter
-            // another mode); meanwhile `status.mode` says which mode runs.
-            State::Explore | State::Approach(_) | State::ReturnHome(_) => {
-                match std::mem::replace(&mut self.state, State::Explore) {
-                    State::Approach(chase) => self.approach(obs, chase),
-                    State::ReturnHome(route) => self.return_home(obs, route),
-                    _ => self.explore(obs),
-                }
-            }
-        };
+        let drive = self.step_mode(obs);
         debug_assert_eq!(self.state.mode(), self.mission.status.mode, "a mode put its state back");
         drive
+    }
+
+    /// Steps the mode and follows its [`Next`]: a mode entered to be stepped at once steps in
+    /// the same frame.
+    fn step_mode(&mut self, obs: &Observation) -> Drive {
+        let brake = Drive::stop(self.params.brake);
+        loop {
+            // A mode takes its state while it steps and hands back the one that follows;
+            // meanwhile `status.mode` says which mode runs.
+            let next = match std::mem::replace(&mut self.state, State::Done) {
+                State::Explore => self.explore(obs),
+                State::Approach(chase) => self.approach(obs, chase),
+                State::Pickup { since_frame, arm_seen } => self.pickup(obs, since_frame, arm_seen),
+                State::Recover { since_frame, turn_left, then_home } => {
+                    self.recover(obs, since_frame, turn_left, then_home)
+                }
+                State::ReturnHome(route) => self.return_home(obs, route),
+                State::Done => Next::Stay(State::Done, brake),
+            };
+            match next {
+                Next::Stay(state, drive) => {
+                    self.state = state;
+                    return drive;
+                }
+                Next::Enter(state, reason) => {
+                    self.enter(state, reason);
+                    return brake;
+                }
+                Next::EnterAndStep(state, reason) => self.enter(state, reason),
+                Next::Recover { from, reason } => {
+                    self.state = from;
+                    self.start_recovery(obs, reason);
+                    return brake;
+                }
+            }
+        }
     }
 }

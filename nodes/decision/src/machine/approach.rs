@@ -3,9 +3,9 @@
 
 use rover_msgs::body::ARM_REACH_M;
 
-use super::{Machine, Observation, State};
+use super::{Machine, Next, Observation, State};
 use crate::approach::{Aim, Chase};
-use crate::drive::{Drive, speed_to_stop_in};
+use crate::drive::speed_to_stop_in;
 use crate::route::PlanStart;
 
 /// A sample whose route turns out to cost more than its approach is worth is left alone for this
@@ -16,45 +16,40 @@ impl Machine {
     /// Steps the approach of `chase`: the sample's place from the camera when in sight, a slow
     /// drive to it, or back to exploring when it is not reached in time, not where remembered, or
     /// out of the way.
-    pub(super) fn approach(&mut self, obs: &Observation, mut chase: Chase) -> Drive {
-        let brake = self.params.brake;
+    pub(super) fn approach(&mut self, obs: &Observation, mut chase: Chase) -> Next {
         if let Some(seen) = obs.rock.filter(|s| s.distance_m <= self.params.sample_sight_m) {
             chase.at = obs.position.point_at(seen.bearing_rad, seen.distance_m);
         }
         if obs.frame >= chase.give_up_frame || obs.samples_remaining == 0 {
             self.note_failed_approach(chase.at, obs);
-            self.enter(State::Explore, "sample not reached in time");
-            return Drive::stop(brake);
+            return Next::Enter(State::Explore, "sample not reached in time");
         }
         let p = &self.params;
         let from = PlanStart { map: &self.maps.planning, at: &obs.position, frame: obs.frame, params: p };
         if chase.missing(&from, obs.rock.is_some()) {
             self.note_failed_approach(chase.at, obs);
-            self.enter(State::Explore, "sample not where remembered");
-            return Drive::stop(brake);
+            return Next::Enter(State::Explore, "sample not where remembered");
         }
         let aim = chase.aim(&from);
         if chase.out_of_the_way() {
             let until_frame = obs.frame + p.frames(OUT_OF_THE_WAY_S);
             self.samples.defer(chase.at, until_frame);
             self.samples.defer(chase.first_at, until_frame);
-            self.enter(State::Explore, "sample out of the way on the map");
-            return self.explore(obs);
+            return Next::EnterAndStep(State::Explore, "sample out of the way on the map");
         }
         let distance_m = obs.position.distance_to(chase.at);
         let speed = speed_to_stop_in(distance_m - ARM_REACH_M, p).clamp(p.approach_speed_mps, p.max_speed_mps);
         let drive = match aim {
             Aim::AroundObstacles(point) => {
                 let bearing = obs.position.bearing_to(point);
-                self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, p)
+                self.driving.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, p)
             }
             Aim::Straight(point) => {
                 let (bearing, distance_m) = (obs.position.bearing_to(point), obs.position.distance_to(point));
-                self.steering.toward_point(bearing, distance_m, speed, obs.speed_mps, p)
+                self.driving.steering.toward_point(bearing, distance_m, speed, obs.speed_mps, p)
             }
         };
-        self.state = State::Approach(chase);
-        drive
+        Next::Stay(State::Approach(chase), drive)
     }
 
     /// A seen sample within sight or a remembered one, either within `max_cost` on the map, or
@@ -96,13 +91,13 @@ impl Machine {
 
     /// Whether the rock at `at` is collected, given up, or failed too often lately.
     fn is_given_up(&self, at: (f64, f64)) -> bool {
-        self.samples.is_ignored(at, self.frame, self.params.frames(self.params.sample_retry_s))
+        self.samples.is_ignored(at, self.mission.frame, self.params.frames(self.params.sample_retry_s))
     }
 
     /// Whether the rock at `at` is given up ([`Machine::is_given_up`]) or left alone for now as
     /// out of the way.
     pub(super) fn is_ignored(&self, at: (f64, f64)) -> bool {
-        self.is_given_up(at) || self.samples.is_deferred(at, self.frame)
+        self.is_given_up(at) || self.samples.is_deferred(at, self.mission.frame)
     }
 
     /// Whether the map holds at least as many rocks not given up as samples are missing.

@@ -1,38 +1,54 @@
 //! The mission as commands: start it (when `start_mission` held it back), pause and resume it,
 //! and send the rover home now. Each answers whether it did something, and what.
 
+use super::navigate::{Navigation, NavigationEnd};
 use super::{Machine, State};
 
 /// The answer to a command: done, or refused; with a message for the caller either way.
 pub type CommandAnswer = Result<&'static str, &'static str>;
 
+/// What was asked of the machine from outside: start, pause, go home, drive to a goal.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Orders {
+    /// The mission has started (at once unless `start_mission` is false).
+    pub(super) started: bool,
+    /// Held by a pause.
+    pub(super) paused: bool,
+    /// Asked to return home now: no more exploring or detours for samples.
+    pub(super) sent_home: bool,
+    /// A goal given from outside, driven to in place of the mission.
+    pub(super) navigation: Option<Navigation>,
+    /// How the last navigation ended, until taken.
+    pub(super) navigation_end: Option<NavigationEnd>,
+}
+
 impl Machine {
     /// Starts the mission where the rover stands.
     pub fn start_mission(&mut self) -> CommandAnswer {
-        if self.started {
+        if self.orders.started {
             return Err("the mission has already started");
         }
-        self.started = true;
+        self.orders.started = true;
         self.show_mode("mission started");
         Ok("mission started")
     }
 
     /// Brakes and holds the mission (and a navigation) where they are.
     pub fn pause(&mut self) -> CommandAnswer {
-        if self.paused {
+        if self.orders.paused {
             return Err("already paused");
         }
-        self.paused = true;
+        self.orders.paused = true;
         self.show_mode("paused");
         Ok("paused: the rover brakes and holds")
     }
 
     /// Goes on from where the pause held the rover.
     pub fn resume_after_pause(&mut self) -> CommandAnswer {
-        if !self.paused {
+        if !self.orders.paused {
             return Err("not paused");
         }
-        self.paused = false;
+        self.orders.paused = false;
         self.show_mode("resumed");
         Ok("resumed")
     }
@@ -43,13 +59,13 @@ impl Machine {
         if self.mission.status.home.is_none() {
             return Err("home is not known yet: no frame has come in");
         }
-        if matches!(self.state, State::Done) && self.navigation.is_none() {
+        if matches!(self.state, State::Done) && self.orders.navigation.is_none() {
             return Err("the rover is home: the mission is over");
         }
-        self.started = true;
-        self.paused = false;
-        self.sent_home = true;
-        self.navigation = None;
+        self.orders.started = true;
+        self.orders.paused = false;
+        self.orders.sent_home = true;
+        self.orders.navigation = None;
         self.enter(State::ReturnHome(None), "asked to return home");
         self.show_mode("asked to return home");
         Ok("returning home")

@@ -1,7 +1,8 @@
 //! The explore mode: drive to the frontiers of the map; go for a sample when one is located within
 //! reach; widen the search when no frontier is left; then home.
 
-use super::{Machine, Observation, State};
+use super::look_around::LookAround;
+use super::{Machine, Next, Observation, State};
 use crate::drive::Drive;
 use crate::route::PlanStart;
 
@@ -22,23 +23,28 @@ pub(super) struct Widening {
     inspections_forgotten: u32,
 }
 
+/// What widens the search when no frontier is left: the looks around and the widening so far.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Search {
+    pub(super) widening: Widening,
+    pub(super) look_around: LookAround,
+}
+
 impl Machine {
     /// Steps the explore mode: home at the deadline, a located sample within reach, else the next
     /// frontier; with none left, the search widens, then the rover goes home.
-    pub(super) fn explore(&mut self, obs: &Observation) -> Drive {
+    pub(super) fn explore(&mut self, obs: &Observation) -> Next {
         if let Some(reason) = self.time_to_go_home(obs) {
-            self.enter(State::ReturnHome(None), reason);
-            return self.return_home(obs, None);
+            return Next::EnterAndStep(State::ReturnHome(None), reason);
         }
         if let Some(chase) = self.sample_to_chase(obs, self.params.sample_detour_cost) {
-            self.enter(State::Approach(chase.clone()), "sample located");
-            return self.approach(obs, chase);
+            return Next::EnterAndStep(State::Approach(chase), "sample located");
         }
         let (p, home) = (&self.params, self.mission.status.home);
         let from = PlanStart { map: &self.maps.planning, at: &obs.position, frame: obs.frame, params: p };
         if let Some(waypoint) = self.explorer.waypoint(&from, home) {
-            self.widening.walled_in_recoveries = 0;
-            self.look_around.interrupt();
+            self.search.widening.walled_in_recoveries = 0;
+            self.search.look_around.interrupt();
             let bearing = obs.position.bearing_to(waypoint);
             tracing::trace!(
                 bearing_deg = bearing.to_degrees(),
@@ -46,28 +52,30 @@ impl Machine {
                 best = ?obs.free.best_toward(bearing as f32, p.clearance_m as f32),
                 "explore"
             );
-            return self.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, p);
+            let drive = self.driving.steering.around_obstacles(bearing, p.max_speed_mps, obs.speed_mps, &obs.free, p);
+            return Next::Stay(State::Explore, drive);
         }
         if self.maps.planning.version() == 0 {
-            return self.steering.around_obstacles(0.0, p.max_speed_mps, obs.speed_mps, &obs.free, p);
+            let drive = self.driving.steering.around_obstacles(0.0, p.max_speed_mps, obs.speed_mps, &obs.free, p);
+            return Next::Stay(State::Explore, drive);
         }
         if let Some(turn) = self.look_around(obs) {
-            return turn;
+            return Next::Stay(State::Explore, turn);
         }
-        let brake = self.params.brake;
-        if self.explorer.walled_in() && self.widening.walled_in_recoveries < WALLED_IN_RECOVERIES {
-            self.widening.walled_in_recoveries += 1;
-            self.start_recovery(obs, "walled in by the map (a restart next to a rock?): backing out");
-            return Drive::stop(brake);
+        let brake = Drive::stop(self.params.brake);
+        if self.explorer.walled_in() && self.search.widening.walled_in_recoveries < WALLED_IN_RECOVERIES {
+            self.search.widening.walled_in_recoveries += 1;
+            let reason = "walled in by the map (a restart next to a rock?): backing out";
+            return Next::Recover { from: State::Explore, reason };
         }
         if self.maps.forget_stuck_marks_to_explore(&obs.position) {
             tracing::info!("no frontier reachable: the cells where the rover got stuck are free again");
-            return Drive::stop(brake);
+            return Next::Stay(State::Explore, brake);
         }
         match self.widen_search(obs.samples_remaining) {
             Some(step) => {
                 tracing::info!("no frontier left, {} samples not found: {step}", obs.samples_remaining);
-                Drive::stop(brake)
+                Next::Stay(State::Explore, brake)
             }
             None => self.finish_exploring(obs),
         }
@@ -86,18 +94,17 @@ impl Machine {
         if self.explorer.look_past_obstacles() {
             return Some("planning past obstacle cells");
         }
-        if self.widening.inspections_forgotten < INSPECTION_RESETS && self.explorer.forget_inspected() {
-            self.widening.inspections_forgotten += 1;
+        if self.search.widening.inspections_forgotten < INSPECTION_RESETS && self.explorer.forget_inspected() {
+            self.search.widening.inspections_forgotten += 1;
             return Some("looking again at the walls seen before");
         }
         None
     }
 
     /// The end of exploring: a sample left on the map at any cost, else home.
-    fn finish_exploring(&mut self, obs: &Observation) -> Drive {
+    fn finish_exploring(&mut self, obs: &Observation) -> Next {
         if let Some(chase) = self.sample_to_chase(obs, f64::INFINITY) {
-            self.enter(State::Approach(chase.clone()), "map explored, sample left");
-            return self.approach(obs, chase);
+            return Next::EnterAndStep(State::Approach(chase), "map explored, sample left");
         }
         let (free_cells, obstacle_cells, unknown_cells) = self.maps.received.counts();
         tracing::info!(
@@ -110,14 +117,13 @@ impl Machine {
             given_up = ?self.samples.ignored(),
             "no frontier left"
         );
-        self.enter(State::ReturnHome(None), "no frontier left");
-        self.return_home(obs, None)
+        Next::EnterAndStep(State::ReturnHome(None), "no frontier left")
     }
 
     /// Whether the rover was asked to return home, or the way home, at the return speed, would end
     /// past the mission's deadline.
     pub(super) fn time_to_go_home(&self, obs: &Observation) -> Option<&'static str> {
-        if self.sent_home {
+        if self.orders.sent_home {
             return Some("asked to return home");
         }
         let p = &self.params;

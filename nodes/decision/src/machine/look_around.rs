@@ -54,20 +54,20 @@ impl Machine {
     /// near here or the map already knows the ground in the camera's reach.
     pub(super) fn look_around(&mut self, obs: &Observation) -> Option<Drive> {
         let at = &obs.position;
-        if self.look_around.turn.is_some() {
-            if self.look_around.turned_full_circle(at.yaw_rad) {
-                self.look_around.turn = None;
-                self.look_around.looked_at.push((at.x_m, at.y_m));
+        if self.search.look_around.turn.is_some() {
+            if self.search.look_around.turned_full_circle(at.yaw_rad) {
+                self.search.look_around.turn = None;
+                self.search.look_around.looked_at.push((at.x_m, at.y_m));
                 return None;
             }
         } else {
-            if self.look_around.looked_near(at)
+            if self.search.look_around.looked_near(at)
                 || !unseen_in_reach(&self.maps.received, at, self.params.inspect_range_m)
             {
                 return None;
             }
             tracing::info!(x = at.x_m, y = at.y_m, "no frontier left with ground in reach unseen: looking all around");
-            self.look_around.turn = Some(Turn { last_yaw_rad: at.yaw_rad, turned_rad: 0.0 });
+            self.search.look_around.turn = Some(Turn { last_yaw_rad: at.yaw_rad, turned_rad: 0.0 });
             self.start_afresh();
         }
         Some(Drive::turn_in_place(true))

@@ -76,11 +76,11 @@ impl Machine {
     /// runs; refused when the goal is outside the map or on an obstacle.
     pub fn navigate_to(&mut self, goal: (f64, f64)) -> Result<(), GoalFailure> {
         cell_of_point(goal.0, goal.1).ok_or(GoalFailure::OutsideMap)?;
-        if self.last_position.is_some_and(|at| self.seen_inside_obstacle(goal, &at)) {
+        if self.driving.last_position.is_some_and(|at| self.seen_inside_obstacle(goal, &at)) {
             return Err(GoalFailure::Occupied);
         }
-        let distance_remaining_m = self.last_position.map_or(0.0, |at| at.distance_to(goal));
-        self.navigation = Some(Navigation {
+        let distance_remaining_m = self.driving.last_position.map_or(0.0, |at| at.distance_to(goal));
+        self.orders.navigation = Some(Navigation {
             goal,
             route: Route::to(goal),
             since_frame: None,
@@ -88,14 +88,14 @@ impl Machine {
             recovering: None,
             distance_remaining_m,
         });
-        self.navigation_end = None;
+        self.orders.navigation_end = None;
         self.show_mode("navigating to a goal");
         Ok(())
     }
 
     /// Stops the running navigation, if any (the rover brakes); whether one ran.
     pub fn cancel_navigation(&mut self) -> bool {
-        let ran = self.navigation.take().is_some();
+        let ran = self.orders.navigation.take().is_some();
         if ran {
             self.show_mode("goal canceled");
         }
@@ -104,22 +104,22 @@ impl Machine {
 
     /// How the last navigation ended, once.
     pub fn take_navigation_end(&mut self) -> Option<NavigationEnd> {
-        self.navigation_end.take()
+        self.orders.navigation_end.take()
     }
 
     /// The progress of the running navigation.
     pub fn navigation_progress(&self) -> Option<NavigationProgress> {
-        self.navigation.as_ref().map(|nav| NavigationProgress {
+        self.orders.navigation.as_ref().map(|nav| NavigationProgress {
             goal: nav.goal,
             distance_remaining_m: nav.distance_remaining_m,
-            frames: nav.since_frame.map_or(0, |since| self.frame.saturating_sub(since)),
+            frames: nav.since_frame.map_or(0, |since| self.mission.frame.saturating_sub(since)),
             recoveries: nav.recoveries,
         })
     }
 
     /// The cells of the running navigation's path.
     pub(super) fn navigation_path(&self) -> Option<&[usize]> {
-        self.navigation.as_ref().map(|nav| nav.route.as_ref().map_or(&[][..], |route| route.path()))
+        self.orders.navigation.as_ref().map(|nav| nav.route.as_ref().map_or(&[][..], |route| route.path()))
     }
 
     /// Steps the navigation `nav`: a recovery under way, the end at the goal or when it is out of
@@ -129,7 +129,7 @@ impl Machine {
         nav.since_frame.get_or_insert(obs.frame);
         if let Some((since_frame, turn_left)) = nav.recovering {
             if let Some(drive) = self.recovery_drive(obs, since_frame, turn_left) {
-                self.navigation = Some(nav);
+                self.orders.navigation = Some(nav);
                 return drive;
             }
             nav.recovering = None;
@@ -143,7 +143,7 @@ impl Machine {
             return self.end_navigation(NavigationEnd::Failed(GoalFailure::Occupied));
         }
         if obs.picking_up {
-            self.navigation = Some(nav);
+            self.orders.navigation = Some(nav);
             return Drive::stop(brake);
         }
         if let Some(trouble) = self.trouble(obs) {
@@ -154,7 +154,7 @@ impl Machine {
             tracing::info!("navigating: {trouble}, recovery {} on the way", nav.recoveries);
             self.mark_stuck_cell(obs);
             nav.recovering = Some((obs.frame, obs.free.most_open() >= 0.0));
-            self.navigation = Some(nav);
+            self.orders.navigation = Some(nav);
             return Drive::stop(brake);
         }
         let mut route = nav.route.take();
@@ -167,9 +167,9 @@ impl Machine {
         let p = &self.params;
         let cruise = p.max_speed_mps.min(obs.position.distance_to(nav.goal).max(p.approach_speed_mps));
         let bearing = obs.position.bearing_to(waypoint);
-        let drive = self.steering.around_obstacles(bearing, cruise, obs.speed_mps, &obs.free, p);
+        let drive = self.driving.steering.around_obstacles(bearing, cruise, obs.speed_mps, &obs.free, p);
         nav.route = route;
-        self.navigation = Some(nav);
+        self.orders.navigation = Some(nav);
         drive
     }
 
@@ -204,8 +204,8 @@ impl Machine {
 
     /// Ends the navigation as `end`: the rover brakes, and the mission goes on from where it was.
     fn end_navigation(&mut self, end: NavigationEnd) -> Drive {
-        self.navigation = None;
-        self.navigation_end = Some(end);
+        self.orders.navigation = None;
+        self.orders.navigation_end = Some(end);
         self.show_mode(match end {
             NavigationEnd::Reached => "goal reached",
             NavigationEnd::Failed(_) => "goal given up",

@@ -3,7 +3,7 @@
 
 use rover_msgs::map_grid::cell_centre_m;
 
-use super::{Machine, Observation, State};
+use super::{Machine, Next, Observation, State};
 use crate::drive::{Drive, STOPPED_MPS};
 use crate::params::DecisionParams;
 use crate::stuck::{DrivingWatch, ProgressWatch};
@@ -74,9 +74,9 @@ impl Machine {
     pub(super) fn trouble(&mut self, obs: &Observation) -> Option<&'static str> {
         if tilted(obs, &self.params) {
             Some("tilted")
-        } else if self.watches.stuck(obs, &self.params) {
+        } else if self.driving.watches.stuck(obs, &self.params) {
             Some("stuck")
-        } else if self.watches.stalled(obs, &self.params) {
+        } else if self.driving.watches.stalled(obs, &self.params) {
             Some("no progress")
         } else {
             None
@@ -117,13 +117,11 @@ impl Machine {
     }
 
     /// Backs off, stops, turns; then back to exploring or on the way home.
-    pub(super) fn recover(&mut self, obs: &Observation, since_frame: u64, turn_left: bool, then_home: bool) -> Drive {
-        if let Some(drive) = self.recovery_drive(obs, since_frame, turn_left) {
-            return drive;
+    pub(super) fn recover(&self, obs: &Observation, since_frame: u64, turn_left: bool, then_home: bool) -> Next {
+        match self.recovery_drive(obs, since_frame, turn_left) {
+            Some(drive) => Next::Stay(State::Recover { since_frame, turn_left, then_home }, drive),
+            None => Next::Enter(if then_home { State::ReturnHome(None) } else { State::Explore }, "recovered"),
         }
-        let brake = self.params.brake;
-        self.enter(if then_home { State::ReturnHome(None) } else { State::Explore }, "recovered");
-        Drive::stop(brake)
     }
 
     /// The drive of a recovery started at `since_frame`: back off, stop, turn; `None` once over.

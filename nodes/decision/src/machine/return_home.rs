@@ -1,38 +1,33 @@
 //! The return-home mode: follow a path on the map to the start, picking up a sample located on
 //! the way while there is time; done within `home_tolerance_m`.
 
-use super::{Machine, Observation, State};
+use super::{Machine, Next, Observation, State};
 use crate::drive::Drive;
 use crate::route::{PlanStart, Route};
 
 impl Machine {
     /// Steps the way home along `route`: done within `home_tolerance_m`, a sample on the way while
     /// there is time, else the route's next waypoint.
-    pub(super) fn return_home(&mut self, obs: &Observation, route: Option<Route>) -> Drive {
-        let brake = self.params.brake;
+    pub(super) fn return_home(&mut self, obs: &Observation, route: Option<Route>) -> Next {
         let Some(home) = self.mission.status.home else {
-            self.state = State::ReturnHome(route);
-            return Drive::stop(brake);
+            return Next::Stay(State::ReturnHome(route), Drive::stop(self.params.brake));
         };
         let distance_m = obs.position.distance_to(home);
         if distance_m <= self.params.home_tolerance_m {
-            self.enter(State::Done, "home");
-            return Drive::stop(brake);
+            return Next::Enter(State::Done, "home");
         }
         let detour =
             self.time_to_go_home(obs).is_none().then(|| self.sample_to_chase(obs, self.params.sample_detour_cost));
         if let Some(chase) = detour.flatten() {
-            self.enter(State::Approach(chase.clone()), "sample located on the way home");
-            return self.approach(obs, chase);
+            return Next::EnterAndStep(State::Approach(chase), "sample located on the way home");
         }
         let mut route = route.or_else(|| Route::to(home));
         let waypoint = self.reachable_waypoint_on(route.as_mut(), obs).unwrap_or(home);
         let bearing = obs.position.bearing_to(waypoint);
         let p = &self.params;
         let cruise = p.max_speed_mps.min(distance_m.max(p.approach_speed_mps));
-        let drive = self.steering.around_obstacles(bearing, cruise, obs.speed_mps, &obs.free, p);
-        self.state = State::ReturnHome(route);
-        drive
+        let drive = self.driving.steering.around_obstacles(bearing, cruise, obs.speed_mps, &obs.free, p);
+        Next::Stay(State::ReturnHome(route), drive)
     }
 
     /// The point of `route` to steer toward, as [`Machine::waypoint_on`]; when the goal cannot be

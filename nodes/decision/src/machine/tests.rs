@@ -272,7 +272,7 @@ fn a_remembered_sample_that_the_camera_does_not_see_from_close_by_is_given_up_fo
     }
     assert_eq!(given_up.len(), APPROACHES_PER_ROCK, "approached and not seen, then given up: {given_up:?}");
     assert_eq!(given_up.last(), Some(&(Mode::Explore, true)), "back to exploring, the sample ignored");
-    machine.frame += params.frames(params.sample_retry_s);
+    machine.mission.frame += params.frames(params.sample_retry_s);
     assert!(!machine.is_ignored((102.5, 100.5)), "tried again later");
 }
 
@@ -280,7 +280,7 @@ fn a_remembered_sample_that_the_camera_does_not_see_from_close_by_is_given_up_fo
 fn a_slow_approach_is_not_stuck_a_stopped_rover_is() {
     let params = DecisionParams::default();
     let mut machine = Machine::new(params.clone());
-    machine.watches.last_drive = Drive { throttle: 0.2, brake: 0.0, steering_deg: 0.0 };
+    machine.driving.watches.last_drive = Drive { throttle: 0.2, brake: 0.0, steering_deg: 0.0 };
     let slow = |frame: u64, speed_mps: f64| {
         let mut obs = observation(frame, 100.0 + 0.004 * frame as f64, 100.5);
         obs.speed_mps = speed_mps;
@@ -288,10 +288,10 @@ fn a_slow_approach_is_not_stuck_a_stopped_rover_is() {
     };
     let watch = params.frames(params.stuck_s) + 2;
     assert!(
-        (1..watch).all(|frame| !machine.watches.stuck(&slow(frame, 0.15), &params)),
+        (1..watch).all(|frame| !machine.driving.watches.stuck(&slow(frame, 0.15), &params)),
         "0.15 m/s, less than 0.3 m in 1.5 s"
     );
-    assert!((watch..2 * watch).any(|frame| machine.watches.stuck(&slow(frame, 0.0), &params)), "stopped");
+    assert!((watch..2 * watch).any(|frame| machine.driving.watches.stuck(&slow(frame, 0.0), &params)), "stopped");
 }
 
 #[test]
@@ -300,8 +300,8 @@ fn a_rover_that_pushes_against_a_rock_and_turns_in_between_is_stuck() {
     let mut machine = Machine::new(params.clone());
     let (push, turn) = (Drive { throttle: 1.0, brake: 0.0, steering_deg: 0.0 }, Drive::turn_in_place(true));
     let stuck_at = (1..20 * params.frames(params.stuck_s)).find(|&frame| {
-        machine.watches.last_drive = if frame % 8 < 4 { push } else { turn };
-        machine.watches.stuck(&observation(frame, 100.0, 100.5), &params)
+        machine.driving.watches.last_drive = if frame % 8 < 4 { push } else { turn };
+        machine.driving.watches.stuck(&observation(frame, 100.0, 100.5), &params)
     });
     let stuck_at = stuck_at.expect("stuck while alternating pushes and turns");
     assert!(
@@ -323,10 +323,10 @@ fn getting_stuck_makes_the_cell_ahead_an_obstacle_until_nothing_else_is_left() {
     assert_eq!(machine.maps.planning.grid().cell(ahead), Cell::Blocked, "and stays marked in the next map");
     assert!(machine.maps.forget_stuck_marks() && machine.maps.planning.grid().cell(ahead) == Cell::Free);
     machine.mark_stuck_cell(&observation(300, 100.5, 100.5));
-    machine.frame = 300 + params.frames(STUCK_MARK_S) - 1;
+    machine.mission.frame = 300 + params.frames(STUCK_MARK_S) - 1;
     machine.set_map(corridor());
     assert_eq!(machine.maps.planning.grid().cell(ahead), Cell::Blocked, "marked again");
-    machine.frame += 1;
+    machine.mission.frame += 1;
     machine.set_map(corridor());
     assert_eq!(machine.maps.planning.grid().cell(ahead), Cell::Free, "until the mark expires");
 }
