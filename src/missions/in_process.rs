@@ -12,13 +12,11 @@ use rover_decision::params::DecisionParams;
 use rover_mapping::node::MappingNode;
 use rover_mapping::params::MappingParams;
 use rover_msgs::builtin_interfaces::Time;
-use rover_msgs::msg::DriveCommand;
 use rover_perception::node::PerceptionNode;
 use rover_perception::params::PerceptionParams;
 use rover_pickup::PickupParams;
 use rover_pickup::node::PickupNode;
 use rover_runtime::executor::Executor;
-use rover_runtime::node_core::Sent;
 use rover_runtime::{RosArgs, Shutdown, resolve_params, topics};
 use rover_sim::sim::{SimConfig, SimReport, Simulator};
 use rover_sim::wire::client::Simulation as _;
@@ -132,7 +130,9 @@ pub fn run_in_process(
         let mut written = graph.publish(&topics::TELEMETRY, messages.telemetry, now.clone());
         written.extend(graph.publish(&topics::CAMERA_COMPRESSED, messages.compressed, now));
         let done = evaluator.observe(&written);
-        answer(&mut link, &written, settings.decision.brake as f32)?;
+        let pickup_requested = written.iter().any(|sent| sent.on(&topics::PICKUP).is_some());
+        let drive = written.iter().find_map(|sent| sent.on(&topics::DRIVE_CMD));
+        link.answer(pickup_requested, drive, settings.decision.brake as f32)?;
         if frame % progress_every_frames.max(1) == 0 {
             on_progress(&evaluator.snapshot());
         }
@@ -155,18 +155,6 @@ fn graph_of_cores(settings: &NodeSettings) -> anyhow::Result<Executor> {
     graph.add::<DecisionNode>(settings.decision.clone())?;
     graph.add::<PickupNode>(settings.pickup.clone())?;
     Ok(graph)
-}
-
-/// Answers the simulator with what the graph wrote for a frame, as the bridge does: a pickup
-/// request first, else the drive command, else (no scan came of the frame) the brake.
-fn answer(link: &mut DirectLink<SimulatorPeer>, written: &[Sent], brake: f32) -> anyhow::Result<()> {
-    if written.iter().any(|sent| sent.on(&topics::PICKUP).is_some()) {
-        return link.send_pickup();
-    }
-    match written.iter().find_map(|sent| sent.on(&topics::DRIVE_CMD)) {
-        Some(command) => link.send_drive(command, brake),
-        None => link.send_drive(&DriveCommand { brake, ..DriveCommand::default() }, brake),
-    }
 }
 
 /// The simulator as the bridge's peer in this process.

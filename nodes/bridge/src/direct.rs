@@ -67,17 +67,29 @@ impl<P: UnityPeer> DirectLink<P> {
         Some(FrameMessages::new(&telemetry, frame, self.clock.stamp_frame(frame), &self.camera))
     }
 
+    /// Answers the frame as the bridge does with what the graph wrote for it: a pickup when one
+    /// was requested, else the drive command, else (none came) the brake `brake`.
+    pub fn answer(&mut self, pickup_requested: bool, drive: Option<&DriveCommand>, brake: f32) -> anyhow::Result<()> {
+        if pickup_requested {
+            return self.send_pickup();
+        }
+        match drive {
+            Some(command) => self.send_drive(command, brake),
+            None => self.send_drive(&DriveCommand { brake, ..DriveCommand::default() }, brake),
+        }
+    }
+
     /// Sends a drive command as the bridge answers with one: clamped, as the text of a `data`
     /// event. A command the bridge refuses (not finite) is a brake of `refused_brake` here: one
     /// thread has no last command to hold.
-    pub fn send_drive(&mut self, command: &DriveCommand, refused_brake: f32) -> anyhow::Result<()> {
+    fn send_drive(&mut self, command: &DriveCommand, refused_brake: f32) -> anyhow::Result<()> {
         let values = DriveValues::checked(command.throttle, command.brake, command.steering_angle_deg)
             .unwrap_or_else(|_| DriveValues::brake(refused_brake));
         self.send("data", serde_json::to_value(DataEvent::new(values, "", ""))?)
     }
 
     /// Sends a pickup, as the bridge does for a pending `rover/pickup`.
-    pub fn send_pickup(&mut self) -> anyhow::Result<()> {
+    fn send_pickup(&mut self) -> anyhow::Result<()> {
         self.send("pickup", Value::Object(serde_json::Map::new()))
     }
 
@@ -174,5 +186,17 @@ mod tests {
         let clamped = (field(&events[1], "throttle"), field(&events[1], "brake"), field(&events[1], "steering_angle"));
         assert_eq!(clamped, ("1", "0", "-15"));
         assert_eq!((field(&events[2], "throttle"), field(&events[2], "brake")), ("0", "10"), "refused: a brake");
+    }
+
+    #[test]
+    fn a_frame_is_answered_with_the_pickup_first_else_the_drive_else_the_brake() {
+        let mut link = DirectLink::open(Recorder::default(), 0.04).unwrap();
+        link.answer(true, Some(&drive(0.3, 0.0, 5.0)), 10.0).unwrap();
+        link.answer(false, Some(&drive(0.3, 0.0, 5.0)), 10.0).unwrap();
+        link.answer(false, None, 10.0).unwrap();
+        let events = &link.peer().events;
+        assert_eq!(events[0].0, "pickup");
+        assert_eq!((events[1].0.as_str(), field(&events[1], "throttle")), ("data", "0.3"));
+        assert_eq!((field(&events[2], "throttle"), field(&events[2], "brake")), ("0", "10"));
     }
 }
