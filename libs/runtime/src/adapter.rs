@@ -15,7 +15,7 @@ use tracing::Instrument as _;
 use crate::commands::Commands;
 use crate::graph::node_topics;
 use crate::lifecycle::{State, Transition};
-use crate::node_core::{Inputs, NodeCore, Outbox, Received, Sent};
+use crate::node_core::{FromParams, Inputs, NodeCore, Outbox, Received, Sent, Work};
 use crate::topics::{Topic, TopicVisitor, visit_all};
 use crate::{Params, Publisher, RosNode, Runtime};
 
@@ -30,7 +30,20 @@ const RESULTS_LIMIT: Duration = Duration::from_secs(1);
 
 /// Runs the node whose core is `C` until shutdown: a managed node, configured and activated at
 /// start unless its `autostart` parameter is false, whose state `ros2 lifecycle` can change.
-pub async fn run_node<C: NodeCore>(runtime: &Runtime) -> anyhow::Result<()> {
+pub async fn run_node<C: FromParams>(runtime: &Runtime) -> anyhow::Result<()> {
+    run_node_with::<C>(runtime, Box::new(|_, params| C::new(params)), futures::stream::pending()).await
+}
+
+/// Builds the core of a node from the node and its parameters, at each configure.
+pub type Build<C> = Box<dyn Fn(&RosNode, <C as NodeCore>::Params) -> anyhow::Result<C> + Send>;
+
+/// [`run_node`] for a core that `build` makes, which also gets the `work` that comes from
+/// outside the graph (in any state it is configured in; dropped while it is not).
+pub async fn run_node_with<C: NodeCore>(
+    runtime: &Runtime,
+    build: Build<C>,
+    work: impl futures::Stream<Item = Work<C>>,
+) -> anyhow::Result<()> {
     let (mut node, params) = runtime.node::<C::Params>(C::NAME)?;
     let span = node.span();
     let (inputs, inactive_inputs) = (C::inputs(), C::inactive_inputs());
@@ -39,9 +52,13 @@ pub async fn run_node<C: NodeCore>(runtime: &Runtime) -> anyhow::Result<()> {
     let commands = C::commands();
     check_commands_are_the_tables::<C>(&commands.names())?;
     let (mut calls, reports, unsent) = serve_commands(&node, &commands)?;
-    let mut managed = Managed::<C> { configured: None, out: Outbox::new(node.now(), Vec::new()), reports };
+    let mut managed = Managed::<C> { build, configured: None, out: Outbox::new(node.now(), Vec::new()), reports };
+    let mut work = std::pin::pin!(work);
     let mut changes = params.watch();
     let shutdown = runtime.shutdown();
+    if C::BUILT_AT_START {
+        managed.configured = Some(configure(&mut node, &inputs, &params, &managed.build)?);
+    }
     async {
         let autostart = if node.autostarts() { &[Transition::Configure, Transition::Activate][..] } else { &[] };
         for &transition in autostart {
@@ -63,6 +80,7 @@ pub async fn run_node<C: NodeCore>(runtime: &Runtime) -> anyhow::Result<()> {
                     managed.deliver(handlers, topic, &*message, &node);
                 }
                 () = sleep_until(timer), if timer.is_some() => managed.with_core(&node, |core, out| core.on_timer(out)),
+                Some(job) = work.next() => managed.with_core(&node, job),
                 Ok(()) = changes.changed() => managed.set_params(changes.borrow_and_update().clone()),
             }
         }
@@ -88,7 +106,8 @@ struct Configured<C> {
 }
 
 /// A managed node's core and its connections, as its lifecycle state has them.
-struct Managed<C> {
+struct Managed<C: NodeCore> {
+    build: Build<C>,
     /// Present from configure to cleanup or shutdown.
     configured: Option<Configured<C>>,
     out: Outbox,
@@ -99,7 +118,8 @@ struct Managed<C> {
 impl<C: NodeCore> Managed<C> {
     /// Carries out `transition`; whether it succeeded. Configure builds the core, subscribes
     /// and creates the publishers; activate starts the core the first time; cleanup and
-    /// shutdown stop the core and drop them all.
+    /// shutdown stop the core and drop them all (a core [`NodeCore::BUILT_AT_START`] is only
+    /// deactivated at cleanup).
     fn change(
         &mut self,
         transition: Transition,
@@ -108,7 +128,8 @@ impl<C: NodeCore> Managed<C> {
         params: &Params<C::Params>,
     ) -> bool {
         match transition {
-            Transition::Configure => match configure(node, inputs, params) {
+            Transition::Configure if self.configured.is_some() => true,
+            Transition::Configure => match configure(node, inputs, params, &self.build) {
                 Ok(configured) => {
                     self.configured = Some(configured);
                     true
@@ -123,11 +144,22 @@ impl<C: NodeCore> Managed<C> {
                     configured.started = true;
                     self.with_core(node, |core, out| core.start(out));
                 }
+                self.with_core(node, |core, _| core.set_active(true));
                 true
             }
-            Transition::Deactivate => true,
+            Transition::Deactivate => {
+                self.with_core(node, |core, _| core.set_active(false));
+                true
+            }
+            Transition::Cleanup if C::BUILT_AT_START => {
+                self.with_core(node, |core, _| core.set_active(false));
+                true
+            }
             Transition::Cleanup | Transition::Shutdown => {
-                self.with_core(node, |core, out| core.stop(out));
+                self.with_core(node, |core, out| {
+                    core.set_active(false);
+                    core.stop(out);
+                });
                 self.configured = None;
                 true
             }
@@ -204,16 +236,17 @@ impl<C: NodeCore> Managed<C> {
     }
 }
 
-/// The core built from the node's current parameters, subscribed to its inputs, with a publisher
-/// for each topic the graph table says the node writes.
+/// The core built by `build` from the node's current parameters, subscribed to its inputs, with a
+/// publisher for each topic the graph table says the node writes.
 fn configure<C: NodeCore>(
     node: &mut RosNode,
     inputs: &Inputs<C>,
     params: &Params<C::Params>,
+    build: &Build<C>,
 ) -> anyhow::Result<Configured<C>> {
     let publishers = Publishers::of(node, C::NAME)?;
     let streams = inputs.ports.iter().map(|port| port.subscribe(node)).collect::<anyhow::Result<Vec<_>>>()?;
-    let core = C::new(params.get())?;
+    let core = build(node, params.get())?;
     Ok(Configured { core, messages: futures::stream::select_all(streams), publishers, started: false })
 }
 

@@ -11,7 +11,7 @@ use rover_msgs::builtin_interfaces::Time;
 
 use crate::adapter::check_inputs_are_the_tables;
 use crate::graph::{GRAPH, node_topics};
-use crate::node_core::{Inputs, NodeCore, Outbox, Sent};
+use crate::node_core::{FromParams, Inputs, NodeCore, Outbox, Sent};
 use crate::topics::{Topic, all_names};
 
 /// A core as the executor drives it, whatever its type.
@@ -68,7 +68,7 @@ impl Executor {
     }
 
     /// Adds the core `C`, configured by `params`; cores are kept in the graph table's order.
-    pub fn add<C: NodeCore>(&mut self, params: C::Params) -> anyhow::Result<()> {
+    pub fn add<C: FromParams>(&mut self, params: C::Params) -> anyhow::Result<()> {
         let inputs = C::inputs();
         check_inputs_are_the_tables::<C>(&inputs.topic_names())?;
         let core = C::new(params)?;
@@ -156,10 +156,6 @@ mod tests {
         type Params = NoParams;
         const NAME: &'static str = "perception";
 
-        fn new(_: NoParams) -> anyhow::Result<Self> {
-            Ok(Eyes)
-        }
-
         fn inputs() -> Inputs<Self> {
             Inputs::new()
                 .on(&crate::topics::CAMERA_COMPRESSED, Self::on_camera)
@@ -167,6 +163,12 @@ mod tests {
         }
 
         fn set_params(&mut self, _: NoParams) {}
+    }
+
+    impl FromParams for Eyes {
+        fn new(_: NoParams) -> anyhow::Result<Self> {
+            Ok(Eyes)
+        }
     }
 
     impl Eyes {
@@ -190,10 +192,6 @@ mod tests {
         type Params = NoParams;
         const NAME: &'static str = "decision";
 
-        fn new(_: NoParams) -> anyhow::Result<Self> {
-            Ok(Driver { maps: 0 })
-        }
-
         fn inputs() -> Inputs<Self> {
             Inputs::new()
                 .on(&crate::topics::TERRAIN, Self::on_scan)
@@ -204,6 +202,12 @@ mod tests {
         }
 
         fn set_params(&mut self, _: NoParams) {}
+    }
+
+    impl FromParams for Driver {
+        fn new(_: NoParams) -> anyhow::Result<Self> {
+            Ok(Driver { maps: 0 })
+        }
     }
 
     impl Driver {
@@ -223,15 +227,17 @@ mod tests {
         type Params = NoParams;
         const NAME: &'static str = "pickup";
 
-        fn new(_: NoParams) -> anyhow::Result<Self> {
-            Ok(Stray)
-        }
-
         fn inputs() -> Inputs<Self> {
             Inputs::new().on(&crate::topics::TERRAIN, |_, _, _| {})
         }
 
         fn set_params(&mut self, _: NoParams) {}
+    }
+
+    impl FromParams for Stray {
+        fn new(_: NoParams) -> anyhow::Result<Self> {
+            Ok(Stray)
+        }
     }
 
     fn stamped(sec: i32) -> Header {

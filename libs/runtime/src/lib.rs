@@ -34,7 +34,7 @@ mod static_peers;
 pub mod sync;
 pub mod topics;
 
-pub use adapter::run_node;
+pub use adapter::{Build, run_node, run_node_with};
 pub use ip_network::IpNetwork;
 pub use node::{
     Params, RosNode, Runtime, domain_id_from_env, messages, publish_or_warn, resolve_params, spawn_subscriber,

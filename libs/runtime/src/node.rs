@@ -92,6 +92,12 @@ impl Runtime {
         Ok(Runtime { context, matches, ros_args: Arc::new(ros_args), shutdown })
     }
 
+    /// The parameters of node `P` (default name `default_name`) as this process's ROS arguments
+    /// set them, before the node exists.
+    pub fn params<P: NodeParams>(&self, default_name: &str) -> anyhow::Result<P> {
+        resolve_params(default_name, &self.ros_args)
+    }
+
     /// The shutdown flag of the process.
     pub fn shutdown(&self) -> Shutdown {
         self.shutdown.clone()

@@ -23,9 +23,11 @@ pub trait NodeCore: Sized + 'static {
     /// Whether, once asked to stop, the node still handles the messages already sent to it
     /// (a map should include every scan the rover drove on).
     const DRAINS_ON_STOP: bool = false;
-
-    /// The core, configured by `params`.
-    fn new(params: Self::Params) -> anyhow::Result<Self>;
+    /// Whether the core is built, with its subscriptions and publishers, when the node starts and
+    /// kept in every lifecycle state until shutdown, so that it handles its work from outside the
+    /// graph even while unconfigured (the bridge publishes the simulator's frames, which it
+    /// answers with the brake until active); configure and cleanup then only mark the state.
+    const BUILT_AT_START: bool = false;
 
     /// The handler of each topic the node reads: exactly the graph table's reads of the node.
     fn inputs() -> Inputs<Self>;
@@ -47,6 +49,10 @@ pub trait NodeCore: Sized + 'static {
     /// value.
     fn start(&mut self, _out: &mut Outbox) {}
 
+    /// Called when the node becomes active (`true`) and when it stops being active (`false`:
+    /// deactivated, cleaned up or shut down).
+    fn set_active(&mut self, _active: bool) {}
+
     /// Takes parameters set while the node runs.
     fn set_params(&mut self, params: Self::Params);
 
@@ -63,6 +69,17 @@ pub trait NodeCore: Sized + 'static {
     /// and the summary log line.
     fn stop(&mut self, _out: &mut Outbox) {}
 }
+
+/// A core built from its parameters alone: every core but the bridge's, which shares the
+/// simulator's connection with its Socket.IO server.
+pub trait FromParams: NodeCore {
+    /// The core, configured by `params`.
+    fn new(params: Self::Params) -> anyhow::Result<Self>;
+}
+
+/// Work for a core from outside the graph (the bridge's simulator frames), run by the adapter
+/// on the configured core like a message.
+pub type Work<C> = Box<dyn FnOnce(&mut C, &mut Outbox) + Send>;
 
 /// The type-erased handler of one input topic of core `C`.
 pub(crate) trait InputPort<C> {

@@ -3,8 +3,9 @@
 //! [`telemetry`] parses the simulator's dialect, [`lockstep`] answers every frame exactly once,
 //! [`server`] speaks Socket.IO to the simulator behind the [`gate`] that applies the [`access`]
 //! rules, [`insets`] says which inset images a reply
-//! carries, [`convert`] builds the ROS messages, [`clock`] counts simulated time and [`node`] wires
-//! it all to the topics; [`direct`] is the same link to a simulator in the same process.
+//! carries, [`convert`] builds the ROS messages, [`clock`] counts simulated time and [`node`] is
+//! the node's core, which the runtime's adapter runs beside the server; [`direct`] is the same
+//! link to a simulator in the same process.
 
 mod access;
 mod clock;

@@ -22,7 +22,7 @@ use crate::teleop::{TeleopGains, twist_to_drive};
 /// Receives every accepted telemetry frame (the bridge node publishes it on the ROS topics).
 pub trait FrameSink: Send + Sync + 'static {
     /// Called once per accepted frame, before the bridge waits for its drive command.
-    fn publish_frame(&self, frame: u64, telemetry: &SimTelemetry);
+    fn publish_frame(&self, frame: u64, telemetry: SimTelemetry);
 }
 
 /// Settings of the lock-step core.
@@ -203,13 +203,13 @@ impl<S: FrameSink> LockStep<S> {
         let frame = self.next_frame.fetch_add(1, Ordering::Relaxed) + 1;
         let (sender, receiver) = oneshot::channel();
         lock(&self.waiting).insert(frame, sender);
-        self.sink.publish_frame(frame, &telemetry);
         let facts = FrameFacts {
             frame,
             near_sample: telemetry.near_sample,
             picking_up: telemetry.picking_up,
             speed_mps: telemetry.state.speed_mps,
         };
+        self.sink.publish_frame(frame, telemetry);
         FrameState::Waiting(Waiting { published_at: Instant::now(), receiver, facts })
     }
 
@@ -308,7 +308,7 @@ mod tests {
     struct ChannelSink(std::sync::mpsc::Sender<u64>);
 
     impl FrameSink for ChannelSink {
-        fn publish_frame(&self, frame: u64, _telemetry: &SimTelemetry) {
+        fn publish_frame(&self, frame: u64, _telemetry: SimTelemetry) {
             self.0.send(frame).unwrap();
         }
     }

@@ -1,24 +1,21 @@
 //! The bridge node (`rover bridge`): wires the lock-step core and the Socket.IO server to the topics.
 
 use std::net::{IpAddr, SocketAddr};
-use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use base64::Engine as _;
 use rover_imaging::message::{rgb_image_from_message, rgb8_message};
 use rover_msgs::body::CameraMount;
 use rover_msgs::frame_ids;
-use rover_msgs::geometry_msgs::PoseArray;
-use rover_msgs::msg::Telemetry;
-use rover_msgs::nav_msgs::Odometry;
-use rover_msgs::rosgraph_msgs::Clock;
-use rover_msgs::sensor_msgs::{CameraInfo, CompressedImage, Image};
+use rover_msgs::sensor_msgs::Image;
 use rover_msgs::std_msgs::Header;
-use rover_msgs::tf2_msgs::TFMessage;
-use rover_runtime::lifecycle::{State, Transition};
-use rover_runtime::sync::lock;
-use rover_runtime::{Publisher, RosNode, Runtime, publish_or_warn, spawn_subscriber, topics};
+use rover_runtime::node_core::{Inputs, NodeCore, Outbox, Work};
+use rover_runtime::rejections::worth_logging;
+use rover_runtime::{Build, RosNode, Runtime, run_node_with, topics};
+use tokio::sync::mpsc;
 use tracing::Instrument as _;
 
 use crate::access::AccessPolicy;
@@ -153,78 +150,154 @@ impl BridgeParams {
     }
 }
 
-/// Publishes the topics of each accepted telemetry frame.
-struct DdsSink {
-    /// Held, never read: while it lives, late subscribers still get the latched transforms.
-    _tf_static: Publisher<TFMessage>,
-    telemetry: Publisher<Telemetry>,
-    compressed: Publisher<CompressedImage>,
-    camera_info: Publisher<CameraInfo>,
-    odom: Publisher<Odometry>,
-    tf: Publisher<TFMessage>,
-    clock_publisher: Publisher<Clock>,
-    clock: Arc<SimClock>,
-    sample_truth: Publisher<PoseArray>,
-    raw: Option<Publisher<Image>>,
-    camera: PinholeCamera,
-    last_samples: Mutex<Option<Vec<(f64, f64)>>>,
+/// How many accepted frames may wait for the bridge node's core; a frame beyond is dropped
+/// (counted and logged) rather than queued without bound behind a stalled node.
+const FRAME_QUEUE_LENGTH: usize = 64;
+
+/// Hands each accepted frame to the bridge node's core, which the adapter runs.
+struct FrameQueue {
+    frames: mpsc::Sender<Work<BridgeNode>>,
+    dropped: AtomicU64,
 }
 
-impl DdsSink {
-    fn new(node: &mut RosNode, params: &BridgeParams, clock: Arc<SimClock>) -> anyhow::Result<Self> {
-        let camera = PinholeCamera::of_size(params.image_width as u32, params.image_height as u32);
-        let tf_static = node.publisher(&topics::TF_STATIC)?;
-        let static_transforms =
-            convert::static_transforms_message(&CameraMount::UNITY, &Header::at(frame_ids::MAP, clock.now()));
-        publish_or_warn(&tf_static, &topics::TF_STATIC, static_transforms);
-        Ok(DdsSink {
-            _tf_static: tf_static,
-            telemetry: node.publisher(&topics::TELEMETRY)?,
-            compressed: node.publisher(&topics::CAMERA_COMPRESSED)?,
-            camera_info: node.publisher(&topics::CAMERA_INFO)?,
-            odom: node.publisher(&topics::ODOM)?,
-            tf: node.publisher(&topics::TF)?,
-            clock_publisher: node.publisher(&topics::CLOCK)?,
-            clock,
-            sample_truth: node.publisher(&topics::SAMPLE_TRUTH)?,
-            raw: if params.publish_raw_image { Some(node.publisher(&topics::CAMERA_RAW)?) } else { None },
-            camera,
-            last_samples: Mutex::new(None),
-        })
+impl FrameSink for FrameQueue {
+    fn publish_frame(&self, frame: u64, telemetry: SimTelemetry) {
+        let publish: Work<BridgeNode> = Box::new(move |core, out| core.publish_frame(frame, &telemetry, out));
+        if self.frames.try_send(publish).is_err() {
+            let dropped = self.dropped.fetch_add(1, Ordering::Relaxed) + 1;
+            if worth_logging(dropped) {
+                tracing::warn!(
+                    frame,
+                    dropped,
+                    "a telemetry frame was not published: the bridge node is not keeping up"
+                );
+            }
+        }
+    }
+}
+
+/// The bridge node's core: publishes the topics of each frame the lock-step core accepted, and
+/// hands it the commands and insets that come over DDS.
+struct BridgeNode {
+    link: Arc<LockStep<FrameQueue>>,
+    clock: SimClock,
+    camera: PinholeCamera,
+    publish_raw_image: bool,
+    inset_jpeg_quality: u8,
+    /// The sample positions last published on `sim/sample_truth`.
+    last_samples: Option<Vec<(f64, f64)>>,
+    /// The node's name, as `/diagnostics` reports it.
+    name: String,
+    diagnostics_period: Duration,
+    next_diagnostics: Instant,
+}
+
+impl NodeCore for BridgeNode {
+    type Params = BridgeParams;
+    const NAME: &'static str = "bridge";
+    const BUILT_AT_START: bool = true;
+
+    fn inputs() -> Inputs<Self> {
+        Inputs::<Self>::new()
+            .on(&topics::DRIVE_CMD, |core, cmd, _| {
+                core.link.on_drive_command(cmd.frame, cmd.throttle, cmd.brake, cmd.steering_angle_deg)
+            })
+            .on(&topics::PICKUP, |core, _, _| core.link.on_pickup_request())
+            .on(&topics::CMD_VEL, |core, twist, _| core.link.on_teleop(twist.clone()))
+            .on(&topics::MAP_IMAGE, |core, image, _| core.set_inset(image, Inset::Map))
+            .on(&topics::VISION, |core, image, _| core.set_inset(image, Inset::Vision))
     }
 
-    fn publish_raw(&self, publisher: &Publisher<Image>, jpeg: &[u8], header: Header) {
+    fn start(&mut self, out: &mut Outbox) {
+        let header = Header::at(frame_ids::MAP, self.clock.now());
+        out.publish(&topics::TF_STATIC, convert::static_transforms_message(&CameraMount::UNITY, &header));
+    }
+
+    fn set_active(&mut self, active: bool) {
+        self.link.set_active(active);
+    }
+
+    fn set_params(&mut self, params: BridgeParams) {
+        self.link.set_config(params.lockstep_config());
+    }
+
+    fn timer_due(&self) -> Option<Instant> {
+        Some(self.next_diagnostics)
+    }
+
+    fn on_timer(&mut self, out: &mut Outbox) {
+        self.next_diagnostics = Instant::now() + self.diagnostics_period;
+        let header = Header::at("", self.clock.now());
+        out.publish(&topics::DIAGNOSTICS, self.link.stats().diagnostics(&self.name, header));
+    }
+
+    fn stop(&mut self, _out: &mut Outbox) {
+        tracing::info!("bridge: {}", self.link.stats().summary());
+    }
+}
+
+/// The two inset images the bridge sends the simulator.
+#[derive(Debug, Clone, Copy)]
+enum Inset {
+    Map,
+    Vision,
+}
+
+impl BridgeNode {
+    fn new(link: Arc<LockStep<FrameQueue>>, node: &RosNode, params: &BridgeParams) -> Self {
+        BridgeNode {
+            link,
+            clock: SimClock::new(params.frame_period_s, node.uses_sim_time()),
+            camera: PinholeCamera::of_size(params.image_width as u32, params.image_height as u32),
+            publish_raw_image: params.publish_raw_image,
+            inset_jpeg_quality: params.inset_jpeg_quality as u8,
+            last_samples: None,
+            name: node.identity().fully_qualified(),
+            diagnostics_period: Duration::from_secs_f64(params.diagnostics_period_ms / 1000.0),
+            next_diagnostics: Instant::now(),
+        }
+    }
+
+    fn publish_frame(&mut self, frame: u64, telemetry: &SimTelemetry, out: &mut Outbox) {
+        out.publish(&topics::CLOCK, self.clock.clock_message(frame));
+        let messages = FrameMessages::new(telemetry, frame, self.clock.stamp_frame(frame), &self.camera);
+        let (odom_header, camera_header) = (messages.telemetry.header.clone(), messages.compressed.header.clone());
+        out.publish(&topics::TELEMETRY, messages.telemetry);
+        out.publish(&topics::CAMERA_COMPRESSED, messages.compressed);
+        out.publish(&topics::CAMERA_INFO, messages.camera_info);
+        out.publish(&topics::ODOM, messages.odom);
+        out.publish(&topics::TF, messages.tf);
+        if self.publish_raw_image {
+            self.publish_raw(&telemetry.image_jpeg, camera_header, out);
+        }
+        self.publish_sample_truth(telemetry, odom_header, out);
+    }
+
+    fn publish_raw(&self, jpeg: &[u8], header: Header, out: &mut Outbox) {
         match rover_imaging::decode_jpeg(jpeg, self.camera.width as usize, self.camera.height as usize) {
-            Ok(image) => publish_or_warn(publisher, &topics::CAMERA_RAW, rgb8_message(image, header)),
+            Ok(image) => out.publish(&topics::CAMERA_RAW, rgb8_message(image, header)),
             Err(e) => tracing::warn!("camera/image_raw not published: {e}"),
         }
     }
 
-    fn publish_sample_truth(&self, telemetry: &SimTelemetry, header: Header) {
-        let mut last = lock(&self.last_samples);
-        if last.as_ref() != Some(&telemetry.samples) {
-            *last = Some(telemetry.samples.clone());
+    /// Publishes the true sample positions when they changed (a sample was picked up).
+    fn publish_sample_truth(&mut self, telemetry: &SimTelemetry, header: Header, out: &mut Outbox) {
+        if self.last_samples.as_ref() != Some(&telemetry.samples) {
+            self.last_samples = Some(telemetry.samples.clone());
             let message =
                 convert::sample_truth_message(telemetry, Header { frame_id: frame_ids::MAP.into(), ..header });
-            publish_or_warn(&self.sample_truth, &topics::SAMPLE_TRUTH, message);
+            out.publish(&topics::SAMPLE_TRUTH, message);
         }
     }
-}
 
-impl FrameSink for DdsSink {
-    fn publish_frame(&self, frame: u64, telemetry: &SimTelemetry) {
-        publish_or_warn(&self.clock_publisher, &topics::CLOCK, self.clock.clock_message(frame));
-        let messages = FrameMessages::new(telemetry, frame, self.clock.stamp_frame(frame), &self.camera);
-        let (odom_header, camera_header) = (messages.telemetry.header.clone(), messages.compressed.header.clone());
-        publish_or_warn(&self.telemetry, &topics::TELEMETRY, messages.telemetry);
-        publish_or_warn(&self.compressed, &topics::CAMERA_COMPRESSED, messages.compressed);
-        publish_or_warn(&self.camera_info, &topics::CAMERA_INFO, messages.camera_info);
-        publish_or_warn(&self.odom, &topics::ODOM, messages.odom);
-        publish_or_warn(&self.tf, &topics::TF, messages.tf);
-        if let Some(raw) = &self.raw {
-            self.publish_raw(raw, &telemetry.image_jpeg, camera_header);
+    fn set_inset(&mut self, image: &Image, inset: Inset) {
+        match inset_base64(image.clone(), self.inset_jpeg_quality) {
+            Ok(jpeg) => match inset {
+                Inset::Map => self.link.set_map_inset(jpeg),
+                Inset::Vision => self.link.set_vision_inset(jpeg),
+            },
+            Err(e) => tracing::warn!("ignored an inset image ({inset:?}): {e}"),
         }
-        self.publish_sample_truth(telemetry, odom_header);
     }
 }
 
@@ -234,104 +307,22 @@ fn inset_base64(message: Image, quality: u8) -> Result<String, String> {
     Ok(base64::engine::general_purpose::STANDARD.encode(jpeg))
 }
 
-/// Runs the bridge node until shutdown.
+/// Runs the bridge node until shutdown: the Socket.IO server from the start, and the managed
+/// node whose core publishes its frames and takes its commands. Until the node is active the
+/// lock-step core answers every frame with the brake.
 pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
-    let (mut node, params) = runtime.node::<BridgeParams>("bridge")?;
-    let span = node.span();
-    let initial = params.get();
-    let clock = Arc::new(SimClock::new(initial.frame_period_s, node.uses_sim_time()));
-    let sink = DdsSink::new(&mut node, &initial, clock.clone())?;
-    let core = Arc::new(LockStep::new(initial.lockstep_config(), sink));
-    subscribe_commands(&mut node, &core, &span)?;
-    subscribe_insets(&mut node, &core, &span, initial.inset_jpeg_quality as u8)?;
-    let diagnostics = node.publisher(&topics::DIAGNOSTICS)?;
-    let name = node.identity().fully_qualified();
-    let period = Duration::from_secs_f64(initial.diagnostics_period_ms / 1000.0);
-    let diagnostics_core = core.clone();
-    tokio::spawn(
-        async move {
-            let mut ticks = tokio::time::interval(period);
-            loop {
-                ticks.tick().await;
-                let message = diagnostics_core.stats().diagnostics(&name, Header::at("", clock.now()));
-                publish_or_warn(&diagnostics, &topics::DIAGNOSTICS, message);
-            }
-        }
-        .instrument(span.clone()),
-    );
-    let mut changes = params.watch();
-    let config_core = core.clone();
-    tokio::spawn(async move {
-        while changes.changed().await.is_ok() {
-            let updated = changes.borrow_and_update().lockstep_config();
-            config_core.set_config(updated);
-        }
-    });
-    manage(&node, core.clone(), &span)?;
+    let initial: BridgeParams = runtime.params(BridgeNode::NAME)?;
+    let (frames, mut queued) = mpsc::channel(FRAME_QUEUE_LENGTH);
+    let link = Arc::new(LockStep::new(initial.lockstep_config(), FrameQueue { frames, dropped: AtomicU64::new(0) }));
+    link.set_active(false);
+    let server_link = link.clone();
+    let build: Build<BridgeNode> = Box::new(move |node, params| Ok(BridgeNode::new(link.clone(), node, &params)));
     let shutdown = runtime.shutdown();
-    let served = server::serve(core.clone(), initial.server_config()?, async move { shutdown.wait().await })
-        .instrument(span.clone())
-        .await;
-    span.in_scope(|| tracing::info!("bridge: {}", core.stats().summary()));
-    served
-}
-
-/// Makes the bridge a managed node, configured and active from the start unless its `autostart`
-/// parameter is false: while it is not active, it answers the simulator with the brake.
-fn manage(node: &RosNode, core: Arc<LockStep<DdsSink>>, span: &tracing::Span) -> anyhow::Result<()> {
-    let mut lifecycle = node.lifecycle()?;
-    if node.autostarts() {
-        lifecycle.record(Transition::Configure);
-        lifecycle.record(Transition::Activate);
-    }
-    core.set_active(lifecycle.state() == State::Active);
-    tokio::spawn(
-        async move {
-            loop {
-                let request = lifecycle.next_request().await;
-                let goal = lifecycle.state().after(request.transition);
-                core.set_active(goal == Some(State::Active));
-                lifecycle.finish(request, true);
-            }
-        }
-        .instrument(span.clone()),
-    );
-    Ok(())
-}
-
-fn subscribe_commands(node: &mut RosNode, core: &Arc<LockStep<DdsSink>>, span: &tracing::Span) -> anyhow::Result<()> {
-    let drive = core.clone();
-    spawn_subscriber(node.subscription(&topics::DRIVE_CMD)?, span.clone(), move |cmd| {
-        drive.on_drive_command(cmd.frame, cmd.throttle, cmd.brake, cmd.steering_angle_deg)
-    });
-    let pickup = core.clone();
-    spawn_subscriber(node.subscription(&topics::PICKUP)?, span.clone(), move |_| pickup.on_pickup_request());
-    let teleop = core.clone();
-    spawn_subscriber(node.subscription(&topics::CMD_VEL)?, span.clone(), move |twist| teleop.on_teleop(twist));
-    Ok(())
-}
-
-fn subscribe_insets(
-    node: &mut RosNode,
-    core: &Arc<LockStep<DdsSink>>,
-    span: &tracing::Span,
-    quality: u8,
-) -> anyhow::Result<()> {
-    let map = core.clone();
-    spawn_subscriber(node.subscription(&topics::MAP_IMAGE)?, span.clone(), move |image| {
-        match inset_base64(image, quality) {
-            Ok(inset) => map.set_map_inset(inset),
-            Err(e) => tracing::warn!("ignored a map/image message: {e}"),
-        }
-    });
-    let vision = core.clone();
-    spawn_subscriber(node.subscription(&topics::VISION)?, span.clone(), move |image| {
-        match inset_base64(image, quality) {
-            Ok(inset) => vision.set_vision_inset(inset),
-            Err(e) => tracing::warn!("ignored a rover/vision message: {e}"),
-        }
-    });
-    Ok(())
+    let served = server::serve(server_link, initial.server_config()?, async move { shutdown.wait().await });
+    let frames = futures::stream::poll_fn(move |context| queued.poll_recv(context));
+    let (served, ran) =
+        tokio::join!(served.instrument(tracing::info_span!("bridge")), run_node_with(runtime, build, frames));
+    served.and(ran)
 }
 
 #[cfg(test)]
@@ -385,6 +376,19 @@ mod tests {
         assert_eq!(BridgeParams::default().access_policy().unwrap().token, None);
         let params = BridgeParams { simulator_token: "s3cret".into(), ..BridgeParams::default() };
         assert_eq!(params.access_policy().unwrap().token.as_deref(), Some("s3cret"));
+    }
+
+    #[test]
+    fn frames_beyond_the_queue_are_dropped_and_counted_not_queued() {
+        let (frames, mut queued) = mpsc::channel(1);
+        let queue = FrameQueue { frames, dropped: AtomicU64::new(0) };
+        let payload = serde_json::Value::Object(crate::telemetry::tests::sample_payload());
+        let telemetry = crate::telemetry::parse_telemetry_value(&payload).unwrap().unwrap();
+        queue.publish_frame(1, telemetry.clone());
+        queue.publish_frame(2, telemetry);
+        assert_eq!(queue.dropped.load(Ordering::Relaxed), 1);
+        assert!(queued.try_recv().is_ok(), "the first frame waits for the core");
+        assert!(queued.try_recv().is_err(), "the second was dropped");
     }
 
     #[test]

@@ -16,7 +16,7 @@ use rover_msgs::sample_return::{SampleReturnGoal, SampleReturnResult};
 use rover_msgs::std_msgs::Header;
 use rover_msgs::std_srvs::{TriggerRequest, TriggerResponse};
 use rover_runtime::commands::{self, Commands, GoalEnd, GoalId};
-use rover_runtime::node_core::{Inputs, NodeCore, Outbox};
+use rover_runtime::node_core::{FromParams, Inputs, NodeCore, Outbox};
 use rover_runtime::snapshot::SnapshotFile;
 use rover_runtime::{Rejections, topics};
 
@@ -92,26 +92,6 @@ impl NodeCore for DecisionNode {
     type Params = DecisionParams;
     const NAME: &'static str = "decision";
 
-    fn new(settings: DecisionParams) -> anyhow::Result<Self> {
-        let snapshot_file = SnapshotFile::new(&settings.state_dir, snapshot::FILE_NAME);
-        Ok(DecisionNode {
-            rays: settings.free_space_rays(),
-            machine: Machine::new(settings),
-            planned: Vec::new(),
-            first_frame: None,
-            mission_frames: MissionFrames::default(),
-            stamps: FrameStamps::default(),
-            resumed: false,
-            frames: 0,
-            rejections: Rejections::default(),
-            snapshot_file,
-            goal: None,
-            mission_goal: None,
-            map_stats: MapStats::default(),
-            held: false,
-        })
-    }
-
     fn inputs() -> Inputs<Self> {
         Inputs::new()
             .on(&topics::TERRAIN, Self::on_scan)
@@ -158,6 +138,28 @@ impl NodeCore for DecisionNode {
             self.rejections,
             self.machine.status().mode.name()
         );
+    }
+}
+
+impl FromParams for DecisionNode {
+    fn new(settings: DecisionParams) -> anyhow::Result<Self> {
+        let snapshot_file = SnapshotFile::new(&settings.state_dir, snapshot::FILE_NAME);
+        Ok(DecisionNode {
+            rays: settings.free_space_rays(),
+            machine: Machine::new(settings),
+            planned: Vec::new(),
+            first_frame: None,
+            mission_frames: MissionFrames::default(),
+            stamps: FrameStamps::default(),
+            resumed: false,
+            frames: 0,
+            rejections: Rejections::default(),
+            snapshot_file,
+            goal: None,
+            mission_goal: None,
+            map_stats: MapStats::default(),
+            held: false,
+        })
     }
 }
 

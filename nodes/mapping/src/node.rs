@@ -10,7 +10,7 @@ use rover_msgs::map_grid::SIDE_CELLS;
 use rover_msgs::msg::TerrainScan;
 use rover_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
 use rover_msgs::std_msgs::Header;
-use rover_runtime::node_core::{Inputs, NodeCore, Outbox};
+use rover_runtime::node_core::{FromParams, Inputs, NodeCore, Outbox};
 use rover_runtime::snapshot::SnapshotFile;
 use rover_runtime::topics;
 
@@ -118,20 +118,6 @@ impl NodeCore for MappingNode {
     const NAME: &'static str = "mapping";
     const DRAINS_ON_STOP: bool = true;
 
-    fn new(settings: MappingParams) -> anyhow::Result<Self> {
-        let truth = ground_truth(&settings)?;
-        let mut mapping = MappingCore::new(settings, truth);
-        let mut snapshots = Snapshots::new(&mapping.params().state_dir);
-        snapshots.restore(&mut mapping);
-        Ok(MappingNode {
-            mapping,
-            snapshots,
-            last_samples: None,
-            published_at: Instant::now(),
-            started: Instant::now(),
-        })
-    }
-
     fn inputs() -> Inputs<Self> {
         Inputs::new()
             .on(&topics::TERRAIN, Self::on_scan)
@@ -164,6 +150,22 @@ impl NodeCore for MappingNode {
             self.mapping.tilted_frames(),
             self.mapping.rejections()
         );
+    }
+}
+
+impl FromParams for MappingNode {
+    fn new(settings: MappingParams) -> anyhow::Result<Self> {
+        let truth = ground_truth(&settings)?;
+        let mut mapping = MappingCore::new(settings, truth);
+        let mut snapshots = Snapshots::new(&mapping.params().state_dir);
+        snapshots.restore(&mut mapping);
+        Ok(MappingNode {
+            mapping,
+            snapshots,
+            last_samples: None,
+            published_at: Instant::now(),
+            started: Instant::now(),
+        })
     }
 }
 

@@ -5,7 +5,7 @@ use rover_imaging::message::rgb8_message;
 use rover_msgs::builtin_interfaces::Time;
 use rover_msgs::msg::Telemetry;
 use rover_msgs::sensor_msgs::CompressedImage;
-use rover_runtime::node_core::{Inputs, NodeCore, Outbox};
+use rover_runtime::node_core::{FromParams, Inputs, NodeCore, Outbox};
 use rover_runtime::pairing::Pairer;
 use rover_runtime::{Rejections, topics};
 
@@ -36,18 +36,6 @@ impl NodeCore for PerceptionNode {
     type Params = PerceptionParams;
     const NAME: &'static str = "perception";
 
-    fn new(settings: PerceptionParams) -> anyhow::Result<Self> {
-        let (perception, geometry) = settings.pipeline()?;
-        Ok(PerceptionNode {
-            perception,
-            geometry,
-            settings,
-            pairs: Pairer::new(PAIRING_BACKLOG),
-            frames: 0,
-            rejections: Rejections::default(),
-        })
-    }
-
     fn inputs() -> Inputs<Self> {
         Inputs::new().on(&topics::CAMERA_COMPRESSED, Self::on_camera).on(&topics::TELEMETRY, Self::on_telemetry)
     }
@@ -63,6 +51,20 @@ impl NodeCore for PerceptionNode {
             self.rejections,
             self.pairs.dropped()
         );
+    }
+}
+
+impl FromParams for PerceptionNode {
+    fn new(settings: PerceptionParams) -> anyhow::Result<Self> {
+        let (perception, geometry) = settings.pipeline()?;
+        Ok(PerceptionNode {
+            perception,
+            geometry,
+            settings,
+            pairs: Pairer::new(PAIRING_BACKLOG),
+            frames: 0,
+            rejections: Rejections::default(),
+        })
     }
 }
 

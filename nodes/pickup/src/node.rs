@@ -3,7 +3,7 @@
 use rover_msgs::frame_ids;
 use rover_msgs::msg::{PickupRequest, Telemetry};
 use rover_msgs::std_msgs::Header;
-use rover_runtime::node_core::{Inputs, NodeCore, Outbox};
+use rover_runtime::node_core::{FromParams, Inputs, NodeCore, Outbox};
 use rover_runtime::{Rejections, topics};
 
 use crate::{Pickup, PickupParams, checked_arm_input};
@@ -21,10 +21,6 @@ impl NodeCore for PickupNode {
     type Params = PickupParams;
     const NAME: &'static str = "pickup";
 
-    fn new(params: PickupParams) -> anyhow::Result<Self> {
-        Ok(PickupNode { pickup: Pickup::default(), params, rejections: Rejections::default() })
-    }
-
     fn inputs() -> Inputs<Self> {
         Inputs::new().on(&topics::TELEMETRY, Self::on_telemetry)
     }
@@ -40,6 +36,12 @@ impl NodeCore for PickupNode {
             self.pickup.collected(),
             self.rejections
         );
+    }
+}
+
+impl FromParams for PickupNode {
+    fn new(params: PickupParams) -> anyhow::Result<Self> {
+        Ok(PickupNode { pickup: Pickup::default(), params, rejections: Rejections::default() })
     }
 }
 
