@@ -1,11 +1,12 @@
 //! The rover's decisions: a state machine that explores the map's frontiers, steers around what
 //! the camera sees, approaches and waits for samples, recovers when stuck and returns home.
 //!
-//! The machine, its modes and its planning are plain types; [`node`] is the DDS wiring to the topics.
+//! The machine, its modes and its planning are plain types; [`node`] is the node's core (messages
+//! in, messages out), which the runtime runs over DDS or in process.
 
 mod approach;
 mod arrivals;
-pub mod drive;
+mod drive;
 mod explore;
 mod goals;
 pub mod grid;

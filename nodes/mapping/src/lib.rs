@@ -6,7 +6,7 @@
 
 mod image;
 pub mod map;
-pub mod mapper;
+mod mapper;
 mod markers;
 pub mod node;
 pub mod params;

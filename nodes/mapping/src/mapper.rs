@@ -247,7 +247,8 @@ impl MappingCore {
     }
 
     /// The located rocks, world metres.
-    pub fn rocks(&self) -> Vec<(f64, f64)> {
+    #[cfg(test)]
+    fn rocks(&self) -> Vec<(f64, f64)> {
         self.rocks_on(&self.map.occupancy())
     }
 
