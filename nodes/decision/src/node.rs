@@ -11,10 +11,9 @@ use rover_msgs::geometry_msgs::{Point, Pose, PoseArray, PoseStamped, Quaternion}
 use rover_msgs::map_grid::{SIDE_CELLS, cell_centre_m};
 use rover_msgs::msg::{DecisionState, DriveCommand, MapStats, Telemetry, TerrainScan};
 use rover_msgs::nav_msgs::{OccupancyGrid, Path};
-use rover_msgs::nav2_msgs::{NavigateToPoseGoal, NavigateToPoseResult};
-use rover_msgs::sample_return::{SampleReturnGoal, SampleReturnResult};
+use rover_msgs::nav2_msgs::NavigateToPoseResult;
+use rover_msgs::sample_return::SampleReturnResult;
 use rover_msgs::std_msgs::Header;
-use rover_msgs::std_srvs::{TriggerRequest, TriggerResponse};
 use rover_runtime::commands::{self, Commands, GoalEnd, GoalId};
 use rover_runtime::node_core::{FromParams, Inputs, NodeCore, Outbox};
 use rover_runtime::snapshot::SnapshotFile;
@@ -22,27 +21,20 @@ use rover_runtime::{Rejections, topics};
 
 use crate::checked_observation;
 use crate::drive::Drive;
-use crate::goals;
 use crate::grid::Grid;
 use crate::local::FreeSpaceRays;
-use crate::machine::{CommandAnswer, Machine, Memory, Mode, NavigationEnd, Observation};
+use crate::machine::{Machine, Memory, Observation};
 use crate::params::DecisionParams;
 use crate::snapshot::{self, Snapshot};
+
+mod served;
+
+use served::{RunningGoal, answer};
 
 /// The mode is published at least every this many frames, even when it does not change.
 const STATUS_EVERY_FRAMES: u64 = 25;
 /// How many scans' frames are remembered by stamp, to date the maps and rocks that come in.
 const STAMPS_KEPT: usize = 64;
-/// A running goal gets feedback every this many frames.
-const FEEDBACK_EVERY_FRAMES: u64 = 10;
-/// The mission's action gets feedback every this many frames.
-const MISSION_FEEDBACK_EVERY_FRAMES: u64 = 25;
-
-/// A goal the machine drives to: from `navigate_to_pose` (its id) or from `goal_pose` (none).
-struct RunningGoal {
-    id: Option<GoalId>,
-    point: (f64, f64),
-}
 
 /// The bridge's frame numbers of the last scans, by stamp. The mapping node stamps a map with its
 /// last scan, so that the machine can put the map into effect at a fixed frame after it
@@ -192,130 +184,6 @@ impl DecisionNode {
         }
     }
 
-    /// A goal of `sample_return`: the mission starts (or goes on, from a pause too) and the goal
-    /// follows it to its end, in place of an earlier one.
-    fn on_mission_goal(&mut self, id: GoalId, _goal: &SampleReturnGoal, out: &mut Outbox) {
-        if let Some(earlier) = self.mission_goal.replace(id) {
-            let preempted = SampleReturnResult::ended_early("preempted by a new goal");
-            out.finish(&commands::SAMPLE_RETURN, earlier, GoalEnd::Aborted, preempted);
-        }
-        let _ = self.machine.start_mission();
-        let _ = self.machine.resume_after_pause();
-        tracing::info!("sample_return: following the mission");
-    }
-
-    /// The client cancels the mission's goal: the mission pauses (the rover brakes and holds).
-    fn on_mission_cancel(&mut self, id: GoalId, out: &mut Outbox) {
-        if self.mission_goal == Some(id) {
-            self.mission_goal = None;
-            let _ = self.machine.pause();
-        }
-        let canceled = SampleReturnResult::ended_early("canceled: the mission is paused");
-        out.finish(&commands::SAMPLE_RETURN, id, GoalEnd::Canceled, canceled);
-    }
-
-    /// Ends the mission's goal with the score once the rover is done, else gives feedback every
-    /// second.
-    fn report_on_mission(&mut self, telemetry: &Telemetry, out: &mut Outbox) {
-        let Some(id) = self.mission_goal else { return };
-        let status = self.machine.status();
-        let time_s =
-            self.mission_frames.last().map_or(0, |(_, mission)| mission) as f64 * self.machine.params().frame_period_s;
-        if status.mode == Mode::Done {
-            self.mission_goal = None;
-            let result = goals::mission_result(status, &self.map_stats, telemetry, time_s);
-            tracing::info!("sample_return: {}", result.message);
-            out.finish(&commands::SAMPLE_RETURN, id, GoalEnd::Succeeded, result);
-        } else if telemetry.frame.is_multiple_of(MISSION_FEEDBACK_EVERY_FRAMES) {
-            out.feedback(&commands::SAMPLE_RETURN, id, goals::mission_feedback(status, &self.map_stats, time_s));
-        }
-    }
-
-    /// A new goal of `navigate_to_pose`, in place of the goal that runs.
-    fn on_navigate_goal(&mut self, id: GoalId, goal: &NavigateToPoseGoal, out: &mut Outbox) {
-        self.start_goal(Some(id), &goal.pose, out);
-    }
-
-    /// A goal on `goal_pose`, in place of the goal that runs.
-    fn on_goal_pose(&mut self, pose: &PoseStamped, out: &mut Outbox) {
-        self.start_goal(None, pose, out);
-    }
-
-    /// The client cancels goal `id`: the rover brakes if it was the running one.
-    fn on_navigate_cancel(&mut self, id: GoalId, out: &mut Outbox) {
-        if self.goal.as_ref().is_some_and(|goal| goal.id == Some(id)) {
-            self.goal = None;
-            self.machine.cancel_navigation();
-            tracing::info!("navigate_to_pose: goal canceled");
-        }
-        out.finish(&commands::NAVIGATE_TO_POSE, id, GoalEnd::Canceled, NavigateToPoseResult::default());
-    }
-
-    /// Ends a running goal, then drives home.
-    fn on_return_home(&mut self, _request: &TriggerRequest, out: &mut Outbox) -> TriggerResponse {
-        let answer = answer(self.machine.return_home_now());
-        if answer.success {
-            self.end_goal(GoalEnd::Aborted, NavigateToPoseResult::preempted_by("return_home"), out);
-        }
-        answer
-    }
-
-    /// Drives to the goal `pose` (preempting the running goal) for the action goal `id`, or for
-    /// `goal_pose` without one; a goal that is refused ends at once, or is logged.
-    fn start_goal(&mut self, id: Option<GoalId>, pose: &PoseStamped, out: &mut Outbox) {
-        let started = goals::goal_point(pose).and_then(|point| {
-            self.machine.navigate_to(point).map(|()| point).map_err(|failure| goals::failure_result(failure, point))
-        });
-        match started {
-            Ok(point) => {
-                self.end_goal(GoalEnd::Aborted, NavigateToPoseResult::preempted_by("a new goal"), out);
-                tracing::info!("navigating to ({:.2}, {:.2})", point.0, point.1);
-                self.goal = Some(RunningGoal { id, point });
-            }
-            Err(result) => match id {
-                Some(id) => {
-                    tracing::warn!("navigate_to_pose: refused a goal: {}", result.error_msg);
-                    out.finish(&commands::NAVIGATE_TO_POSE, id, GoalEnd::Aborted, result);
-                }
-                None => self.rejections.reject(topics::GOAL_POSE.name, &result.error_msg),
-            },
-        }
-    }
-
-    /// Ends the running goal, if any, as `end` with `result` (nothing to tell for a `goal_pose`).
-    fn end_goal(&mut self, end: GoalEnd, result: NavigateToPoseResult, out: &mut Outbox) {
-        if let Some(RunningGoal { id: Some(id), .. }) = self.goal.take() {
-            out.finish(&commands::NAVIGATE_TO_POSE, id, end, result);
-        }
-    }
-
-    /// Ends the running goal when the machine's navigation ended, else gives feedback on it now
-    /// and then.
-    fn report_on_goal(&mut self, telemetry: &Telemetry, out: &mut Outbox) {
-        let Some(goal) = &self.goal else { return };
-        let point = goal.point;
-        match self.machine.take_navigation_end() {
-            Some(NavigationEnd::Reached) => {
-                tracing::info!("navigation: goal ({:.2}, {:.2}) reached", point.0, point.1);
-                self.end_goal(GoalEnd::Succeeded, NavigateToPoseResult::default(), out);
-            }
-            Some(NavigationEnd::Failed(failure)) => {
-                let result = goals::failure_result(failure, point);
-                tracing::warn!("navigation given up: {}", result.error_msg);
-                self.end_goal(GoalEnd::Aborted, result, out);
-            }
-            None => {
-                let Some(id) = goal.id.filter(|_| telemetry.frame.is_multiple_of(FEEDBACK_EVERY_FRAMES)) else {
-                    return;
-                };
-                let Some(progress) = self.machine.navigation_progress() else { return };
-                let p = self.machine.params();
-                let feedback = goals::feedback(&progress, telemetry, p.frame_period_s, p.approach_speed_mps);
-                out.feedback(&commands::NAVIGATE_TO_POSE, id, feedback);
-            }
-        }
-    }
-
     /// Decides the frame's drive command and publishes it, then prepares the next frame's plan
     /// while the simulator and the other nodes work on that frame.
     fn decide(&mut self, scan: &TerrainScan, out: &mut Outbox) {
@@ -446,14 +314,6 @@ impl DecisionNode {
             memory.samples_collected
         );
         self.machine.resume(memory);
-    }
-}
-
-/// The answer of a mission command as `std_srvs/Trigger` gives it.
-fn answer(answer: CommandAnswer) -> TriggerResponse {
-    match answer {
-        Ok(message) => TriggerResponse { success: true, message: message.to_string() },
-        Err(message) => TriggerResponse { success: false, message: message.to_string() },
     }
 }
 
