@@ -1,7 +1,7 @@
 //! Generates the Rust types of the `rover_msgs` interfaces from `msg/*.msg`, so the two cannot drift.
 
 #[path = "src/idl.rs"]
-#[allow(dead_code)]
+#[allow(dead_code, unreachable_pub)]
 mod idl;
 
 use std::fmt::Write as _;

@@ -4,10 +4,10 @@
 use crate::world::WORLD_SIZE;
 
 /// Rock lower than this above the ground does not block the rover, metres.
-pub const CLEARANCE_M: f64 = 0.05;
+pub(crate) const CLEARANCE_M: f64 = 0.05;
 
 /// A rock standing on the ground.
-pub trait Obstacle {
+pub(crate) trait Obstacle {
     /// True if the rock fills the vertical line through (x, y) somewhere between [`CLEARANCE_M`] above `ground_m` and `up_to_m` above it.
     fn covers(&self, x_m: f64, y_m: f64, ground_m: f64, up_to_m: f64) -> bool;
 

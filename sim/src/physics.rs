@@ -11,11 +11,11 @@ use crate::wire::command::Command;
 use crate::world::{Sample, World};
 
 /// Reverse speed cap, m/s.
-pub const MAX_REVERSE_MPS: f64 = 2.0;
+pub(crate) const MAX_REVERSE_MPS: f64 = 2.0;
 /// Duration of a pickup, seconds.
-pub const PICKUP_SECONDS: f64 = 10.0;
+pub(crate) const PICKUP_SECONDS: f64 = 10.0;
 /// Physics step of the Unity project, seconds.
-pub const PHYSICS_STEP_S: f64 = 0.02;
+pub(crate) const PHYSICS_STEP_S: f64 = 0.02;
 /// Distance between the left and right wheels, metres.
 const TRACK_M: f64 = 0.64;
 /// Drive acceleration per unit throttle and speed damping under throttle (fit to robot_log.csv).
@@ -30,7 +30,7 @@ const BRAKE_LIMIT_MPS2: f64 = 4.9;
 /// Turning in place starts below this speed, m/s.
 const TURN_IN_PLACE_BELOW_MPS: f64 = 0.316;
 /// Radius of the rover's footprint around its reported position, metres.
-pub const FOOTPRINT_RADIUS_M: f64 = 0.5;
+pub(crate) const FOOTPRINT_RADIUS_M: f64 = 0.5;
 /// A blocked move slides along the obstacle when at least this fraction of it is left; otherwise
 /// the rover stops.
 const SLIDE_MIN_FRACTION: f64 = 0.2;
@@ -65,7 +65,7 @@ struct Pickup {
 
 /// What happened during one step.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct StepEvents {
+pub(crate) struct StepEvents {
     /// The rover ran into something it was not touching before.
     pub collision: bool,
     /// Throttle was applied but the rover could not move.
@@ -76,7 +76,7 @@ pub struct StepEvents {
 
 /// The rover.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Rover {
+pub(crate) struct Rover {
     /// x, metres.
     pub x_m: f64,
     /// y, metres.
@@ -112,7 +112,7 @@ pub struct Rover {
 
 impl Rover {
     /// A rover at rest at (x, y) facing `yaw_deg`.
-    pub fn new(x_m: f64, y_m: f64, yaw_deg: f64) -> Self {
+    pub(crate) fn new(x_m: f64, y_m: f64, yaw_deg: f64) -> Self {
         Rover {
             x_m,
             y_m,
@@ -137,7 +137,7 @@ impl Rover {
     }
 
     /// What Unity reports of this rover: its roll positive with the right side up.
-    pub fn reported_state(&self) -> ReportedState {
+    pub(crate) fn reported_state(&self) -> ReportedState {
         ReportedState {
             steering_angle_deg: self.steer_deg,
             throttle: self.throttle,
@@ -167,7 +167,7 @@ impl Rover {
 
     /// Applies a command; drive commands are ignored while picking up or turning by `fixed_turn`.
     /// A pickup with no sample within reach is ignored.
-    pub fn apply(&mut self, command: Command, samples: &[Sample]) {
+    pub(crate) fn apply(&mut self, command: Command, samples: &[Sample]) {
         match command {
             Command::Drive { steering_deg, throttle, brake } if !self.frozen() => {
                 self.throttle = throttle;
@@ -199,7 +199,7 @@ impl Rover {
     }
 
     /// Index of a sample within reach of the arm, if any.
-    pub fn reachable_sample(&self, samples: &[Sample]) -> Option<usize> {
+    pub(crate) fn reachable_sample(&self, samples: &[Sample]) -> Option<usize> {
         let arm = self.heading() * REACH_AHEAD_M;
         let (rx, ry) = (self.x_m + arm.x, self.y_m + arm.y);
         samples.iter().position(|sample| (sample.x_m - rx).hypot(sample.y_m - ry) <= REACH_RADIUS_M + sample.radius_m)
@@ -207,7 +207,7 @@ impl Rover {
 
     /// Advances the rover by `dt` seconds in physics steps of 0.02 s. Returns the index of a sample
     /// whose pickup finished (to be removed from the world) and what happened.
-    pub fn step(&mut self, dt: f64, world: &World, samples: &[Sample]) -> (Option<usize>, StepEvents) {
+    pub(crate) fn step(&mut self, dt: f64, world: &World, samples: &[Sample]) -> (Option<usize>, StepEvents) {
         let mut events = StepEvents::default();
         let mut picked = None;
         if self.pickup.is_none() && self.picking_up {
@@ -276,7 +276,7 @@ impl Rover {
     }
 
     /// Sets the ground height, pitch and roll from the ground under the four wheels.
-    pub fn follow_ground(&mut self, world: &World) {
+    pub(crate) fn follow_ground(&mut self, world: &World) {
         let (s, c) = self.yaw_deg.to_radians().sin_cos();
         let wheel = |ahead: f64, left: f64| {
             world.ground_height(self.x_m + ahead * c - left * s, self.y_m + ahead * s + left * c) as f64
@@ -419,7 +419,7 @@ fn furthest_free_fraction(blocked: impl Fn(f64) -> bool) -> f64 {
 }
 
 /// True if a footprint of radius `r` at (x, y) overlaps ground the rover cannot drive on or a sample.
-pub fn footprint_blocked(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) -> bool {
+pub(crate) fn footprint_blocked(world: &World, samples: &[Sample], x: f64, y: f64, r: f64) -> bool {
     world.blocked_squares_near(x, y, r).next().is_some()
         || samples.iter().any(|s| (s.x_m - x).hypot(s.y_m - y) < r + s.radius_m)
 }

@@ -96,7 +96,7 @@ struct RockEntry {
 }
 
 /// Reads a rock survey (`rocks.json`).
-pub fn read_rock_survey(json: &[u8]) -> Result<Vec<SurveyedRock>, WorldError> {
+pub(crate) fn read_rock_survey(json: &[u8]) -> Result<Vec<SurveyedRock>, WorldError> {
     let invalid = |reason: String| WorldError::Unreadable { name: "rock survey", reason };
     let file: SurveyFile = serde_json::from_slice(json).map_err(|e| invalid(e.to_string()))?;
     if file.rocks.len() > MAX_ROCKS {

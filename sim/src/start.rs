@@ -52,7 +52,7 @@ impl FromStr for StartPose {
 }
 
 /// `world` with the rover starting at `start`, which must be drivable.
-pub fn starting_at(mut world: World, start: StartPose) -> Result<World, StartError> {
+pub(crate) fn starting_at(mut world: World, start: StartPose) -> Result<World, StartError> {
     if !world.is_drivable(start.x_m, start.y_m) {
         return Err(StartError::NotDrivable { x_m: start.x_m, y_m: start.y_m });
     }
@@ -62,7 +62,7 @@ pub fn starting_at(mut world: World, start: StartPose) -> Result<World, StartErr
 
 /// A start drawn for `seed`: the centre of a cell reachable from the world's start with room all
 /// around and no sample near, and a heading drawn from the full circle.
-pub fn random_start(world: &World, seed: u64) -> Result<StartPose, StartError> {
+pub(crate) fn random_start(world: &World, seed: u64) -> Result<StartPose, StartError> {
     let drivable = world.drivable_cells();
     let reachable = reached_from(&drivable, cell_of(world.start.x_m, world.start.y_m));
     let candidates: Vec<usize> = (0..drivable.len())

@@ -7,11 +7,11 @@ use crate::random::value_noise;
 use crate::world::{WORLD_SIZE, inside_world};
 
 /// Spacing of the height field's nodes, metres.
-pub const TERRAIN_STEP_M: f64 = 0.25;
+pub(crate) const TERRAIN_STEP_M: f64 = 0.25;
 /// Nodes per metre along each axis.
-pub const NODES_PER_M: usize = 4;
+pub(crate) const NODES_PER_M: usize = 4;
 /// Height of the highest terrain, which is also the terrain outside the map, metres.
-pub const MAX_TERRAIN_HEIGHT_M: f32 = 38.7;
+pub(crate) const MAX_TERRAIN_HEIGHT_M: f32 = 38.7;
 /// The flat floor stops this far inside the edge of the floor cells, metres: the terrain of a
 /// floor cell's centre stays flat, and that of the next cell's centre is at about 0.5 m, as in
 /// `floor_flat.png` (white where the terrain at the cell centre is below 0.5 m).
@@ -39,7 +39,7 @@ const WALL_PROFILE: [(f64, [f64; 3]); 10] = [
 /// The height of a wall point `distance_m` from the flat floor, at quantile `q` (0..1) of the
 /// measured spread: linear between the measured distances and between the 10th, 50th and 90th
 /// percentiles, extended beyond both.
-pub fn wall_height_m(distance_m: f64, q: f64) -> f64 {
+pub(crate) fn wall_height_m(distance_m: f64, q: f64) -> f64 {
     let at = |row: &[f64; 3]| {
         if q <= 0.5 {
             row[0] + (q - 0.1) / 0.4 * (row[1] - row[0])

@@ -30,7 +30,7 @@ const MAPPING_QUIET: Duration = Duration::from_millis(1500);
 const MAPPING_DONE_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// Replays `frames` through the running perception and mapping nodes.
-pub async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> anyhow::Result<ReplayReport> {
+pub(super) async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime) -> anyhow::Result<ReplayReport> {
     let (mut node, _) = runtime.node::<NoParams>("replay")?;
     let telemetry = node.publisher(&topics::TELEMETRY)?;
     let camera = node.publisher(&topics::CAMERA_COMPRESSED)?;

@@ -18,7 +18,7 @@ use super::test_dataset_dir;
 const POSITION_CYCLE: u64 = 997;
 
 /// A recorded frame with its JPEG loaded.
-pub struct LoadedFrame {
+pub(crate) struct LoadedFrame {
     /// The row of `robot_log.csv`.
     pub frame: RecordedFrame,
     /// The camera image.
@@ -26,13 +26,13 @@ pub struct LoadedFrame {
 }
 
 /// The 283 recorded frames with their images.
-pub fn recorded_frames() -> Vec<LoadedFrame> {
+pub(crate) fn recorded_frames() -> Vec<LoadedFrame> {
     let frames = read_log(Path::new(&test_dataset_dir())).expect("the recorded dataset").frames;
     frames.into_iter().map(|frame| LoadedFrame { jpeg: frame.jpeg().expect("a recorded JPEG"), frame }).collect()
 }
 
 /// The telemetry JSON of `loaded` as the Unity client writes it, with the rover at `x_m`.
-pub fn telemetry_json(loaded: &LoadedFrame, x_m: f64) -> String {
+pub(crate) fn telemetry_json(loaded: &LoadedFrame, x_m: f64) -> String {
     let frame = &loaded.frame;
     TelemetryValues {
         state: ReportedState { x_m, ..frame.state },
@@ -46,7 +46,7 @@ pub fn telemetry_json(loaded: &LoadedFrame, x_m: f64) -> String {
 
 /// One reply as the fake simulator saw it.
 #[derive(Debug, Clone)]
-pub struct SeenReply {
+pub(crate) struct SeenReply {
     /// The reply's throttle.
     pub throttle: f64,
     /// The reply's brake.
@@ -58,7 +58,7 @@ pub struct SeenReply {
 }
 
 /// A fake simulator that sends recorded frames and checks which telemetry each reply answers.
-pub struct EchoCheckingSimulator {
+pub(crate) struct EchoCheckingSimulator {
     /// The recorded frames, sent in turn.
     pub frames: Vec<LoadedFrame>,
     /// Telemetry sent so far.
@@ -81,7 +81,7 @@ pub struct EchoCheckingSimulator {
 
 impl EchoCheckingSimulator {
     /// A simulator that ends after `limit` replies.
-    pub fn new(limit: usize) -> Self {
+    pub(crate) fn new(limit: usize) -> Self {
         EchoCheckingSimulator {
             frames: recorded_frames(),
             sent: 0,
@@ -142,7 +142,7 @@ impl Simulation for EchoCheckingSimulator {
 }
 
 /// Runs the fake simulator against a bridge on `port` until it has seen its replies.
-pub async fn run_fake_unity(simulation: &mut EchoCheckingSimulator, port: u16) -> ClientStats {
+pub(crate) async fn run_fake_unity(simulation: &mut EchoCheckingSimulator, port: u16) -> ClientStats {
     let config = ClientConfig::unity("127.0.0.1", port);
     tokio::time::timeout(Duration::from_secs(300), run_client(simulation, &config, std::future::pending()))
         .await

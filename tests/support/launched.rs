@@ -14,7 +14,7 @@ use rover_runtime::{RosArgs, RosNode, Runtime, Shutdown, topics};
 use super::{Domain, Latest, eventually};
 
 /// A subscriber in namespace `namespace` of the test's domain.
-pub struct Watcher {
+pub(crate) struct Watcher {
     pub telemetry: Latest<Telemetry>,
     pub drive: Latest<DriveCommand>,
     pub mode: Latest<DecisionState>,
@@ -25,7 +25,7 @@ pub struct Watcher {
 }
 
 impl Watcher {
-    pub fn start(domain: &Domain, namespace: &str) -> Watcher {
+    pub(crate) fn start(domain: &Domain, namespace: &str) -> Watcher {
         let tokio = tokio::runtime::Runtime::new().expect("a tokio runtime");
         let _entered = tokio.enter();
         let remap = Remap { node: None, from: "__ns".into(), to: namespace.into() };
@@ -39,19 +39,19 @@ impl Watcher {
     }
 
     /// Waits until frames flow and the decision node answers them.
-    pub fn graph_runs(&self) -> bool {
+    pub(crate) fn graph_runs(&self) -> bool {
         eventually(Duration::from_secs(45), || self.telemetry.count() >= 30 && self.drive.count() >= 10)
     }
 
     /// Waits up to `limit` for the first sample collected, as the decision node reports it.
-    pub fn collects_a_sample(&self, limit: Duration) -> bool {
+    pub(crate) fn collects_a_sample(&self, limit: Duration) -> bool {
         eventually(limit, || self.mode.last().is_some_and(|state| state.samples_collected >= 1))
     }
 
     /// Waits up to `limit` for the decision node to report `done`, then checks that the mission
     /// is complete: no sample left and the rover within [`HOME_RADIUS_M`] of its start. Returns
     /// how it ended, or what is missing.
-    pub fn mission_completes(&self, limit: Duration) -> Result<MissionEnd, String> {
+    pub(crate) fn mission_completes(&self, limit: Duration) -> Result<MissionEnd, String> {
         let done = || self.mode.last().is_some_and(|state| state.mode == "done");
         if !eventually(limit, done) {
             let mode = self.mode.last().map(|state| format!("{} ({})", state.mode, state.reason));
@@ -71,11 +71,11 @@ impl Watcher {
 }
 
 /// How near its start the rover must end a complete mission, metres (as `rover eval` counts it).
-pub const HOME_RADIUS_M: f64 = 3.0;
+pub(crate) const HOME_RADIUS_M: f64 = 3.0;
 
 /// How a launched mission ended, as the watcher saw it.
 #[derive(Clone, Debug)]
-pub struct MissionEnd {
+pub(crate) struct MissionEnd {
     pub samples_collected: u32,
     pub samples_left: u8,
     pub home_distance_m: f64,
@@ -83,7 +83,7 @@ pub struct MissionEnd {
 }
 
 /// A launcher process whose output goes to a file.
-pub struct Launcher {
+pub(crate) struct Launcher {
     pub child: Child,
     output: PathBuf,
     /// Whether it leads a process group of its own, which SIGINT then reaches as a whole, as
@@ -93,12 +93,12 @@ pub struct Launcher {
 
 impl Launcher {
     /// Starts `command` with SIGINT at its default action (see [`super::with_default_sigint`]).
-    pub fn start(command: &mut Command, what: &str) -> Launcher {
+    pub(crate) fn start(command: &mut Command, what: &str) -> Launcher {
         Self::spawn(command, what, false)
     }
 
     /// [`Launcher::start`] in a process group of its own, interrupted as a whole.
-    pub fn start_in_own_group(command: &mut Command, what: &str) -> Launcher {
+    pub(crate) fn start_in_own_group(command: &mut Command, what: &str) -> Launcher {
         use std::os::unix::process::CommandExt as _;
         Self::spawn(command.process_group(0), what, true)
     }
@@ -116,12 +116,12 @@ impl Launcher {
         Launcher { child, output, own_group }
     }
 
-    pub fn output(&self) -> String {
+    pub(crate) fn output(&self) -> String {
         std::fs::read_to_string(&self.output).unwrap_or_default()
     }
 
     /// Sends SIGINT and checks that the launcher exits with 0; returns its output.
-    pub fn interrupt_cleanly(&mut self) -> String {
+    pub(crate) fn interrupt_cleanly(&mut self) -> String {
         let status = self.interrupt();
         let output = self.output();
         assert_eq!(
@@ -133,7 +133,7 @@ impl Launcher {
     }
 
     /// Sends SIGINT and waits up to 30 s; returns how the launcher exited, if it did.
-    pub fn interrupt(&mut self) -> Option<ExitStatus> {
+    pub(crate) fn interrupt(&mut self) -> Option<ExitStatus> {
         self.signal(Signal::SIGINT);
         let exited = eventually(Duration::from_secs(30), || self.child.try_wait().ok().flatten().is_some());
         exited.then(|| self.child.wait().ok()).flatten()
@@ -164,12 +164,12 @@ impl Drop for Launcher {
     }
 }
 
-pub fn is_running(pid: u32) -> bool {
+pub(crate) fn is_running(pid: u32) -> bool {
     Path::new(&format!("/proc/{pid}")).exists()
 }
 
 /// The command line of a running process, its arguments joined by spaces.
-pub fn command_line(pid: u32) -> String {
+pub(crate) fn command_line(pid: u32) -> String {
     std::fs::read(format!("/proc/{pid}/cmdline"))
         .map(|b| String::from_utf8_lossy(&b).replace('\0', " "))
         .unwrap_or_default()
@@ -177,7 +177,7 @@ pub fn command_line(pid: u32) -> String {
 
 /// The `(name, pid)` of every process `ros2 launch` started: its lines
 /// `[INFO] [NAME-N]: process started with pid [PID]`.
-pub fn launched_processes(output: &str) -> Vec<(String, u32)> {
+pub(crate) fn launched_processes(output: &str) -> Vec<(String, u32)> {
     output
         .lines()
         .filter_map(|line| line.strip_prefix("[INFO] ["))

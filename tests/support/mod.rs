@@ -2,10 +2,10 @@
 //! the real Udacity frames and a DDS observer.
 #![allow(dead_code)]
 
-pub mod echo_sim;
-pub mod launched;
-pub mod ros2;
-pub mod two_hosts;
+pub(crate) mod echo_sim;
+pub(crate) mod launched;
+pub(crate) mod ros2;
+pub(crate) mod two_hosts;
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 
 /// Fails unless the test runs in a network namespace whose only interface is `lo`
 /// (`tools/isolated`), so no DDS discovery traffic leaves the machine.
-pub fn assert_isolated() {
+pub(crate) fn assert_isolated() {
     let devices = std::fs::read_to_string("/proc/net/dev").expect("read /proc/net/dev");
     let interfaces: Vec<&str> = devices.lines().skip(2).filter_map(|l| l.split(':').next()).map(str::trim).collect();
     assert_eq!(
@@ -25,19 +25,19 @@ pub fn assert_isolated() {
 }
 
 /// The shared data folder (`../shared` beside the repository, or `ROVER_SHARED`).
-pub fn shared_dir() -> PathBuf {
+pub(crate) fn shared_dir() -> PathBuf {
     std::env::var_os("ROVER_SHARED")
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared"))
 }
 
 /// `map_bw.png`, the ground truth of the Udacity world.
-pub fn map_bw_png() -> String {
+pub(crate) fn map_bw_png() -> String {
     shared_dir().join("udacity/calibration_images/map_bw.png").display().to_string()
 }
 
 /// The options of the surveyed Unity world: `map_bw.png` with the surveyed ground and rocks.
-pub fn surveyed_world_args() -> Vec<String> {
+pub(crate) fn surveyed_world_args() -> Vec<String> {
     let shared = |path: &str| shared_dir().join(path).display().to_string();
     ["--map", &map_bw_png(), "--elevation", &shared("udacity-world/elevation_cm.png")]
         .into_iter()
@@ -47,18 +47,18 @@ pub fn surveyed_world_args() -> Vec<String> {
 }
 
 /// The 283 recorded Udacity frames (`robot_log.csv` and `IMG/`).
-pub fn test_dataset_dir() -> String {
+pub(crate) fn test_dataset_dir() -> String {
     shared_dir().join("udacity/test_dataset").display().to_string()
 }
 
 /// The number at `key` of a JSON object, or a panic naming the key and the object.
-pub fn number(value: &serde_json::Value, key: &str) -> f64 {
+pub(crate) fn number(value: &serde_json::Value, key: &str) -> f64 {
     value[key].as_f64().unwrap_or_else(|| panic!("no number {key} in {value}"))
 }
 
 /// A bridge on `domain` listening on the domain's port, with parameters `extra` (`name:=value`)
 /// and /diagnostics every 100 ms; returns once the port accepts connections.
-pub fn start_bridge(domain: &Domain, extra: &[&str]) -> Process {
+pub(crate) fn start_bridge(domain: &Domain, extra: &[&str]) -> Process {
     let port = format!("port:={}", domain.port());
     let mut args = vec!["bridge", "--ros-args", "-p", &port, "-p", "diagnostics_period_ms:=100.0"];
     for param in extra {
@@ -71,7 +71,7 @@ pub fn start_bridge(domain: &Domain, extra: &[&str]) -> Process {
 
 /// A graph of the test's `rover` binary on `domain` and its port, logging into `log_dir`, all on
 /// this host, without respawning.
-pub fn graph_config(domain: &Domain, log_dir: PathBuf) -> rover::processes::graph::GraphConfig {
+pub(crate) fn graph_config(domain: &Domain, log_dir: PathBuf) -> rover::processes::graph::GraphConfig {
     rover::processes::graph::GraphConfig {
         rover: rover(),
         domain_id: Some(domain.id),
@@ -86,7 +86,7 @@ pub fn graph_config(domain: &Domain, log_dir: PathBuf) -> rover::processes::grap
 
 /// A new DDS Security keystore named after `name` (`tools/keystore create-keystore`): one CA and
 /// an enclave per node.
-pub fn keystore(name: &str) -> PathBuf {
+pub(crate) fn keystore(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("rover-keystore-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/keystore");
@@ -96,7 +96,7 @@ pub fn keystore(name: &str) -> PathBuf {
 }
 
 /// The environment that secures a process with `keystore`, enforced.
-pub fn security_env(keystore: &Path) -> Vec<(String, String)> {
+pub(crate) fn security_env(keystore: &Path) -> Vec<(String, String)> {
     let keystore = keystore.display().to_string();
     [
         ("ROS_SECURITY_ENABLE", "true"),
@@ -108,7 +108,7 @@ pub fn security_env(keystore: &Path) -> Vec<(String, String)> {
 }
 
 /// A DDS domain id (and a TCP port derived from it) reserved for one test.
-pub struct Domain {
+pub(crate) struct Domain {
     /// `ROS_DOMAIN_ID` of the test's processes.
     pub id: u16,
     lock: PathBuf,
@@ -116,7 +116,7 @@ pub struct Domain {
 
 impl Domain {
     /// Reserves a domain no other running test uses.
-    pub fn reserve() -> Domain {
+    pub(crate) fn reserve() -> Domain {
         let dir = std::env::temp_dir().join("rover-test-domains");
         std::fs::create_dir_all(&dir).expect("create the domain lock folder");
         for id in 1..=200u16 {
@@ -130,7 +130,7 @@ impl Domain {
     }
 
     /// A TCP port for this test's bridge.
-    pub fn port(&self) -> u16 {
+    pub(crate) fn port(&self) -> u16 {
         30000 + self.id * 10
     }
 }
@@ -157,13 +157,13 @@ fn stop_ros2_daemon_on(id: u16) {
 }
 
 /// A child process of a test: interrupted (SIGINT) when dropped, its stderr in a log file.
-pub type Process = rover::processes::graph::NodeProcess;
+pub(crate) type Process = rover::processes::graph::NodeProcess;
 
 /// How long a test process gets to exit after SIGINT.
-pub const STOP_TIMEOUT: Duration = Duration::from_secs(5);
+pub(crate) const STOP_TIMEOUT: Duration = Duration::from_secs(5);
 
 /// Starts `program` with `args` on `domain`, logging to a temporary file named after `name`.
-pub fn start_process(program: &Path, args: &[&str], domain: &Domain, name: &str) -> Process {
+pub(crate) fn start_process(program: &Path, args: &[&str], domain: &Domain, name: &str) -> Process {
     let log = std::env::temp_dir().join(format!("rover-test-{}-{name}-{}.log", domain.id, std::process::id()));
     let mut command = Command::new(program);
     command
@@ -174,17 +174,17 @@ pub fn start_process(program: &Path, args: &[&str], domain: &Domain, name: &str)
 }
 
 /// The `rover` binary under test.
-pub fn rover() -> PathBuf {
+pub(crate) fn rover() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_rover"))
 }
 
 /// The echo node, a test helper (`tests/helpers/echo_node.rs`).
-pub fn echo_node() -> PathBuf {
+pub(crate) fn echo_node() -> PathBuf {
     helper("echo_node")
 }
 
 /// The link emulator of `tools/two-hosts`, a test helper (`tests/helpers/link_emulator.rs`).
-pub fn link_emulator() -> PathBuf {
+pub(crate) fn link_emulator() -> PathBuf {
     helper("link_emulator")
 }
 
@@ -206,7 +206,7 @@ fn helper(name: &str) -> PathBuf {
 }
 
 /// Waits until a TCP server accepts connections on `port`.
-pub fn wait_for_port(port: u16, timeout: Duration) {
+pub(crate) fn wait_for_port(port: u16, timeout: Duration) {
     let deadline = Instant::now() + timeout;
     while Instant::now() < deadline {
         if std::net::TcpStream::connect(("127.0.0.1", port)).is_ok() {
@@ -218,7 +218,7 @@ pub fn wait_for_port(port: u16, timeout: Duration) {
 }
 
 /// Polls `condition` until it holds or `timeout` passes; returns whether it held.
-pub fn eventually(timeout: Duration, mut condition: impl FnMut() -> bool) -> bool {
+pub(crate) fn eventually(timeout: Duration, mut condition: impl FnMut() -> bool) -> bool {
     let deadline = Instant::now() + timeout;
     while Instant::now() < deadline {
         if condition() {
@@ -230,7 +230,7 @@ pub fn eventually(timeout: Duration, mut condition: impl FnMut() -> bool) -> boo
 }
 
 /// A DDS participant inside the test process, on the test's domain.
-pub fn test_runtime(domain: &Domain) -> rover_runtime::Runtime {
+pub(crate) fn test_runtime(domain: &Domain) -> rover_runtime::Runtime {
     rover_runtime::Runtime::on_domain(domain.id, rover_runtime::RosArgs::default(), rover_runtime::Shutdown::new())
         .expect("create the test's DDS participant")
 }
@@ -238,13 +238,13 @@ pub fn test_runtime(domain: &Domain) -> rover_runtime::Runtime {
 /// Keeps the latest message of a topic, received by a subscription in the test process; a clone
 /// sees the same messages.
 #[derive(Clone)]
-pub struct Latest<M> {
+pub(crate) struct Latest<M> {
     latest: std::sync::Arc<std::sync::Mutex<Vec<M>>>,
 }
 
 impl<M: rover_msgs::RosMessage> Latest<M> {
     /// Subscribes to `topic` with `node`.
-    pub fn subscribe(node: &mut rover_runtime::RosNode, topic: &rover_runtime::topics::Topic<M>) -> Self {
+    pub(crate) fn subscribe(node: &mut rover_runtime::RosNode, topic: &rover_runtime::topics::Topic<M>) -> Self {
         let latest = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
         let sink = latest.clone();
         rover_runtime::spawn_subscriber(
@@ -256,29 +256,32 @@ impl<M: rover_msgs::RosMessage> Latest<M> {
     }
 
     /// Every message received so far.
-    pub fn all(&self) -> Vec<M> {
+    pub(crate) fn all(&self) -> Vec<M> {
         self.latest.lock().unwrap().clone()
     }
 
     /// How many messages were received so far.
-    pub fn count(&self) -> usize {
+    pub(crate) fn count(&self) -> usize {
         self.latest.lock().unwrap().len()
     }
 
     /// The last message received, if any.
-    pub fn last(&self) -> Option<M> {
+    pub(crate) fn last(&self) -> Option<M> {
         self.latest.lock().unwrap().last().cloned()
     }
 }
 
 /// The value of `key` in the last `/diagnostics` message, if any.
-pub fn diagnostic_value(latest: &Latest<rover_msgs::diagnostic_msgs::DiagnosticArray>, key: &str) -> Option<String> {
+pub(crate) fn diagnostic_value(
+    latest: &Latest<rover_msgs::diagnostic_msgs::DiagnosticArray>,
+    key: &str,
+) -> Option<String> {
     latest.last()?.value(key).map(str::to_string)
 }
 
 /// A Python interpreter that can import `modules` (the project's `.venv` under `tools/test-all`).
 /// `None` means it is missing, which fails the test when `ROVER_REQUIRE_ROS` is set.
-pub fn python_with(modules: &[&str]) -> Option<PathBuf> {
+pub(crate) fn python_with(modules: &[&str]) -> Option<PathBuf> {
     let python = std::env::var_os("ROVER_PYTHON").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("python3"));
     let imports = modules.iter().map(|m| format!("import {m}")).collect::<Vec<_>>().join("; ");
     let ok = Command::new(&python)
@@ -299,19 +302,19 @@ pub fn python_with(modules: &[&str]) -> Option<PathBuf> {
 }
 
 /// A free TCP port on the loopback.
-pub fn free_port() -> u16 {
+pub(crate) fn free_port() -> u16 {
     rover::processes::graph::free_port().expect("a free port")
 }
 
 /// The official `ros2` command line (`ROVER_ROS2`, else `ros2` on the PATH: `.venv/bin/ros2` after
 /// `tools/setup-ros` and `source tools/ros-env.sh`).
-pub fn ros2_cli() -> PathBuf {
+pub(crate) fn ros2_cli() -> PathBuf {
     std::env::var_os("ROVER_ROS2").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("ros2"))
 }
 
 /// A domain for a test of the `ros2` command line, in the isolated namespace; `None` when the test
 /// is to be skipped (see [`ros2_cli_or_skip`]).
-pub fn ros2_domain_or_skip() -> Option<Domain> {
+pub(crate) fn ros2_domain_or_skip() -> Option<Domain> {
     assert_isolated();
     ros2_cli_or_skip().then(Domain::reserve)
 }
@@ -347,7 +350,7 @@ fn ros2_cli_or_skip() -> bool {
 }
 
 /// Percentiles of durations, milliseconds (NaN when there are none).
-pub struct Percentiles {
+pub(crate) struct Percentiles {
     /// Median, ms.
     pub p50_ms: f64,
     /// 99th percentile, ms.
@@ -357,7 +360,7 @@ pub struct Percentiles {
 }
 
 /// The median, 99th percentile and maximum of `samples`.
-pub fn percentiles(samples: &[Duration]) -> Percentiles {
+pub(crate) fn percentiles(samples: &[Duration]) -> Percentiles {
     let mut ms: Vec<f64> = samples.iter().map(|d| d.as_secs_f64() * 1000.0).collect();
     ms.sort_by(f64::total_cmp);
     let at = |q: f64| ms.get(((ms.len().max(1) - 1) as f64 * q).round() as usize).copied().unwrap_or(f64::NAN);
@@ -367,7 +370,7 @@ pub fn percentiles(samples: &[Duration]) -> Percentiles {
 /// Gives `command`'s process SIGINT at its default action, as a terminal does: anything started in
 /// the background of a script (such as a test run under `.ci/run &`) inherits SIGINT ignored, and
 /// then neither a shell's trap nor Python (`ros2 launch`) sees the Ctrl-C a test sends.
-pub fn with_default_sigint(command: &mut Command) -> &mut Command {
+pub(crate) fn with_default_sigint(command: &mut Command) -> &mut Command {
     use std::os::unix::process::CommandExt as _;
     // SAFETY: between fork and exec the child only calls sigaction, which is async-signal-safe.
     unsafe {

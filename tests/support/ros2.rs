@@ -8,12 +8,12 @@ use super::{Domain, ros2_cli};
 
 /// The output (stdout and stderr) of a `ros2` command on `domain`, stopped with SIGINT after
 /// `limit`, and whether it exited with status 0.
-pub fn ros2(domain: &Domain, limit: Duration, args: &[&str]) -> (bool, String) {
+pub(crate) fn ros2(domain: &Domain, limit: Duration, args: &[&str]) -> (bool, String) {
     ros2_with_env(domain, &[], limit, args)
 }
 
 /// [`ros2`] with the environment variables `env` set as well.
-pub fn ros2_with_env(domain: &Domain, env: &[(&str, &str)], limit: Duration, args: &[&str]) -> (bool, String) {
+pub(crate) fn ros2_with_env(domain: &Domain, env: &[(&str, &str)], limit: Duration, args: &[&str]) -> (bool, String) {
     let output = Command::new("timeout")
         .args(["--signal=INT", "--kill-after=5", &format!("{}", limit.as_secs_f64())])
         .arg(ros2_cli())
@@ -28,19 +28,19 @@ pub fn ros2_with_env(domain: &Domain, env: &[(&str, &str)], limit: Duration, arg
 }
 
 /// A `ros2` command that must succeed within 30 s; its output.
-pub fn ros2_ok(domain: &Domain, args: &[&str]) -> String {
+pub(crate) fn ros2_ok(domain: &Domain, args: &[&str]) -> String {
     let (ok, output) = ros2(domain, Duration::from_secs(30), args);
     assert!(ok, "`ros2 {}` failed:\n{output}", args.join(" "));
     output
 }
 
 /// The `ros2` daemon of a domain, stopped when dropped.
-pub struct Daemon<'a> {
+pub(crate) struct Daemon<'a> {
     domain: &'a Domain,
 }
 
 impl<'a> Daemon<'a> {
-    pub fn start(domain: &'a Domain) -> Daemon<'a> {
+    pub(crate) fn start(domain: &'a Domain) -> Daemon<'a> {
         ros2_ok(domain, &["daemon", "start"]);
         let daemon = Daemon { domain };
         assert_contains(&ros2_ok(domain, &["daemon", "status"]), &["The daemon is running"], "ros2 daemon status");
@@ -55,12 +55,12 @@ impl Drop for Daemon<'_> {
 }
 
 /// The value of the first `name: value` line of a `ros2 topic echo` output.
-pub fn echoed_value<T: std::str::FromStr>(output: &str, name: &str) -> Option<T> {
+pub(crate) fn echoed_value<T: std::str::FromStr>(output: &str, name: &str) -> Option<T> {
     let prefix = format!("{name}: ");
     output.lines().find_map(|line| line.trim().strip_prefix(prefix.as_str())).and_then(|v| v.trim().parse().ok())
 }
 
-pub fn assert_contains(output: &str, expected: &[&str], what: &str) {
+pub(crate) fn assert_contains(output: &str, expected: &[&str], what: &str) {
     for line in expected {
         assert!(output.contains(line), "{what}: no `{line}` in\n{output}");
     }

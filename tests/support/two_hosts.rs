@@ -6,21 +6,21 @@ use std::process::Command;
 use super::{Domain, Process};
 
 /// The address of each host on the link between them.
-pub const ADDRESSES: [&str; 2] = ["10.78.0.1", "10.78.0.2"];
+pub(crate) const ADDRESSES: [&str; 2] = ["10.78.0.1", "10.78.0.2"];
 
 /// Two network namespaces joined by a veth pair with addresses, multicast routed over the link
 /// (unless made without); removed on drop.
-pub struct TwoHosts {
+pub(crate) struct TwoHosts {
     names: [String; 2],
 }
 
 impl TwoHosts {
-    pub fn new(tag: &str) -> Self {
+    pub(crate) fn new(tag: &str) -> Self {
         Self::joined(tag, true)
     }
 
     /// Two hosts whose link carries no multicast, as on networks that drop it.
-    pub fn without_multicast(tag: &str) -> Self {
+    pub(crate) fn without_multicast(tag: &str) -> Self {
         Self::joined(tag, false)
     }
 
@@ -44,7 +44,14 @@ impl TwoHosts {
     }
 
     /// Starts `rover args` on host `host` (0 or 1) on `domain`, with the environment `env`.
-    pub fn start(&self, host: usize, args: &[&str], env: &[(&str, &str)], domain: &Domain, name: &str) -> Process {
+    pub(crate) fn start(
+        &self,
+        host: usize,
+        args: &[&str],
+        env: &[(&str, &str)],
+        domain: &Domain,
+        name: &str,
+    ) -> Process {
         let log = std::env::temp_dir().join(format!("rover-test-{}-{name}-{}.log", domain.id, std::process::id()));
         let mut command = Command::new("ip");
         command.args(["netns", "exec", &self.names[host]]).arg(super::rover()).args(args);
@@ -54,7 +61,7 @@ impl TwoHosts {
 
     /// Runs `program args` on host `host` to its end; panics with what it printed unless it
     /// succeeds.
-    pub fn run(&self, host: usize, program: &str, args: &[&str]) -> String {
+    pub(crate) fn run(&self, host: usize, program: &str, args: &[&str]) -> String {
         let output = Command::new("ip").args(["netns", "exec", &self.names[host], program]).args(args).output();
         let output = output.unwrap_or_else(|e| panic!("run {program}: {e}"));
         let printed = format!("{}{}", String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));

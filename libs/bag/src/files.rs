@@ -15,7 +15,7 @@ const EXPECTED_PATH: &str = "expected a file name relative to the bag folder";
 /// The path in `dir` of the storage file `relative`, as `metadata.yaml` lists it: a relative path
 /// without `..`, with `/` or `\` (as on Windows) between its parts, naming a regular file that
 /// stays inside `dir` when symbolic links are followed.
-pub fn confined_storage_path(dir: &Path, relative: &str) -> Result<PathBuf, BagError> {
+pub(crate) fn confined_storage_path(dir: &Path, relative: &str) -> Result<PathBuf, BagError> {
     let refused =
         |problem: String| BagError::StoragePath { dir: dir.to_path_buf(), path: relative.to_string(), problem };
     let path = dir.join(relative_parts(relative).map_err(refused)?);
@@ -63,12 +63,12 @@ fn file_kind(path: &Path) -> std::io::Result<FileKind> {
 
 /// Opens `path` for reading if it is a regular file no longer than `max_bytes`; `what` names the
 /// file in the error ([`rover_files::open_regular`]).
-pub fn open_regular(path: &Path, what: &str, max_bytes: u64) -> Result<(File, u64), BagError> {
+pub(crate) fn open_regular(path: &Path, what: &str, max_bytes: u64) -> Result<(File, u64), BagError> {
     rover_files::open_regular(path, max_bytes).map_err(|e| bag_error(e, what))
 }
 
 /// Replaces `path` with `bytes` atomically ([`rover_files::replace_atomically`]).
-pub fn replace_atomically(path: &Path, bytes: &[u8]) -> Result<(), BagError> {
+pub(crate) fn replace_atomically(path: &Path, bytes: &[u8]) -> Result<(), BagError> {
     rover_files::replace_atomically(path, bytes).map_err(|e| bag_error(e, "a file"))
 }
 

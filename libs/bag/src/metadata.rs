@@ -9,13 +9,13 @@ use serde::{Deserialize, Serialize};
 use crate::{BagError, QosProfile, STORAGE_IDENTIFIER, TopicInfo, files};
 
 /// The metadata file's name in the bag folder.
-pub const FILE_NAME: &str = "metadata.yaml";
+pub(crate) const FILE_NAME: &str = "metadata.yaml";
 /// The version of the metadata format written.
-pub const VERSION: u32 = 9;
+pub(crate) const VERSION: u32 = 9;
 /// The longest `metadata.yaml` read, bytes (one of a bag with thousands of topics is far shorter).
-pub const MAX_FILE_BYTES: u64 = 16 << 20;
+pub(crate) const MAX_FILE_BYTES: u64 = 16 << 20;
 /// The ROS distribution the bags are written for.
-pub const ROS_DISTRO: &str = "kilted";
+pub(crate) const ROS_DISTRO: &str = "kilted";
 
 /// The file's single top-level key.
 #[derive(Debug, Serialize, Deserialize)]

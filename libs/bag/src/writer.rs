@@ -15,9 +15,9 @@ use crate::{BagError, BagMetadata, MessageTime, SERIALIZATION_FORMAT, TopicInfo}
 pub const CHECKPOINT_PERIOD: Duration = Duration::from_secs(1);
 
 /// The MCAP profile of ROS 2 bags.
-pub const MCAP_PROFILE: &str = "ros2";
+pub(crate) const MCAP_PROFILE: &str = "ros2";
 /// The MCAP channel metadata key of a topic's offered QoS profiles.
-pub const QOS_METADATA_KEY: &str = "offered_qos_profiles";
+pub(crate) const QOS_METADATA_KEY: &str = "offered_qos_profiles";
 
 /// A topic added to a [`BagWriter`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -5,13 +5,13 @@
 use serde::{Deserialize, Deserializer, Serializer};
 
 /// Writes `values` as a block of bytes.
-pub fn serialize<S: Serializer>(values: &[i8], serializer: S) -> Result<S::Ok, S::Error> {
+pub(crate) fn serialize<S: Serializer>(values: &[i8], serializer: S) -> Result<S::Ok, S::Error> {
     let bytes: Vec<u8> = values.iter().map(|&value| value as u8).collect();
     serializer.serialize_bytes(&bytes)
 }
 
 /// Reads a block of bytes as `int8` values.
-pub fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Vec<i8>, D::Error> {
+pub(crate) fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Vec<i8>, D::Error> {
     let bytes = serde_bytes::ByteBuf::deserialize(deserializer)?;
     Ok(bytes.into_iter().map(|byte| byte as i8).collect())
 }

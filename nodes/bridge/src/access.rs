@@ -15,7 +15,7 @@ const BEARER_PREFIX: &str = "Bearer ";
 
 /// The rules of [`AccessPolicy::check`].
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct AccessPolicy {
+pub(crate) struct AccessPolicy {
     /// `Origin` header values accepted (a request carrying any other is refused).
     pub allowed_origins: Vec<String>,
     /// The token a simulator must present; `None`: none asked.
@@ -28,7 +28,7 @@ pub struct AccessPolicy {
 
 /// Why a request was refused; its kind counts it in the bridge's problems.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Refusal {
+pub(crate) enum Refusal {
     /// The peer's address is in none of the allowed networks.
     Address,
     /// This many connections are open, over the cap.
@@ -46,7 +46,7 @@ pub enum Refusal {
 
 impl Refusal {
     /// The problem kind under which the bridge counts refusals of this sort.
-    pub fn kind(&self) -> &'static str {
+    pub(crate) fn kind(&self) -> &'static str {
         match self {
             Refusal::Address => "refused_address",
             Refusal::TooManyConnections(_) => "refused_too_many_connections",
@@ -57,7 +57,7 @@ impl Refusal {
     }
 
     /// The HTTP status the refusal is answered with.
-    pub fn status(&self) -> StatusCode {
+    pub(crate) fn status(&self) -> StatusCode {
         match self {
             Refusal::Address | Refusal::Origin(_) => StatusCode::FORBIDDEN,
             Refusal::TooManyConnections(_) => StatusCode::SERVICE_UNAVAILABLE,
@@ -96,7 +96,13 @@ impl fmt::Display for Refusal {
 impl AccessPolicy {
     /// Whether a request for `uri` with `headers` from `peer`, while `open_connections` are open
     /// (its own included), may go on to Engine.IO; the first rule it breaks if not.
-    pub fn check(&self, peer: IpAddr, open_connections: usize, uri: &Uri, headers: &HeaderMap) -> Result<(), Refusal> {
+    pub(crate) fn check(
+        &self,
+        peer: IpAddr,
+        open_connections: usize,
+        uri: &Uri,
+        headers: &HeaderMap,
+    ) -> Result<(), Refusal> {
         if !self.allows_address(peer) {
             return Err(Refusal::Address);
         }

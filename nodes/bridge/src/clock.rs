@@ -9,7 +9,7 @@ use rover_msgs::rosgraph_msgs::Clock;
 
 /// The bridge's clock: simulated time from frame numbers, and the stamps it gives messages.
 #[derive(Debug)]
-pub struct SimClock {
+pub(crate) struct SimClock {
     frame_period_ns: u64,
     use_sim_time: bool,
     latest_frame: AtomicU64,
@@ -17,7 +17,7 @@ pub struct SimClock {
 
 impl SimClock {
     /// A clock whose frames are `frame_period_s` apart; stamps are simulated when `use_sim_time`.
-    pub fn new(frame_period_s: f64, use_sim_time: bool) -> Self {
+    pub(crate) fn new(frame_period_s: f64, use_sim_time: bool) -> Self {
         SimClock {
             frame_period_ns: (frame_period_s * 1e9).round() as u64,
             use_sim_time,
@@ -26,18 +26,18 @@ impl SimClock {
     }
 
     /// The `/clock` message of frame `frame` (numbered from 1, so the clock never reads zero).
-    pub fn clock_message(&self, frame: u64) -> Clock {
+    pub(crate) fn clock_message(&self, frame: u64) -> Clock {
         Clock { clock: self.sim_time(frame) }
     }
 
     /// Notes `frame` as the latest and returns the stamp of its messages.
-    pub fn stamp_frame(&self, frame: u64) -> Time {
+    pub(crate) fn stamp_frame(&self, frame: u64) -> Time {
         self.latest_frame.fetch_max(frame, Ordering::Relaxed);
         if self.use_sim_time { self.sim_time(frame) } else { Time::now() }
     }
 
     /// The stamp of a message not tied to a frame: the latest frame's simulated time, or the wall clock.
-    pub fn now(&self) -> Time {
+    pub(crate) fn now(&self) -> Time {
         if self.use_sim_time { self.sim_time(self.latest_frame.load(Ordering::Relaxed)) } else { Time::now() }
     }
 

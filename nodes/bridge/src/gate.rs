@@ -29,7 +29,7 @@ use crate::stats::BridgeStats;
 const HANDSHAKE_TIMEOUT_KIND: &str = "refused_handshake_timeout";
 
 /// The access rules and the count of open connections, shared by the listener and [`admit`].
-pub struct Gate {
+pub(crate) struct Gate {
     policy: AccessPolicy,
     handshake_timeout: Duration,
     open_connections: AtomicUsize,
@@ -39,7 +39,7 @@ pub struct Gate {
 impl Gate {
     /// A gate applying `policy`, closing connections not admitted within `handshake_timeout`,
     /// counting refusals in `stats`.
-    pub fn new(policy: AccessPolicy, handshake_timeout: Duration, stats: Arc<BridgeStats>) -> Arc<Gate> {
+    pub(crate) fn new(policy: AccessPolicy, handshake_timeout: Duration, stats: Arc<BridgeStats>) -> Arc<Gate> {
         Arc::new(Gate { policy, handshake_timeout, open_connections: AtomicUsize::new(0), stats })
     }
 
@@ -51,14 +51,14 @@ impl Gate {
 }
 
 /// A TCP listener whose connections pass through a [`Gate`].
-pub struct GatedListener {
+pub(crate) struct GatedListener {
     listener: TcpListener,
     gate: Arc<Gate>,
 }
 
 impl GatedListener {
     /// Listens on `address`.
-    pub async fn bind(address: SocketAddr, gate: Arc<Gate>) -> io::Result<GatedListener> {
+    pub(crate) async fn bind(address: SocketAddr, gate: Arc<Gate>) -> io::Result<GatedListener> {
         Ok(GatedListener { listener: TcpListener::bind(address).await?, gate })
     }
 }
@@ -105,7 +105,7 @@ enum Handshake {
 
 /// The stream of an accepted connection: a TCP stream whose reads fail once the handshake
 /// deadline passes before a request is admitted.
-pub struct GatedStream {
+pub(crate) struct GatedStream {
     stream: TcpStream,
     connection: Arc<OpenConnection>,
     handshake: Handshake,
@@ -176,11 +176,11 @@ impl AsyncWrite for GatedStream {
 
 /// The connection a request came on, as the request's `ConnectInfo`.
 #[derive(Clone)]
-pub struct Peer(Arc<OpenConnection>);
+pub(crate) struct Peer(Arc<OpenConnection>);
 
 impl Peer {
     /// The peer's address.
-    pub fn address(&self) -> SocketAddr {
+    pub(crate) fn address(&self) -> SocketAddr {
         self.0.peer
     }
 }
@@ -193,7 +193,7 @@ impl Connected<IncomingStream<'_, GatedListener>> for Peer {
 
 /// Passes a request on to Engine.IO if the gate's policy admits it (its connection then has no
 /// handshake deadline any more); answers it with the refusal's status otherwise.
-pub async fn admit(
+pub(crate) async fn admit(
     State(gate): State<Arc<Gate>>,
     ConnectInfo(peer): ConnectInfo<Peer>,
     request: Request,

@@ -15,7 +15,7 @@ use rover_runtime::sync::lock;
 /// The two inset images, as base64 JPEG (empty before the first, or in a reply, where the
 /// connection has the image already).
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Insets {
+pub(crate) struct Insets {
     /// World map (`inset_image1`).
     pub map: Arc<str>,
     /// Vision (`inset_image2`).
@@ -24,7 +24,7 @@ pub struct Insets {
 
 /// The insets last sent, and to which connection (`C` identifies one).
 #[derive(Debug)]
-pub struct InsetsSent<C> {
+pub(crate) struct InsetsSent<C> {
     last: Mutex<Option<(C, Insets)>>,
 }
 
@@ -38,7 +38,7 @@ impl<C: PartialEq + Copy> InsetsSent<C> {
     /// The insets of the next reply on `connection` when the insets are `current`, noted as sent:
     /// each image that this connection was not the last to be sent, else empty. Call in the order
     /// the replies are sent.
-    pub fn next_reply(&self, connection: C, current: &Insets) -> Insets {
+    pub(crate) fn next_reply(&self, connection: C, current: &Insets) -> Insets {
         let mut last = lock(&self.last);
         let sent_here = last.as_ref().filter(|(to, _)| *to == connection).map(|(_, insets)| insets);
         let field = |now: &Arc<str>, sent: Option<&Arc<str>>| {

@@ -20,14 +20,14 @@ use crate::telemetry::{SimTelemetry, parse_telemetry_value};
 use crate::teleop::{TeleopGains, twist_to_drive};
 
 /// Receives every accepted telemetry frame (the bridge node publishes it on the ROS topics).
-pub trait FrameSink: Send + Sync + 'static {
+pub(crate) trait FrameSink: Send + Sync + 'static {
     /// Called once per accepted frame, before the bridge waits for its drive command.
     fn publish_frame(&self, frame: u64, telemetry: SimTelemetry);
 }
 
 /// Settings of the lock-step core.
 #[derive(Debug, Clone, Copy)]
-pub struct LockStepConfig {
+pub(crate) struct LockStepConfig {
     /// Deadline, silence limit and brake value.
     pub policy: ReplyPolicy,
     /// Largest accepted packet from the simulator (a telemetry event with its payload), bytes;
@@ -42,7 +42,7 @@ pub struct LockStepConfig {
 }
 
 /// A telemetry frame between its arrival and its reply.
-pub struct InFlight {
+pub(crate) struct InFlight {
     received_at: Instant,
     state: FrameState,
 }
@@ -68,7 +68,7 @@ struct FrameFacts {
 }
 
 /// The bridge's lock-step state, shared by all simulator connections.
-pub struct LockStep<S> {
+pub(crate) struct LockStep<S> {
     config: Mutex<LockStepConfig>,
     sink: S,
     stats: Arc<BridgeStats>,
@@ -85,7 +85,7 @@ pub struct LockStep<S> {
 
 impl<S: FrameSink> LockStep<S> {
     /// A core that publishes accepted frames to `sink`.
-    pub fn new(config: LockStepConfig, sink: S) -> Self {
+    pub(crate) fn new(config: LockStepConfig, sink: S) -> Self {
         LockStep {
             config: Mutex::new(config),
             sink,
@@ -102,50 +102,50 @@ impl<S: FrameSink> LockStep<S> {
     }
 
     /// The current settings.
-    pub fn config(&self) -> LockStepConfig {
+    pub(crate) fn config(&self) -> LockStepConfig {
         *lock(&self.config)
     }
 
     /// Replaces the settings (when a parameter changes); frames in flight keep their deadline.
-    pub fn set_config(&self, config: LockStepConfig) {
+    pub(crate) fn set_config(&self, config: LockStepConfig) {
         *lock(&self.config) = config;
     }
 
     /// Activates or deactivates the bridge: an inactive bridge answers every frame with the brake
     /// at once, whatever drive, pickup or teleoperation commands come.
-    pub fn set_active(&self, active: bool) {
+    pub(crate) fn set_active(&self, active: bool) {
         self.active.store(active, Ordering::Relaxed);
     }
 
     /// The health counters.
-    pub fn stats(&self) -> &BridgeStats {
+    pub(crate) fn stats(&self) -> &BridgeStats {
         &self.stats
     }
 
     /// The health counters, for the parts of the server that outlive a borrow of the core.
-    pub fn shared_stats(&self) -> Arc<BridgeStats> {
+    pub(crate) fn shared_stats(&self) -> Arc<BridgeStats> {
         self.stats.clone()
     }
 
     /// The current inset images.
-    pub fn insets(&self) -> Insets {
+    pub(crate) fn insets(&self) -> Insets {
         lock(&self.insets).clone()
     }
 
     /// Replaces the world map inset.
-    pub fn set_map_inset(&self, base64_jpeg: String) {
+    pub(crate) fn set_map_inset(&self, base64_jpeg: String) {
         lock(&self.insets).map = base64_jpeg.into();
     }
 
     /// Replaces the vision inset.
-    pub fn set_vision_inset(&self, base64_jpeg: String) {
+    pub(crate) fn set_vision_inset(&self, base64_jpeg: String) {
         lock(&self.insets).vision = base64_jpeg.into();
     }
 
     /// Takes in one telemetry event given its argument (`None` if it had none): parses it, numbers
     /// it, publishes it and registers the wait for its drive command. Call in arrival order;
     /// [`LockStep::reply`] then produces the one reply.
-    pub fn receive(&self, payload: Option<&serde_json::Value>) -> InFlight {
+    pub(crate) fn receive(&self, payload: Option<&serde_json::Value>) -> InFlight {
         let received_at = Instant::now();
         let config = self.config();
         self.stats.frame_received();
@@ -167,14 +167,14 @@ impl<S: FrameSink> LockStep<S> {
 
     /// Takes in a message from the simulator that is not a telemetry event but should have been
     /// (unparseable packet, binary frame): it is answered with a brake, so the loop goes on.
-    pub fn receive_garbage(&self, kind: &str, problem: &str) -> InFlight {
+    pub(crate) fn receive_garbage(&self, kind: &str, problem: &str) -> InFlight {
         let config = self.config();
         self.stats.frame_received();
         InFlight { received_at: Instant::now(), state: FrameState::Decided(self.reject(&config, kind, problem)) }
     }
 
     /// Waits for the drive command of a frame (up to the deadline) and decides the reply.
-    pub async fn reply(&self, in_flight: InFlight) -> Reply {
+    pub(crate) async fn reply(&self, in_flight: InFlight) -> Reply {
         let InFlight { received_at, state } = in_flight;
         let (reply, hops) = match state {
             FrameState::Decided(reply) => (reply, None),
@@ -268,7 +268,7 @@ impl<S: FrameSink> LockStep<S> {
     }
 
     /// Handles a drive command from the decision node for frame `frame`.
-    pub fn on_drive_command(&self, frame: u64, throttle: f32, brake: f32, steering_deg: f32) {
+    pub(crate) fn on_drive_command(&self, frame: u64, throttle: f32, brake: f32, steering_deg: f32) {
         let values = match DriveValues::checked(throttle, brake, steering_deg) {
             Ok(values) => values,
             Err(problem) => {
@@ -284,13 +284,13 @@ impl<S: FrameSink> LockStep<S> {
     }
 
     /// Handles a pickup request: the next reply becomes `pickup` if a sample is within reach.
-    pub fn on_pickup_request(&self) {
+    pub(crate) fn on_pickup_request(&self) {
         self.pickup_requested.store(true, Ordering::Relaxed);
     }
 
     /// Handles a `cmd_vel` twist from a teleoperation tool; one with a NaN or infinite component
     /// brakes the rover while it is fresh.
-    pub fn on_teleop(&self, twist: Twist) {
+    pub(crate) fn on_teleop(&self, twist: Twist) {
         if let Err(invalid) = twist.validate() {
             self.stats.warn_problem("bad_teleop", format_args!("cmd_vel {invalid}: braking while it is fresh"));
         }

@@ -67,7 +67,7 @@ pub enum Reply {
 
 /// Timing rules for replies.
 #[derive(Debug, Clone, Copy)]
-pub struct ReplyPolicy {
+pub(crate) struct ReplyPolicy {
     /// How long to wait for the drive command of a frame.
     pub deadline: Duration,
     /// After this long without any drive command, brake.
@@ -78,7 +78,7 @@ pub struct ReplyPolicy {
 
 /// The last drive command received and when.
 #[derive(Debug, Clone, Copy)]
-pub struct LastCommand {
+pub(crate) struct LastCommand {
     /// Its values.
     pub values: DriveValues,
     /// When it arrived.
@@ -88,7 +88,7 @@ pub struct LastCommand {
 impl ReplyPolicy {
     /// Chooses the `data` values for a frame: the fresh command if one came, else the last one while
     /// it is younger than the silence limit, else a brake.
-    pub fn drive_reply(&self, fresh: Option<DriveValues>, last: Option<LastCommand>, now: Instant) -> Reply {
+    pub(crate) fn drive_reply(&self, fresh: Option<DriveValues>, last: Option<LastCommand>, now: Instant) -> Reply {
         match (fresh, last) {
             (Some(values), _) => Reply::Data(values, CommandSource::Fresh),
             (None, Some(last)) if now.duration_since(last.received_at) < self.silence_limit => {
@@ -101,7 +101,7 @@ impl ReplyPolicy {
 
 /// The JSON object of a `data` event: every value a string, as the simulator requires.
 #[derive(Debug, Serialize)]
-pub struct DataEvent<'a> {
+pub(crate) struct DataEvent<'a> {
     /// Throttle as text.
     pub throttle: String,
     /// Brake as text.
@@ -116,7 +116,7 @@ pub struct DataEvent<'a> {
 
 impl<'a> DataEvent<'a> {
     /// Formats `values` as the simulator expects.
-    pub fn new(values: DriveValues, inset_image1: &'a str, inset_image2: &'a str) -> Self {
+    pub(crate) fn new(values: DriveValues, inset_image1: &'a str, inset_image2: &'a str) -> Self {
         DataEvent {
             throttle: values.throttle.to_string(),
             brake: values.brake.to_string(),

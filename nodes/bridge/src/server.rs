@@ -37,7 +37,7 @@ use crate::telemetry::check_size;
 
 /// Settings of the Socket.IO server.
 #[derive(Debug, Clone)]
-pub struct ServerConfig {
+pub(crate) struct ServerConfig {
     /// Address to listen on.
     pub address: SocketAddr,
     /// Largest websocket message accepted by the transport (larger ones close the connection).
@@ -53,7 +53,7 @@ pub struct ServerConfig {
 }
 
 /// Rewrites `EIO=4` to `EIO=3` in the query, so the Unity client gets the Engine.IO 3 behaviour it speaks.
-pub fn rewrite_engine_io_version<B>(mut request: Request<B>) -> Request<B> {
+pub(crate) fn rewrite_engine_io_version<B>(mut request: Request<B>) -> Request<B> {
     let uri = request.uri();
     if let Some(query) = uri.query().filter(|q| q.split('&').any(|p| p == "EIO=4")) {
         let query: Vec<&str> = query.split('&').map(|p| if p == "EIO=4" { "EIO=3" } else { p }).collect();
@@ -70,7 +70,7 @@ pub fn rewrite_engine_io_version<B>(mut request: Request<B>) -> Request<B> {
 }
 
 /// Serves the simulator until `shutdown` resolves.
-pub async fn serve<S: FrameSink>(
+pub(crate) async fn serve<S: FrameSink>(
     core: Arc<LockStep<S>>,
     config: ServerConfig,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,

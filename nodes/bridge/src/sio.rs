@@ -5,7 +5,7 @@ use serde_json::Value;
 
 /// A decoded Socket.IO packet from the simulator.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Packet {
+pub(crate) enum Packet {
     /// Namespace CONNECT (the Unity client never sends it).
     Connect,
     /// Namespace DISCONNECT (sent before the client quits).
@@ -23,7 +23,7 @@ pub enum Packet {
 
 /// Why a message is not a Socket.IO packet.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum PacketError {
+pub(crate) enum PacketError {
     /// Empty message.
     #[error("empty Socket.IO packet")]
     Empty,
@@ -39,7 +39,7 @@ pub enum PacketError {
 }
 
 /// Decodes the text of one Engine.IO message as a Socket.IO packet.
-pub fn decode(text: &str) -> Result<Packet, PacketError> {
+pub(crate) fn decode(text: &str) -> Result<Packet, PacketError> {
     let mut chars = text.chars();
     let kind = chars.next().ok_or(PacketError::Empty)?;
     match kind {
@@ -75,14 +75,14 @@ fn decode_event(body: &str) -> Result<Packet, PacketError> {
 }
 
 /// Encodes an event with one argument: `2["name",argument]`.
-pub fn encode_event(name: &str, argument: &impl serde::Serialize) -> Result<String, serde_json::Error> {
+pub(crate) fn encode_event(name: &str, argument: &impl serde::Serialize) -> Result<String, serde_json::Error> {
     let argument = serde_json::to_string(argument)?;
     let name = serde_json::to_string(name)?;
     Ok(format!("2[{name},{argument}]"))
 }
 
 /// The CONNECT packet a protocol-v4 server sends for the default namespace.
-pub const CONNECT: &str = "0";
+pub(crate) const CONNECT: &str = "0";
 
 #[cfg(test)]
 mod tests {

@@ -11,7 +11,7 @@ const TURN_IN_PLACE_BELOW_MPS: f64 = 0.3;
 
 /// Gains of the teleoperation speed controller.
 #[derive(Debug, Clone, Copy)]
-pub struct TeleopGains {
+pub(crate) struct TeleopGains {
     /// Throttle per m/s of speed error.
     pub throttle_per_mps: f64,
     /// Brake applied when asked to stop while moving.
@@ -21,7 +21,7 @@ pub struct TeleopGains {
 /// Converts a twist (linear.x m/s, angular.z rad/s, REP-103) into drive values at the current
 /// speed. A twist with a NaN or infinite component, or one whose values overflow, brakes with
 /// `gains.brake`.
-pub fn twist_to_drive(twist: &Twist, speed_mps: f64, gains: TeleopGains) -> DriveValues {
+pub(crate) fn twist_to_drive(twist: &Twist, speed_mps: f64, gains: TeleopGains) -> DriveValues {
     let braking = DriveValues::brake(gains.brake as f32);
     if twist.validate().is_err() {
         return braking;

@@ -28,7 +28,7 @@ pub(crate) const UNSEEN_S: f64 = 1.0;
 
 /// A sample being approached.
 #[derive(Debug, Clone)]
-pub struct Chase {
+pub(crate) struct Chase {
     /// Where the sample is, metres.
     pub at: (f64, f64),
     /// Where the sample was thought to be when the approach began (a remembered rock's place on
@@ -45,7 +45,7 @@ pub struct Chase {
 
 /// How to drive on toward the sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Aim {
+pub(crate) enum Aim {
     /// Toward this point of the route, around what the camera sees: the sample is still far.
     AroundObstacles((f64, f64)),
     /// Straight at this point: the sample, or the staging cell on the way to it.
@@ -56,7 +56,7 @@ impl Chase {
     /// An approach from `rover` to the sample at `at`, given up at `give_up_frame`, worth a route
     /// up to `max_cost`. After approaches that failed at the points `failed`, it goes by way of a
     /// free cell beside the sample on `grid`, away from them, that sees the sample.
-    pub fn new(
+    pub(crate) fn new(
         at: (f64, f64),
         (give_up_frame, max_cost): (u64, f64),
         (grid, rover): (&Grid, &Position),
@@ -71,19 +71,19 @@ impl Chase {
     }
 
     /// The cells of the route's latest plan (empty while the rover drives straight at the sample).
-    pub fn path(&self) -> &[usize] {
+    pub(crate) fn path(&self) -> &[usize] {
         self.route.as_ref().map_or(&[], Route::path)
     }
 
     /// Whether the route's latest plan costs more than the approach is worth: the map has shown
     /// the way to the sample to be a long way round.
-    pub fn out_of_the_way(&self) -> bool {
+    pub(crate) fn out_of_the_way(&self) -> bool {
         self.route.as_ref().and_then(Route::cost).is_some_and(|cost| cost > self.max_cost)
     }
 
     /// Whether the sample is not where it was thought to be: ahead, in the camera's view and in
     /// clear sight on the map, but not seen (`rock_seen` false) for [`UNSEEN_S`].
-    pub fn missing(&mut self, from: &PlanStart, rock_seen: bool) -> bool {
+    pub(crate) fn missing(&mut self, from: &PlanStart, rock_seen: bool) -> bool {
         let (rover, frame) = (from.at, from.frame);
         let in_view = (CHECK_RANGE_M.0..=CHECK_RANGE_M.1).contains(&rover.distance_to(self.at))
             && rover.bearing_to(self.at).abs() <= CHECK_BEARING_DEG.to_radians()
@@ -95,7 +95,7 @@ impl Chase {
 
     /// Where to drive on: along a route on the map while the sample is far or while a staging
     /// cell is still ahead (dropped once reached), otherwise straight at the sample.
-    pub fn aim(&mut self, from: &PlanStart) -> Aim {
+    pub(crate) fn aim(&mut self, from: &PlanStart) -> Aim {
         if self.staging.is_some_and(|point| from.at.distance_to(point) < STAGING_REACHED_M) {
             (self.staging, self.route) = (None, None);
         }

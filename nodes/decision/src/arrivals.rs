@@ -7,7 +7,7 @@ use std::collections::VecDeque;
 /// Frames between the scan that a map (or a list of rocks) includes and the first frame decided
 /// with it. In the graph the map of frame `f` reaches the decision node while frame `f + 1` is on
 /// its way, well before `f + 3` (each frame is a full lock-step round trip).
-pub const ARRIVAL_DELAY_FRAMES: u64 = 3;
+pub(crate) const ARRIVAL_DELAY_FRAMES: u64 = 3;
 /// At most this many values wait; beyond, the oldest is dropped. While frames are decided one or
 /// two wait; more pile up only while none is but maps still come (scans that this node rejects
 /// and the mapping node maps), and then the newest are the ones that matter.
@@ -15,7 +15,7 @@ const MAX_WAITING: usize = 8;
 
 /// Values waiting for their frame, oldest first.
 #[derive(Debug, Clone)]
-pub struct Delayed<T> {
+pub(crate) struct Delayed<T> {
     waiting: VecDeque<(u64, T)>,
 }
 
@@ -32,7 +32,7 @@ fn due_at(made_at: u64, frame: u64) -> bool {
 
 impl<T> Delayed<T> {
     /// Keeps `value`, made from the scans up to mission frame `made_at_frame`, until it is due.
-    pub fn push(&mut self, made_at_frame: u64, value: T) {
+    pub(crate) fn push(&mut self, made_at_frame: u64, value: T) {
         if self.waiting.len() == MAX_WAITING {
             self.waiting.pop_front();
         }
@@ -40,13 +40,13 @@ impl<T> Delayed<T> {
     }
 
     /// The newest value due at `frame`: the one [`Delayed::take_due`] would take.
-    pub fn newest_due(&self, frame: u64) -> Option<&T> {
+    pub(crate) fn newest_due(&self, frame: u64) -> Option<&T> {
         self.due_count(frame).checked_sub(1).and_then(|last| self.waiting.get(last)).map(|(_, value)| value)
     }
 
     /// The newest value due at `frame` and the frame it was made at (older due ones are dropped:
     /// each value is a whole state).
-    pub fn take_due(&mut self, frame: u64) -> Option<(u64, T)> {
+    pub(crate) fn take_due(&mut self, frame: u64) -> Option<(u64, T)> {
         let due = self.due_count(frame);
         self.waiting.drain(..due).last()
     }
@@ -60,14 +60,14 @@ impl<T> Delayed<T> {
 /// When maps come: the mapping node makes one every so many scans, so the frames of the last two
 /// maps taken tell when the next one will take effect.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct MapCadence {
+pub(crate) struct MapCadence {
     last_made_at: Option<u64>,
     frames_between: Option<u64>,
 }
 
 impl MapCadence {
     /// Notes that the map made at mission frame `made_at` took effect.
-    pub fn record(&mut self, made_at: u64) {
+    pub(crate) fn record(&mut self, made_at: u64) {
         if let Some(last) = self.last_made_at.filter(|&last| last < made_at) {
             self.frames_between = Some(made_at - last);
         }
@@ -75,7 +75,7 @@ impl MapCadence {
     }
 
     /// The frame on which the next map will take effect if it comes as often as the last did.
-    pub fn next_due(&self) -> Option<u64> {
+    pub(crate) fn next_due(&self) -> Option<u64> {
         let made_at = self.last_made_at?.checked_add(self.frames_between?)?;
         made_at.checked_add(ARRIVAL_DELAY_FRAMES)
     }

@@ -6,7 +6,7 @@ use rover_msgs::body::{MAX_STEER_DEG, WHEELBASE_M, speed_in_turn_mps};
 use crate::local::FreeSpace;
 use crate::params::DecisionParams;
 /// Below this speed the rover counts as stopped, m/s.
-pub const STOPPED_MPS: f64 = 0.05;
+pub(crate) const STOPPED_MPS: f64 = 0.05;
 /// Below this speed a turn in place toward a new bearing may start, m/s (the rest of the speed is
 /// braked off by the turn).
 const TURN_IN_PLACE_BELOW_MPS: f64 = 0.2;
@@ -51,13 +51,13 @@ impl Drive {
 
 /// Steering with memory: once the rover turns in place it keeps turning until it faces the goal.
 #[derive(Debug, Clone, Default)]
-pub struct Steering {
+pub(crate) struct Steering {
     turning: Option<bool>,
 }
 
 impl Steering {
     /// Forgets a turn in progress.
-    pub fn reset(&mut self) {
+    pub(crate) fn reset(&mut self) {
         self.turning = None;
     }
 
@@ -65,7 +65,13 @@ impl Steering {
     /// (`speed_mps` is the rover's speed now), turning in place when the bearing is large. A turn
     /// keeps its side while the goal stays on that side (or behind), and changes side when a new
     /// goal lies on the other.
-    pub fn toward(&mut self, bearing_rad: f64, target_mps: f64, speed_mps: f64, params: &DecisionParams) -> Drive {
+    pub(crate) fn toward(
+        &mut self,
+        bearing_rad: f64,
+        target_mps: f64,
+        speed_mps: f64,
+        params: &DecisionParams,
+    ) -> Drive {
         let bearing_deg = bearing_rad.to_degrees();
         let goal_switched_side =
             self.turning.is_some_and(|left| left != (bearing_deg > 0.0) && bearing_deg.abs() < SIDE_SWITCH_DEG);
@@ -85,7 +91,7 @@ impl Steering {
 
     /// Drives to a point `distance_m` away at `bearing_rad` as [`Steering::toward`] does, but first
     /// turns in place when the point lies inside the rover's tightest turn (it would circle it).
-    pub fn toward_point(
+    pub(crate) fn toward_point(
         &mut self,
         bearing_rad: f64,
         distance_m: f64,
@@ -103,7 +109,7 @@ impl Steering {
     /// little is free. When nothing ahead is free it creeps at the approach speed if it roughly
     /// faces the bearing (the map says the way is open; getting stuck ends that), and otherwise
     /// stops and turns in place toward the bearing.
-    pub fn around_obstacles(
+    pub(crate) fn around_obstacles(
         &mut self,
         bearing_rad: f64,
         cruise_mps: f64,
@@ -141,7 +147,7 @@ fn stop_then_turn(left: bool, speed_mps: f64, params: &DecisionParams) -> Drive 
 }
 
 /// The speed from which braking at `stop_decel_mps2` stops the rover within `distance_m`, m/s.
-pub fn speed_to_stop_in(distance_m: f64, params: &DecisionParams) -> f64 {
+pub(crate) fn speed_to_stop_in(distance_m: f64, params: &DecisionParams) -> f64 {
     (2.0 * params.stop_decel_mps2 * distance_m.max(0.0)).sqrt()
 }
 
@@ -194,7 +200,7 @@ fn arc_turn(bearing_rad: f64, speed_mps: f64, free: &FreeSpace, params: &Decisio
 }
 
 /// Throttle or brake that brings `speed_mps` to `target_mps`.
-pub fn hold_speed(target_mps: f64, speed_mps: f64, params: &DecisionParams) -> Drive {
+pub(crate) fn hold_speed(target_mps: f64, speed_mps: f64, params: &DecisionParams) -> Drive {
     let error = target_mps - speed_mps;
     if error < -0.5 {
         return Drive { throttle: 0.0, brake: (-error).min(params.brake), steering_deg: 0.0 };

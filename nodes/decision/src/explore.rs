@@ -32,7 +32,7 @@ const TURN_AROUND_DEG: f64 = 100.0;
 /// its unexplored cells still beside or behind the rover (a side passage) is first looked at:
 /// the rover turns toward those cells until the camera has seen them, then moves on.
 #[derive(Debug, Clone)]
-pub struct Explorer {
+pub(crate) struct Explorer {
     target: Option<Target>,
     look: Option<Look>,
     past_obstacles: bool,
@@ -124,7 +124,7 @@ pub struct ExplorerMemory {
 
 impl Explorer {
     /// What the explorer has learnt so far.
-    pub fn memory(&self) -> ExplorerMemory {
+    pub(crate) fn memory(&self) -> ExplorerMemory {
         ExplorerMemory {
             inspected: self.inspected.clone(),
             explored: self.explored.clone(),
@@ -133,31 +133,31 @@ impl Explorer {
     }
 
     /// An explorer that carries on from `memory`, without a target.
-    pub fn with_memory(memory: ExplorerMemory) -> Self {
+    pub(crate) fn with_memory(memory: ExplorerMemory) -> Self {
         let ExplorerMemory { inspected, explored, past_obstacles } = memory;
         Explorer { inspected, explored, past_obstacles, ..Explorer::default() }
     }
 
     /// The cells of the path to the current target (empty without one).
-    pub fn path(&self) -> &[usize] {
+    pub(crate) fn path(&self) -> &[usize] {
         self.target.as_ref().map_or(&[], |t| &t.path)
     }
 
     /// The current target's centre, if any.
-    pub fn target(&self) -> Option<(f64, f64)> {
+    pub(crate) fn target(&self) -> Option<(f64, f64)> {
         self.target.as_ref().map(|t| cell_centre_m(t.cell))
     }
 
     /// Path cost from the rover (as of the last plan) to the cell containing `point`, or to the
     /// cheapest reachable cell next to it when that is an obstacle.
-    pub fn cost_to(&self, point: (f64, f64)) -> Option<f64> {
+    pub(crate) fn cost_to(&self, point: (f64, f64)) -> Option<f64> {
         let costs = self.costs.as_ref()?;
         let cell = costs.reachable_near(cell_of_point(point.0, point.1)?, GOAL_SLACK_CELLS)?;
         Some(costs.distance(cell) as f64)
     }
 
     /// Marks the cells in close view of the camera at `at` as inspected.
-    pub fn inspect(&mut self, at: &Position, params: &DecisionParams) {
+    pub(crate) fn inspect(&mut self, at: &Position, params: &DecisionParams) {
         let range_m = params.inspect_range_m;
         let half_angle_rad = params.inspect_half_angle_deg.to_radians();
         let (x0, x1) = ((at.x_m - range_m).floor() as i64, (at.x_m + range_m).ceil() as i64);
@@ -181,13 +181,13 @@ impl Explorer {
     /// Whether the last plan reached hardly any cells: the map walls the rover in (it stands in
     /// or among obstacle cells, e.g. started again next to a rock), so that no frontier says
     /// anything about the world.
-    pub fn walled_in(&self) -> bool {
+    pub(crate) fn walled_in(&self) -> bool {
         self.costs.as_ref().is_some_and(|costs| costs.reachable_cells() < WALLED_IN_CELLS)
     }
 
     /// Starts the current target's clock again after a detour (to a sample): the time away does
     /// not count against it, nor against the look at it, which starts again once it is reached.
-    pub fn resume_after_detour(&mut self, frame: u64) {
+    pub(crate) fn resume_after_detour(&mut self, frame: u64) {
         if let Some(target) = self.target.as_mut() {
             target.chosen_frame = frame;
         }
@@ -195,7 +195,7 @@ impl Explorer {
     }
 
     /// Notes a recovery on the way to the current target; abandons it after a few.
-    pub fn note_recovery(&mut self) {
+    pub(crate) fn note_recovery(&mut self) {
         if let Some(target) = self.target.as_mut() {
             target.recoveries += 1;
             if target.recoveries >= RECOVERIES_PER_TARGET {
@@ -206,7 +206,7 @@ impl Explorer {
 
     /// Plans past obstacle cells from now on, at a high cost: frontiers that the map walls off
     /// become candidates. Returns whether it did not already.
-    pub fn look_past_obstacles(&mut self) -> bool {
+    pub(crate) fn look_past_obstacles(&mut self) -> bool {
         !std::mem::replace(&mut self.past_obstacles, true)
     }
 
@@ -218,14 +218,14 @@ impl Explorer {
     /// Forgets which cells the camera has seen up close, so that walls seen before count as
     /// frontiers again (the map may have been wrong there, e.g. an exit mapped as rock); returns
     /// whether any cell had been seen.
-    pub fn forget_inspected(&mut self) -> bool {
+    pub(crate) fn forget_inspected(&mut self) -> bool {
         let any = self.inspected.iter().any(|&i| i);
         self.inspected.fill(false);
         any
     }
 
     /// Makes every frontier a candidate again; returns whether any had been ruled out.
-    pub fn forget_explored(&mut self) -> bool {
+    pub(crate) fn forget_explored(&mut self) -> bool {
         let any = self.explored.iter().any(|&e| e);
         self.explored.fill(false);
         any
@@ -233,7 +233,7 @@ impl Explorer {
 
     /// The point to steer toward, or `None` when no frontier is left (or the rover is off the map);
     /// new targets are the first stops of tours that end at `home`.
-    pub fn waypoint(&mut self, from: &PlanStart, home: Option<(f64, f64)>) -> Option<(f64, f64)> {
+    pub(crate) fn waypoint(&mut self, from: &PlanStart, home: Option<(f64, f64)>) -> Option<(f64, f64)> {
         let PlanStart { map, at, frame, params } = *from;
         let (grid, start) = (map.grid(), cell_of_point(at.x_m, at.y_m)?);
         if let Some(point) = self.look_point(grid, frame) {

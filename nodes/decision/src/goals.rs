@@ -15,7 +15,7 @@ use crate::machine::{GoalFailure, Mode, NavigationProgress, Status};
 /// The point on the map a goal pose asks for; a pose in another frame than `map`, with a
 /// coordinate that is not finite or with an orientation that is no rotation is refused with
 /// the result that says why.
-pub fn goal_point(goal: &PoseStamped) -> Result<(f64, f64), NavigateToPoseResult> {
+pub(crate) fn goal_point(goal: &PoseStamped) -> Result<(f64, f64), NavigateToPoseResult> {
     let frame = goal.header.frame_id.trim_start_matches('/');
     if frame != frame_ids::MAP {
         let why = format!("goal in frame '{}': the rover takes goals in '{}'", goal.header.frame_id, frame_ids::MAP);
@@ -36,7 +36,7 @@ pub fn goal_point(goal: &PoseStamped) -> Result<(f64, f64), NavigateToPoseResult
 }
 
 /// The result of a goal given up for `failure`.
-pub fn failure_result(failure: GoalFailure, goal: (f64, f64)) -> NavigateToPoseResult {
+pub(crate) fn failure_result(failure: GoalFailure, goal: (f64, f64)) -> NavigateToPoseResult {
     let code = match failure {
         GoalFailure::OutsideMap => NavigateToPoseResult::GOAL_OUTSIDE_MAP,
         GoalFailure::Occupied => NavigateToPoseResult::GOAL_OCCUPIED,
@@ -48,7 +48,7 @@ pub fn failure_result(failure: GoalFailure, goal: (f64, f64)) -> NavigateToPoseR
 
 /// The feedback on a navigation at the frame of `telemetry`: the rover's pose in `map`, the time
 /// since the goal came and the time left at the rover's speed (at least `least_speed_mps`).
-pub fn feedback(
+pub(crate) fn feedback(
     progress: &NavigationProgress,
     telemetry: &Telemetry,
     frame_period_s: f64,
@@ -68,7 +68,7 @@ pub fn feedback(
 }
 
 /// How the mission goes: its mode and time, and the mapping node's latest statistics.
-pub fn mission_feedback(status: &Status, stats: &MapStats, mission_time_s: f64) -> SampleReturnFeedback {
+pub(crate) fn mission_feedback(status: &Status, stats: &MapStats, mission_time_s: f64) -> SampleReturnFeedback {
     SampleReturnFeedback {
         mode: status.mode.name().to_string(),
         mapped_pct: stats.mapped_pct,
@@ -81,7 +81,7 @@ pub fn mission_feedback(status: &Status, stats: &MapStats, mission_time_s: f64) 
 
 /// The mission's score at the frame of `telemetry`: complete when the rover is done at home with
 /// no sample left on the ground.
-pub fn mission_result(
+pub(crate) fn mission_result(
     status: &Status,
     stats: &MapStats,
     telemetry: &Telemetry,

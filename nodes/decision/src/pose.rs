@@ -32,12 +32,12 @@ impl Position {
 
 /// Where a rover that went from `before` to `at` in one frame will be a frame later if it keeps
 /// going alike, (x, y) metres.
-pub fn one_frame_on(before: &Position, at: &Position) -> (f64, f64) {
+pub(crate) fn one_frame_on(before: &Position, at: &Position) -> (f64, f64) {
     (2.0 * at.x_m - before.x_m, 2.0 * at.y_m - before.y_m)
 }
 
 /// An angle wrapped to (-pi, pi].
-pub fn wrap_rad(angle_rad: f64) -> f64 {
+pub(crate) fn wrap_rad(angle_rad: f64) -> f64 {
     let wrapped = angle_rad.rem_euclid(std::f64::consts::TAU);
     if wrapped > std::f64::consts::PI { wrapped - std::f64::consts::TAU } else { wrapped }
 }

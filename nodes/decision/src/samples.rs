@@ -7,7 +7,7 @@ use rover_msgs::body::SAMPLE_SPREAD_M;
 pub(crate) const APPROACHES_PER_ROCK: usize = 2;
 
 /// Whether rocks located at `a` and `b` are taken to be one.
-pub fn same_rock(a: (f64, f64), b: (f64, f64)) -> bool {
+pub(crate) fn same_rock(a: (f64, f64), b: (f64, f64)) -> bool {
     (a.0 - b.0).hypot(a.1 - b.1) < SAMPLE_SPREAD_M
 }
 
@@ -21,7 +21,7 @@ struct FailedApproach {
 
 /// The samples the rover knows of, world metres.
 #[derive(Debug, Clone, Default)]
-pub struct SampleMemory {
+pub(crate) struct SampleMemory {
     located: Vec<(f64, f64)>,
     ignored: Vec<(f64, f64)>,
     failed: Vec<FailedApproach>,
@@ -30,54 +30,54 @@ pub struct SampleMemory {
 
 impl SampleMemory {
     /// Takes the rocks the map holds now.
-    pub fn set_located(&mut self, rocks: Vec<(f64, f64)>) {
+    pub(crate) fn set_located(&mut self, rocks: Vec<(f64, f64)>) {
         self.located = rocks;
     }
 
     /// The rocks the map holds.
-    pub fn located(&self) -> &[(f64, f64)] {
+    pub(crate) fn located(&self) -> &[(f64, f64)] {
         &self.located
     }
 
     /// Rocks picked up or given up on.
-    pub fn ignored(&self) -> &[(f64, f64)] {
+    pub(crate) fn ignored(&self) -> &[(f64, f64)] {
         &self.ignored
     }
 
     /// Takes over the rocks an earlier machine picked up or gave up on.
-    pub fn set_ignored(&mut self, rocks: Vec<(f64, f64)>) {
+    pub(crate) fn set_ignored(&mut self, rocks: Vec<(f64, f64)>) {
         self.ignored = rocks;
     }
 
     /// Stops chasing the rock at `at`: picked up, or not picked up when it should have been.
-    pub fn ignore(&mut self, at: (f64, f64)) {
+    pub(crate) fn ignore(&mut self, at: (f64, f64)) {
         self.ignored.push(at);
     }
 
     /// Leaves the rock at `at` alone until `until_frame`: the way to it is a long way round.
-    pub fn defer(&mut self, at: (f64, f64), until_frame: u64) {
+    pub(crate) fn defer(&mut self, at: (f64, f64), until_frame: u64) {
         self.deferred.retain(|&(rock, _)| !same_rock(rock, at));
         self.deferred.push((at, until_frame));
     }
 
     /// Notes an approach to `sample` that ended at `frame` with the rover at `from`.
-    pub fn note_failed_approach(&mut self, sample: (f64, f64), frame: u64, from: (f64, f64)) {
+    pub(crate) fn note_failed_approach(&mut self, sample: (f64, f64), frame: u64, from: (f64, f64)) {
         self.failed.push(FailedApproach { sample, frame, from });
     }
 
     /// Where the rover was when approaches to the rock at `at` failed.
-    pub fn failed_from(&self, at: (f64, f64)) -> Vec<(f64, f64)> {
+    pub(crate) fn failed_from(&self, at: (f64, f64)) -> Vec<(f64, f64)> {
         self.failed.iter().filter(|f| same_rock(f.sample, at)).map(|f| f.from).collect()
     }
 
     /// Whether the rock at `at` is left alone at `frame` after [`SampleMemory::defer`].
-    pub fn is_deferred(&self, at: (f64, f64), frame: u64) -> bool {
+    pub(crate) fn is_deferred(&self, at: (f64, f64), frame: u64) -> bool {
         self.deferred.iter().any(|&(rock, until)| same_rock(rock, at) && frame < until)
     }
 
     /// Whether the rock at `at` is ignored, or failed [`APPROACHES_PER_ROCK`] times within the
     /// last `retry_frames` before `frame`.
-    pub fn is_ignored(&self, at: (f64, f64), frame: u64, retry_frames: u64) -> bool {
+    pub(crate) fn is_ignored(&self, at: (f64, f64), frame: u64, retry_frames: u64) -> bool {
         let recent = |failed: u64| failed + retry_frames > frame;
         self.ignored.iter().any(|&p| same_rock(p, at))
             || self.failed.iter().filter(|f| same_rock(f.sample, at) && recent(f.frame)).count() >= APPROACHES_PER_ROCK

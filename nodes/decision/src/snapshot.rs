@@ -15,13 +15,13 @@ use crate::machine::{Recollection, Stage};
 /// The first bytes of a snapshot: the format and its version.
 const MAGIC: &[u8; 8] = b"RVRDEC01";
 /// The snapshot's file name in the state folder.
-pub const FILE_NAME: &str = "decision.snapshot";
+pub(crate) const FILE_NAME: &str = "decision.snapshot";
 /// Most rocks a snapshot may list.
 const MAX_ROCKS: u32 = 10_000;
 
 /// What the decision node keeps in its snapshot.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Snapshot {
+pub(crate) struct Snapshot {
     /// The machine's recollection.
     pub recollection: Recollection,
     /// The last bridge frame and mission frame.
@@ -32,7 +32,7 @@ pub struct Snapshot {
 /// frame u64, mission frame u64), the stage (u8: 0 exploring, 1 returning home, 2 done), plans
 /// past obstacles (u8), then one byte (0 or 1) per cell for inspected, one per cell for explored,
 /// and the ignored rocks (count u32, then x and y f64 each).
-pub fn encode(snapshot: &Snapshot) -> Vec<u8> {
+pub(crate) fn encode(snapshot: &Snapshot) -> Vec<u8> {
     let mut out = Writer::new(MAGIC);
     out.u64(CELLS as u64);
     let last = snapshot.mission_frames.last();
@@ -57,7 +57,7 @@ pub fn encode(snapshot: &Snapshot) -> Vec<u8> {
 }
 
 /// Reads `bytes` back into a snapshot, checking the layout and every value.
-pub fn decode(bytes: &[u8]) -> Result<Snapshot, SnapshotError> {
+pub(crate) fn decode(bytes: &[u8]) -> Result<Snapshot, SnapshotError> {
     let mut fields = Fields::after_magic(bytes, MAGIC)?;
     fields.expect_u64("cell count", CELLS as u64)?;
     let has_frames = fields.flag("frames flag")?;

@@ -25,14 +25,14 @@ const PATH_MARK_REACH_M: f64 = 2.0;
 
 /// Watches the rover's progress: how long it has stayed within some distance of one spot.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct ProgressWatch {
+pub(crate) struct ProgressWatch {
     anchor: Option<(u64, f64, f64)>,
 }
 
 impl ProgressWatch {
     /// Frames the rover `at` has stayed within `radius_m` of where this watch last anchored, as of
     /// `frame`.
-    pub fn frames_within(&mut self, at: &Position, frame: u64, radius_m: f64) -> u64 {
+    pub(crate) fn frames_within(&mut self, at: &Position, frame: u64, radius_m: f64) -> u64 {
         match self.anchor {
             Some((since, x_m, y_m)) if at.distance_to((x_m, y_m)) <= radius_m => frame.saturating_sub(since),
             _ => {
@@ -43,7 +43,7 @@ impl ProgressWatch {
     }
 
     /// Forgets the anchor: the next frame starts a new watch.
-    pub fn reset(&mut self) {
+    pub(crate) fn reset(&mut self) {
         self.anchor = None;
     }
 }
@@ -52,7 +52,7 @@ impl ProgressWatch {
 /// was told to stand or turn in place do not count, but they do not start the watch again either:
 /// a rover that pushes against a rock and turns a little in between is stuck all the same.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct DrivingWatch {
+pub(crate) struct DrivingWatch {
     spot: ProgressWatch,
     driving_frames: u64,
 }
@@ -60,7 +60,7 @@ pub struct DrivingWatch {
 impl DrivingWatch {
     /// Frames in which the rover was told to drive (`driving` for this one) since it last left a
     /// circle of `radius_m`, as of `frame`, the rover being `at`.
-    pub fn driving_frames_within(&mut self, at: &Position, frame: u64, radius_m: f64, driving: bool) -> u64 {
+    pub(crate) fn driving_frames_within(&mut self, at: &Position, frame: u64, radius_m: f64, driving: bool) -> u64 {
         if self.spot.frames_within(at, frame, radius_m) == 0 {
             self.driving_frames = 0;
         }
@@ -69,7 +69,7 @@ impl DrivingWatch {
     }
 
     /// Forgets the spot and the frames counted there.
-    pub fn reset(&mut self) {
+    pub(crate) fn reset(&mut self) {
         *self = DrivingWatch::default();
     }
 }
@@ -103,7 +103,7 @@ fn holds_at(frame: u64, until_frame: u64) -> bool {
 
 /// The cells marked as obstacles for planning where the rover got stuck lately.
 #[derive(Debug, Clone, Default)]
-pub struct StuckMarks {
+pub(crate) struct StuckMarks {
     marks: Vec<(usize, u64)>,
 }
 
@@ -113,7 +113,7 @@ impl StuckMarks {
     /// marks included) does not block, else the next such cell of `path` near the rover
     /// ([`PATH_MARK_REACH_M`]), is marked until [`STUCK_MARK_S`] later, and returned (none when
     /// all are blocked or off the map).
-    pub fn note_stuck(
+    pub(crate) fn note_stuck(
         &mut self,
         (at, frame): (&Position, u64),
         planning: &Grid,
@@ -132,24 +132,24 @@ impl StuckMarks {
     }
 
     /// Drops the marks that have expired by `frame`.
-    pub fn expire(&mut self, frame: u64) {
+    pub(crate) fn expire(&mut self, frame: u64) {
         self.marks.retain(|&(_, until_frame)| holds_at(frame, until_frame));
     }
 
     /// `map` with the marked cells blocked.
-    pub fn applied_to(&self, map: &Grid) -> Grid {
+    pub(crate) fn applied_to(&self, map: &Grid) -> Grid {
         blocked(map, self.marks.iter().map(|&(cell, _)| cell))
     }
 
     /// `map` with the cells blocked that are still marked at `frame` (those that
     /// [`StuckMarks::expire`] at `frame` keeps).
-    pub fn applied_at(&self, map: &Grid, frame: u64) -> Grid {
+    pub(crate) fn applied_at(&self, map: &Grid, frame: u64) -> Grid {
         let live = self.marks.iter().filter(|&&(_, until_frame)| holds_at(frame, until_frame));
         blocked(map, live.map(|&(cell, _)| cell))
     }
 
     /// Forgets every mark; returns whether there were any.
-    pub fn forget(&mut self) -> bool {
+    pub(crate) fn forget(&mut self) -> bool {
         let any = !self.marks.is_empty();
         self.marks.clear();
         any

@@ -10,7 +10,7 @@ const BAND_PX: usize = 24;
 
 /// The numbers printed under the map.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct InsetStats {
+pub(crate) struct InsetStats {
     /// Time since the mapping node started, seconds.
     pub time_s: f64,
     /// Mapped %, if a ground truth is known.
@@ -24,7 +24,7 @@ pub struct InsetStats {
 }
 
 /// Draws the inset of the map whose cells are `occupancy` (row = y).
-pub fn map_inset(
+pub(crate) fn map_inset(
     occupancy: &[i8],
     ground_truth: Option<&[bool]>,
     rocks: &[(f64, f64)],

@@ -31,7 +31,7 @@ const MAX_COLLECTED_PLACES: usize = u8::MAX as usize;
 
 /// The mapping node's state: the map, home, the samples collected and what it rejected.
 #[derive(Debug, Clone)]
-pub struct MappingCore {
+pub(crate) struct MappingCore {
     map: WorldMap,
     params: MappingParams,
     ground_truth: Option<Vec<bool>>,
@@ -53,7 +53,7 @@ pub struct MappingCore {
 
 impl MappingCore {
     /// An empty map with `params`, scored against `ground_truth` (navigable per cell) if given.
-    pub fn new(params: MappingParams, ground_truth: Option<Vec<bool>>) -> Self {
+    pub(crate) fn new(params: MappingParams, ground_truth: Option<Vec<bool>>) -> Self {
         MappingCore {
             map: WorldMap::new(params.map_config()),
             params,
@@ -75,7 +75,7 @@ impl MappingCore {
     /// Maps one terrain scan received at `now` (the node's clock) and follows the telemetry it
     /// carries, unless it fails its checks, is stamped ahead of `now`, or comes before the last
     /// scan taken.
-    pub fn add_scan(&mut self, scan: &TerrainScan, now: &Time) {
+    pub(crate) fn add_scan(&mut self, scan: &TerrainScan, now: &Time) {
         self.unpublished_scans += 1;
         self.last_scan_frame = scan.telemetry.frame;
         if !self.rejections.accept(topics::TERRAIN.name, scan) || !self.stamped_by_now(&scan.header, now) {
@@ -176,19 +176,19 @@ impl MappingCore {
     }
 
     /// Keeps the first true sample positions received (for scoring the located rocks).
-    pub fn set_samples_truth(&mut self, samples: &PoseArray) {
+    pub(crate) fn set_samples_truth(&mut self, samples: &PoseArray) {
         if self.rejections.accept(topics::SAMPLE_TRUTH.name, samples) {
             self.samples_truth.get_or_insert_with(|| samples.points());
         }
     }
 
     /// The parameters.
-    pub fn params(&self) -> &MappingParams {
+    pub(crate) fn params(&self) -> &MappingParams {
         &self.params
     }
 
     /// Replaces the parameters; the map keeps its evidence and decides by the new ones at once.
-    pub fn set_params(&mut self, params: MappingParams) {
+    pub(crate) fn set_params(&mut self, params: MappingParams) {
         self.map.set_config(params.map_config());
         self.params = params;
     }
@@ -196,53 +196,53 @@ impl MappingCore {
     /// Whether to publish after the last scan: its frame is a multiple of `publish_every_scans`
     /// (so that the maps hold the same scans however many of the first frames this node missed
     /// while the graph came up), or that many scans came in since the last publication.
-    pub fn publication_due(&self) -> bool {
+    pub(crate) fn publication_due(&self) -> bool {
         let every = self.params.publish_every_scans as u64;
         self.unpublished_scans > 0 && (self.last_scan_frame.is_multiple_of(every) || self.unpublished_scans >= every)
     }
 
     /// Whether any scan came in since the last publication.
-    pub fn has_unpublished_scans(&self) -> bool {
+    pub(crate) fn has_unpublished_scans(&self) -> bool {
         self.unpublished_scans > 0
     }
 
     /// Notes that the map was just published: scans count towards the next publication.
-    pub fn mark_published(&mut self) {
+    pub(crate) fn mark_published(&mut self) {
         self.unpublished_scans = 0;
     }
 
     /// The map.
-    pub fn map(&self) -> &WorldMap {
+    pub(crate) fn map(&self) -> &WorldMap {
         &self.map
     }
 
     /// The ground truth the map is scored against, if any.
-    pub fn ground_truth(&self) -> Option<&[bool]> {
+    pub(crate) fn ground_truth(&self) -> Option<&[bool]> {
         self.ground_truth.as_deref()
     }
 
     /// Where the rover started, once a telemetry frame came in.
-    pub fn home(&self) -> Option<Home> {
+    pub(crate) fn home(&self) -> Option<Home> {
         self.home
     }
 
     /// Samples picked up in the mission.
-    pub fn samples_collected(&self) -> u32 {
+    pub(crate) fn samples_collected(&self) -> u32 {
         self.tally.collected()
     }
 
     /// Scans that added to the map.
-    pub fn frames_mapped(&self) -> u64 {
+    pub(crate) fn frames_mapped(&self) -> u64 {
         self.frames_mapped
     }
 
     /// Scans skipped because the body was tilted.
-    pub fn tilted_frames(&self) -> u64 {
+    pub(crate) fn tilted_frames(&self) -> u64 {
         self.tilted_frames
     }
 
     /// The inputs rejected so far, by kind.
-    pub fn rejections(&self) -> &Rejections {
+    pub(crate) fn rejections(&self) -> &Rejections {
         &self.rejections
     }
 
@@ -258,7 +258,7 @@ impl MappingCore {
     }
 
     /// What a snapshot keeps.
-    pub fn memory(&self) -> Memory {
+    pub(crate) fn memory(&self) -> Memory {
         Memory {
             evidence: self.map.gathered(),
             home: self.home,
@@ -268,7 +268,7 @@ impl MappingCore {
     }
 
     /// Carries on from `memory`, an earlier node's snapshot.
-    pub fn restore(&mut self, memory: Memory) {
+    pub(crate) fn restore(&mut self, memory: Memory) {
         self.map = WorldMap::with_evidence(self.params.map_config(), memory.evidence);
         self.home = memory.home;
         self.tally = memory.tally;
@@ -277,7 +277,7 @@ impl MappingCore {
 
     /// What a publication of the map shows, stamped with `header`: the map's cells classified
     /// once, for the occupancy grid, the statistics and the inset alike.
-    pub fn publication(&self, header: Header) -> MapPublication {
+    pub(crate) fn publication(&self, header: Header) -> MapPublication {
         let occupancy = self.map.occupancy();
         let rocks = self.rocks_on(&occupancy);
         let stats = self.stats(&occupancy, &rocks, header);
@@ -314,7 +314,7 @@ impl MappingCore {
 
 /// One publication of the map (see [`MappingCore::publication`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct MapPublication {
+pub(crate) struct MapPublication {
     /// The occupancy grid's cells (row = y).
     pub occupancy: Vec<i8>,
     /// The statistics.

@@ -15,7 +15,7 @@ const COLLECTED: ColorRGBA = ColorRGBA { r: 0.1, g: 0.8, b: 0.2, a: 1.0 };
 
 /// The markers of `rocks` (located) and `collected` (world metres) in the frame of `header`,
 /// after one that deletes the markers published before.
-pub fn sample_markers(header: &Header, rocks: &[(f64, f64)], collected: &[(f64, f64)]) -> MarkerArray {
+pub(crate) fn sample_markers(header: &Header, rocks: &[(f64, f64)], collected: &[(f64, f64)]) -> MarkerArray {
     let delete_earlier = Marker { header: header.clone(), action: Marker::DELETEALL, ..Marker::default() };
     let located = spheres(header, "located", rocks, LOCATED);
     let picked = spheres(header, "collected", collected, COLLECTED);

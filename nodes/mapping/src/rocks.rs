@@ -2,7 +2,7 @@
 
 /// A map cell holding rock evidence.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RockCell {
+pub(crate) struct RockCell {
     /// Column (x), metres from the map origin.
     pub x: usize,
     /// Row (y), metres from the map origin.
@@ -21,7 +21,7 @@ impl RockCell {
 /// `merge_m` of a rock already placed belongs to it, any other places a new rock. A sample seen
 /// from afar lands beyond where it lies (it stands above the floor, often on the foot of a wall),
 /// so the closest sighting is the best estimate and the farther ones are its echoes.
-pub fn rock_positions(cells: &[RockCell], merge_m: f64) -> Vec<(f64, f64)> {
+pub(crate) fn rock_positions(cells: &[RockCell], merge_m: f64) -> Vec<(f64, f64)> {
     let mut by_range = cells.to_vec();
     by_range.sort_by(|a, b| a.range_m.total_cmp(&b.range_m));
     let mut rocks: Vec<(f64, f64)> = Vec::new();

@@ -11,11 +11,11 @@ use crate::map::{CLASSES, Evidence, WEIGHED};
 /// The first bytes of a snapshot: the format and its version.
 const MAGIC: &[u8; 8] = b"RVRMAP02";
 /// The snapshot's file name in the state folder.
-pub const FILE_NAME: &str = "mapping.snapshot";
+pub(crate) const FILE_NAME: &str = "mapping.snapshot";
 
 /// Where the rover started: the frame, then world metres.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Home {
+pub(crate) struct Home {
     /// Lock-step frame of the first telemetry.
     pub frame: u64,
     /// World x, metres.
@@ -26,7 +26,7 @@ pub struct Home {
 
 /// Everything the mapping node must not lose across a restart.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Memory {
+pub(crate) struct Memory {
     /// The map's evidence.
     pub evidence: Evidence,
     /// Where the rover started, once known.
@@ -41,7 +41,7 @@ pub struct Memory {
 /// the tally (collected u32, flag u8, last remaining u8), then per class the hits (u16 per cell),
 /// per weighed class the weights (f32 per cell), the rock ranges (f32 per cell), then the places
 /// of the collected samples (count u8, then x f64 and y f64 each).
-pub fn encode(memory: &Memory) -> Vec<u8> {
+pub(crate) fn encode(memory: &Memory) -> Vec<u8> {
     let mut out = Writer::new(MAGIC);
     out.bytes.reserve(64 + CELLS * (2 * CLASSES + 4 * WEIGHED + 4));
     out.u64(CELLS as u64);
@@ -67,7 +67,7 @@ pub fn encode(memory: &Memory) -> Vec<u8> {
 }
 
 /// Reads `bytes` back into a memory, checking the layout and every value.
-pub fn decode(bytes: &[u8]) -> Result<Memory, SnapshotError> {
+pub(crate) fn decode(bytes: &[u8]) -> Result<Memory, SnapshotError> {
     let mut fields = Fields::after_magic(bytes, MAGIC)?;
     fields.expect_u64("cell count", CELLS as u64)?;
     let has_home = fields.flag("home flag")?;

@@ -4,11 +4,11 @@
 //! that the warp lookup table reproduces `warpPerspective` bit for bit.
 
 /// A 3x3 homography, row-major.
-pub type Matrix3 = [f64; 9];
+pub(crate) type Matrix3 = [f64; 9];
 
 /// The homography that maps the four `source` points onto the four `destination` points.
 /// Points are given as `f32`, as OpenCV's API takes them.
-pub fn perspective_transform(source: &[[f32; 2]; 4], destination: &[[f32; 2]; 4]) -> Option<Matrix3> {
+pub(crate) fn perspective_transform(source: &[[f32; 2]; 4], destination: &[[f32; 2]; 4]) -> Option<Matrix3> {
     let mut a = [[0.0f64; 8]; 8];
     let mut b = [0.0f64; 8];
     for i in 0..4 {
@@ -65,7 +65,7 @@ fn solve_lu<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f6
 }
 
 /// The inverse of a 3x3 matrix by cofactors, or `None` when it is singular.
-pub fn invert(m: &Matrix3) -> Option<Matrix3> {
+pub(crate) fn invert(m: &Matrix3) -> Option<Matrix3> {
     let at = |r: usize, c: usize| m[r * 3 + c];
     let det = at(0, 0) * (at(1, 1) * at(2, 2) - at(1, 2) * at(2, 1))
         - at(0, 1) * (at(1, 0) * at(2, 2) - at(1, 2) * at(2, 0))

@@ -17,7 +17,7 @@ use crate::homography::{Matrix3, invert};
 const INTER_BITS: u32 = 5;
 const INTER_TAB_SIZE: i32 = 1 << INTER_BITS;
 /// Fixed-point scale of the weights (OpenCV's INTER_REMAP_COEF_BITS).
-pub const WEIGHT_BITS: u32 = 15;
+pub(crate) const WEIGHT_BITS: u32 = 15;
 /// OpenCV's warp block: 64 columns by 16 rows.
 const BLOCK_COLUMNS: usize = 64;
 const BLOCK_ROWS: usize = 16;

@@ -40,7 +40,7 @@ const END_OF_HEAD: &[u8] = b"\r\n\r\n";
 
 /// Where and how many clients are served, and from which web origins.
 #[derive(Debug, Clone)]
-pub struct CapConfig {
+pub(super) struct CapConfig {
     /// The Foxglove server the clients are relayed to.
     pub server: SocketAddr,
     /// Clients connected at once at most.
@@ -54,7 +54,7 @@ pub struct CapConfig {
 }
 
 /// The listening socket and its relays; dropping it (or [`ClientCap::stop`]) closes them all.
-pub struct ClientCap {
+pub(super) struct ClientCap {
     local_addr: SocketAddr,
     accepting: JoinHandle<()>,
     refused_origins: Arc<AtomicU64>,
@@ -62,7 +62,7 @@ pub struct ClientCap {
 
 impl ClientCap {
     /// Listens on `host:port` and relays clients as `config` says.
-    pub async fn start(host: &str, port: u16, config: CapConfig) -> anyhow::Result<ClientCap> {
+    pub(super) async fn start(host: &str, port: u16, config: CapConfig) -> anyhow::Result<ClientCap> {
         let listener = TcpListener::bind((host, port))
             .await
             .map_err(|e| anyhow::anyhow!("cannot serve Foxglove on {host}:{port}: {e}"))?;
@@ -73,17 +73,17 @@ impl ClientCap {
     }
 
     /// The port clients connect to.
-    pub fn port(&self) -> u16 {
+    pub(super) fn port(&self) -> u16 {
         self.local_addr.port()
     }
 
     /// Web pages refused for their origin so far.
-    pub fn refused_origins(&self) -> u64 {
+    pub(super) fn refused_origins(&self) -> u64 {
         self.refused_origins.load(Ordering::Relaxed)
     }
 
     /// Stops accepting and closes every relayed connection.
-    pub fn stop(&self) {
+    pub(super) fn stop(&self) {
         self.accepting.abort();
     }
 }

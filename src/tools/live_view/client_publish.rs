@@ -15,14 +15,14 @@ use rover_runtime::{Publisher, Rejections, RosNode, publish_or_warn};
 use serde_json::Value;
 
 /// The encodings a client may publish in.
-pub const ENCODINGS: [&str; 2] = ["cdr", "json"];
+pub(super) const ENCODINGS: [&str; 2] = ["cdr", "json"];
 /// A client's message larger than this is refused, bytes (a pose or a twist takes under 100).
 const MAX_MESSAGE_BYTES: usize = 4096;
 /// The kind under which refused client messages are counted and logged.
 const REFUSED: &str = "Foxglove client message";
 
 /// The publishers of the topics a Foxglove client may publish on, with their resolved names.
-pub struct ClientTopics {
+pub(super) struct ClientTopics {
     goal_pose: (String, Publisher<PoseStamped>),
     cmd_vel: (String, Publisher<Twist>),
     rejections: Mutex<Rejections>,
@@ -30,7 +30,7 @@ pub struct ClientTopics {
 
 impl ClientTopics {
     /// Publishers on `goal_pose` and `cmd_vel` of `node`.
-    pub fn new(node: &mut RosNode) -> anyhow::Result<Self> {
+    pub(super) fn new(node: &mut RosNode) -> anyhow::Result<Self> {
         let goal_pose = (node.identity().resolve_topic(topics::GOAL_POSE.name)?, node.publisher(&topics::GOAL_POSE)?);
         let cmd_vel = (node.identity().resolve_topic(topics::CMD_VEL.name)?, node.publisher(&topics::CMD_VEL)?);
         Ok(ClientTopics { goal_pose, cmd_vel, rejections: Mutex::new(Rejections::default()) })

@@ -1,3 +1,5 @@
+#![allow(unreachable_pub)] // the parameter macro declares public items, here in a test module
+
 use super::*;
 
 crate::node_params! {
