@@ -21,8 +21,9 @@ use crate::teleop::{TeleopGains, twist_to_drive};
 
 /// Receives every accepted telemetry frame (the bridge node publishes it on the ROS topics).
 pub(crate) trait FrameSink: Send + Sync + 'static {
-    /// Called once per accepted frame, before the bridge waits for its drive command.
-    fn publish_frame(&self, frame: u64, telemetry: SimTelemetry);
+    /// Called once per accepted frame, before the bridge waits for its drive command; whether
+    /// the frame was taken (a sink that cannot keep up drops it).
+    fn publish_frame(&self, frame: u64, telemetry: SimTelemetry) -> bool;
 }
 
 /// Settings of the lock-step core.
@@ -209,7 +210,10 @@ impl<S: FrameSink> LockStep<S> {
             picking_up: telemetry.picking_up,
             speed_mps: telemetry.state.speed_mps,
         };
-        self.sink.publish_frame(frame, telemetry);
+        if !self.sink.publish_frame(frame, telemetry) {
+            let problem = format_args!("frame {frame} was not published: the bridge node is not keeping up");
+            self.stats.warn_problem("frame_not_published", problem);
+        }
         FrameState::Waiting(Waiting { published_at: Instant::now(), receiver, facts })
     }
 
@@ -299,7 +303,7 @@ impl<S: FrameSink> LockStep<S> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use std::sync::Arc;
 
     use super::*;
@@ -308,8 +312,9 @@ mod tests {
     struct ChannelSink(std::sync::mpsc::Sender<u64>);
 
     impl FrameSink for ChannelSink {
-        fn publish_frame(&self, frame: u64, _telemetry: SimTelemetry) {
+        fn publish_frame(&self, frame: u64, _telemetry: SimTelemetry) -> bool {
             self.0.send(frame).unwrap();
+            true
         }
     }
 
@@ -329,7 +334,8 @@ mod tests {
         (Arc::new(LockStep::new(config, ChannelSink(sender))), receiver)
     }
 
-    fn payload(near_sample: bool) -> serde_json::Value {
+    /// A telemetry payload with a real JPEG of 64 x 32 pixels.
+    pub(crate) fn payload(near_sample: bool) -> serde_json::Value {
         use base64::Engine as _;
         let jpeg = rover_imaging::encode_jpeg(&rover_imaging::RgbImage::new(64, 32), 75).unwrap();
         let mut fields = sample_payload();

@@ -2,7 +2,6 @@
 
 use std::net::{IpAddr, SocketAddr};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
@@ -13,7 +12,6 @@ use rover_msgs::frame_ids;
 use rover_msgs::sensor_msgs::Image;
 use rover_msgs::std_msgs::Header;
 use rover_runtime::node_core::{Inputs, NodeCore, Outbox, Work};
-use rover_runtime::rejections::worth_logging;
 use rover_runtime::{Build, RosNode, Runtime, run_node_with, topics};
 use tokio::sync::mpsc;
 use tracing::Instrument as _;
@@ -151,28 +149,17 @@ impl BridgeParams {
 }
 
 /// How many accepted frames may wait for the bridge node's core; a frame beyond is dropped
-/// (counted and logged) rather than queued without bound behind a stalled node.
+/// (the lock-step core counts and logs it) rather than queued without bound behind a stalled
+/// node.
 const FRAME_QUEUE_LENGTH: usize = 64;
 
 /// Hands each accepted frame to the bridge node's core, which the adapter runs.
-struct FrameQueue {
-    frames: mpsc::Sender<Work<BridgeNode>>,
-    dropped: AtomicU64,
-}
+struct FrameQueue(mpsc::Sender<Work<BridgeNode>>);
 
 impl FrameSink for FrameQueue {
-    fn publish_frame(&self, frame: u64, telemetry: SimTelemetry) {
+    fn publish_frame(&self, frame: u64, telemetry: SimTelemetry) -> bool {
         let publish: Work<BridgeNode> = Box::new(move |core, out| core.publish_frame(frame, &telemetry, out));
-        if self.frames.try_send(publish).is_err() {
-            let dropped = self.dropped.fetch_add(1, Ordering::Relaxed) + 1;
-            if worth_logging(dropped) {
-                tracing::warn!(
-                    frame,
-                    dropped,
-                    "a telemetry frame was not published: the bridge node is not keeping up"
-                );
-            }
-        }
+        self.0.try_send(publish).is_ok()
     }
 }
 
@@ -313,7 +300,7 @@ fn inset_base64(message: Image, quality: u8) -> Result<String, String> {
 pub async fn run(runtime: &Runtime) -> anyhow::Result<()> {
     let initial: BridgeParams = runtime.params(BridgeNode::NAME)?;
     let (frames, mut queued) = mpsc::channel(FRAME_QUEUE_LENGTH);
-    let link = Arc::new(LockStep::new(initial.lockstep_config(), FrameQueue { frames, dropped: AtomicU64::new(0) }));
+    let link = Arc::new(LockStep::new(initial.lockstep_config(), FrameQueue(frames)));
     link.set_active(false);
     let server_link = link.clone();
     let build: Build<BridgeNode> = Box::new(move |node, params| Ok(BridgeNode::new(link.clone(), node, &params)));
@@ -381,12 +368,12 @@ mod tests {
     #[test]
     fn frames_beyond_the_queue_are_dropped_and_counted_not_queued() {
         let (frames, mut queued) = mpsc::channel(1);
-        let queue = FrameQueue { frames, dropped: AtomicU64::new(0) };
-        let payload = serde_json::Value::Object(crate::telemetry::tests::sample_payload());
-        let telemetry = crate::telemetry::parse_telemetry_value(&payload).unwrap().unwrap();
-        queue.publish_frame(1, telemetry.clone());
-        queue.publish_frame(2, telemetry);
-        assert_eq!(queue.dropped.load(Ordering::Relaxed), 1);
+        let params = BridgeParams { image_width: 64, image_height: 32, ..BridgeParams::default() };
+        let link = LockStep::new(params.lockstep_config(), FrameQueue(frames));
+        let payload = crate::lockstep::tests::payload(false);
+        link.receive(Some(&payload));
+        link.receive(Some(&payload));
+        assert_eq!(link.stats().problem_count("frame_not_published"), 1);
         assert!(queued.try_recv().is_ok(), "the first frame waits for the core");
         assert!(queued.try_recv().is_err(), "the second was dropped");
     }
