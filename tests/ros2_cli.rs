@@ -525,6 +525,8 @@ fn the_lifecycle_manager_brings_an_unconfigured_graph_up_and_the_rover_drives() 
     let held = ros2_ok(&domain, &["topic", "echo", "--once", "/rover/telemetry"]);
     let brake = echoed_value::<f64>(&held, "brake").expect("brake in the telemetry");
     assert!(brake > 0.0, "the unconfigured graph does not hold the rover:\n{held}");
+    let diagnostics = ros2_ok(&domain, &["topic", "echo", "--once", "/diagnostics"]);
+    assert!(diagnostics.contains("bridge"), "the unconfigured bridge reports its health:\n{diagnostics}");
 
     let mut manager = start_process(&rover(), &["lifecycle-manager"], &domain, "manager");
     let active = eventually(Duration::from_secs(60), || {

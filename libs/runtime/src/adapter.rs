@@ -128,7 +128,7 @@ impl<C: NodeCore> Managed<C> {
         params: &Params<C::Params>,
     ) -> bool {
         match transition {
-            Transition::Configure if self.configured.is_some() => true,
+            Transition::Configure if C::BUILT_AT_START => true,
             Transition::Configure => match configure(node, inputs, params, &self.build) {
                 Ok(configured) => {
                     self.configured = Some(configured);
@@ -209,9 +209,10 @@ impl<C: NodeCore> Managed<C> {
         }
     }
 
-    /// When the active core wants its timer.
+    /// When the core wants its timer: an active core, or one built at start in any state.
     fn timer_due(&self, state: State) -> Option<Instant> {
-        self.configured.as_ref().filter(|_| state == State::Active).and_then(|c| c.core.timer_due())
+        let runs = state == State::Active || C::BUILT_AT_START;
+        self.configured.as_ref().filter(|_| runs).and_then(|c| c.core.timer_due())
     }
 
     fn set_params(&mut self, params: C::Params) {

@@ -25,8 +25,9 @@ pub trait NodeCore: Sized + 'static {
     const DRAINS_ON_STOP: bool = false;
     /// Whether the core is built, with its subscriptions and publishers, when the node starts and
     /// kept in every lifecycle state until shutdown, so that it handles its work from outside the
-    /// graph even while unconfigured (the bridge publishes the simulator's frames, which it
-    /// answers with the brake until active); configure and cleanup then only mark the state.
+    /// graph and its timer even while unconfigured (the bridge publishes the simulator's frames,
+    /// which it answers with the brake until active, and its diagnostics); configure and cleanup
+    /// then only mark the state.
     const BUILT_AT_START: bool = false;
 
     /// The handler of each topic the node reads: exactly the graph table's reads of the node.
