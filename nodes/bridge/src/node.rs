@@ -277,14 +277,18 @@ impl BridgeNode {
         }
     }
 
+    /// Encodes `image` as the `inset` JPEG for the next replies, on a blocking thread: the
+    /// node's task also carries the frames and the drive commands.
     fn set_inset(&mut self, image: &Image, inset: Inset) {
-        match inset_base64(image.clone(), self.inset_jpeg_quality) {
+        let (link, image, quality) = (self.link.clone(), image.clone(), self.inset_jpeg_quality);
+        let span = tracing::Span::current();
+        tokio::task::spawn_blocking(move || match inset_base64(image, quality) {
             Ok(jpeg) => match inset {
-                Inset::Map => self.link.set_map_inset(jpeg),
-                Inset::Vision => self.link.set_vision_inset(jpeg),
+                Inset::Map => link.set_map_inset(jpeg),
+                Inset::Vision => link.set_vision_inset(jpeg),
             },
-            Err(e) => tracing::warn!("ignored an inset image ({inset:?}): {e}"),
-        }
+            Err(e) => span.in_scope(|| tracing::warn!("ignored an inset image ({inset:?}): {e}")),
+        });
     }
 }
 
