@@ -63,6 +63,9 @@ impl Machine {
             return Next::Stay(State::Explore, turn);
         }
         let brake = Drive::stop(self.params.brake);
+        if !self.map_shows_ground_in_reach(obs) {
+            return Next::Stay(State::Explore, brake);
+        }
         if self.explorer.walled_in() && self.search.widening.walled_in_recoveries < WALLED_IN_RECOVERIES {
             self.search.widening.walled_in_recoveries += 1;
             let reason = "walled in by the map (a restart next to a rock?): backing out";

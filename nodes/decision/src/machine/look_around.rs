@@ -1,6 +1,7 @@
 //! Looking around: before the rover concludes that no frontier is left, it turns a full circle
 //! where it stands if the map leaves ground within the camera's reach unseen, so that a rover
-//! started facing a wall sees what lies behind it.
+//! started facing a wall sees what lies behind it; and it concludes nothing from a map that has
+//! seen no ground in reach even then.
 
 use rover_msgs::map_grid::{cell_centre_m, cell_of_point};
 
@@ -19,6 +20,8 @@ pub(super) struct LookAround {
     turn: Option<Turn>,
     /// Where the rover turned full circles.
     looked_at: Vec<(f64, f64)>,
+    /// Whether the rover is braked until the map shows ground in reach.
+    waiting_for_map: bool,
 }
 
 /// A turn in progress.
@@ -72,17 +75,36 @@ impl Machine {
         }
         Some(Drive::turn_in_place(true))
     }
+
+    /// Whether the map has seen ground within the camera's reach of the rover. One that has not,
+    /// after a look-around, is not following the rover (the mapping node is starting, or its
+    /// inputs are cut off): concluding from it would end the mission blind, so the rover waits,
+    /// and the frames it waits do not count as stuck.
+    pub(super) fn map_shows_ground_in_reach(&mut self, obs: &Observation) -> bool {
+        let shown = in_sight(&self.maps.received, &obs.position, self.params.inspect_range_m)
+            .any(|cell| self.maps.received.cell(cell) != Cell::Unknown);
+        if !shown {
+            if !self.search.look_around.waiting_for_map {
+                tracing::warn!("no frontier left, but the map shows no ground around the rover: waiting for the map");
+            }
+            self.start_afresh();
+        }
+        self.search.look_around.waiting_for_map = !shown;
+        shown
+    }
+}
+
+/// The cells of `map` within `range_m` of the rover and in its line of sight.
+fn in_sight<'a>(map: &'a Grid, at: &'a Position, range_m: f64) -> impl Iterator<Item = usize> + 'a {
+    let centre = cell_of_point(at.x_m, at.y_m);
+    let from = (at.x_m, at.y_m);
+    let around = centre.into_iter().flat_map(move |centre| Grid::cells_around(centre, range_m.ceil() as usize));
+    around.filter(move |&cell| at.distance_to(cell_centre_m(cell)) <= range_m && map.line_of_sight(from, cell, 0))
 }
 
 /// Whether a cell of `map` within `range_m` of the rover is unknown and in its line of sight.
 fn unseen_in_reach(map: &Grid, at: &Position, range_m: f64) -> bool {
-    let Some(centre) = cell_of_point(at.x_m, at.y_m) else { return false };
-    let from = (at.x_m, at.y_m);
-    Grid::cells_around(centre, range_m.ceil() as usize).any(|cell| {
-        map.cell(cell) == Cell::Unknown
-            && at.distance_to(cell_centre_m(cell)) <= range_m
-            && map.line_of_sight(from, cell, 0)
-    })
+    in_sight(map, at, range_m).any(|cell| map.cell(cell) == Cell::Unknown)
 }
 
 #[cfg(test)]
@@ -106,7 +128,7 @@ mod tests {
 
     #[test]
     fn a_full_circle_is_counted_across_the_wrap_of_the_heading() {
-        let mut look = LookAround { turn: Some(Turn { last_yaw_rad: 3.0, turned_rad: 0.0 }), looked_at: vec![] };
+        let mut look = LookAround { turn: Some(Turn { last_yaw_rad: 3.0, turned_rad: 0.0 }), ..LookAround::default() };
         let headings = (1..=16).map(|step| wrap_rad(3.0 + step as f64 * std::f64::consts::TAU / 16.0));
         let circle: Vec<bool> = headings.map(|yaw| look.turned_full_circle(yaw)).collect();
         assert_eq!(circle.iter().position(|&full| full), Some(15), "{circle:?}");

@@ -69,6 +69,26 @@ fn a_map_without_free_cells_does_not_end_the_exploration() {
 }
 
 #[test]
+fn a_map_that_shows_no_ground_after_a_look_around_is_waited_for_not_concluded_from() {
+    let params = DecisionParams::default();
+    let mut machine = machine_on(Grid::unknown());
+    let mut yaw_rad = 0.0;
+    let mut braked_frames = 0;
+    for frame in 1..params.frames(120.0) {
+        let obs =
+            Observation { position: Position { x_m: 100.5, y_m: 100.5, yaw_rad }, ..observation(frame, 0.0, 0.0) };
+        let drive = machine.step(&obs);
+        yaw_rad = crate::pose::wrap_rad(yaw_rad + drive.steering_deg.signum() * 0.05);
+        braked_frames += usize::from(drive.brake > 0.0);
+        assert!(!matches!(machine.status().mode, Mode::ReturnHome | Mode::Done), "frame {frame}: {drive:?}");
+    }
+    assert!(braked_frames > params.frames(60.0) as usize, "the rover waits braked: {braked_frames} frames");
+    machine.set_map(corridor());
+    let drive = machine.step(&observation(params.frames(120.0), 100.5, 100.5));
+    assert!(drive.throttle > 0.0, "a map showing the corridor: the rover explores it: {drive:?}");
+}
+
+#[test]
 fn a_rover_that_the_map_walls_in_backs_out_instead_of_giving_the_frontiers_up() {
     let params = DecisionParams::default();
     let mut machine = machine_on(corridor());
