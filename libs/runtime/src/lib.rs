@@ -12,6 +12,7 @@ pub mod commands;
 mod discovery;
 pub mod executor;
 pub mod graph;
+mod handshakes;
 mod ip_network;
 pub mod lifecycle;
 pub mod logging;

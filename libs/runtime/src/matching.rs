@@ -1,15 +1,21 @@
 //! Which remote readers and writers the endpoints of a process have matched, from the DDS
-//! participant's status events. A participant has one status channel, so the process reads it
+//! participant's status events; and, from the same events, the DDS Security handshakes that do
+//! not complete, each logged once. A participant has one status channel, so the process reads it
 //! once, here, for all its nodes.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 use futures::StreamExt;
 use ros2_client::dds::rustdds::{DomainParticipant, DomainParticipantStatusEvent, GUID, StatusEvented};
 use tokio::sync::watch;
 
+use crate::handshakes::{Handshakes, STALLED_AFTER};
 use crate::sync::lock;
+
+/// How often handshakes are checked for stalling.
+const HANDSHAKE_CHECK_PERIOD: Duration = Duration::from_secs(5);
 
 /// The remote endpoints matched by each local endpoint of one participant.
 #[derive(Clone)]
@@ -28,9 +34,20 @@ impl Matches {
         let table = Arc::clone(&matched);
         tokio::spawn(async move {
             let mut events = std::pin::pin!(listener.as_async_status_stream());
-            while let Some(event) = events.next().await {
-                if apply(&mut lock(&table), event) {
-                    sender.send_modify(|version| *version += 1);
+            let mut handshakes = Handshakes::default();
+            let mut checks = tokio::time::interval(HANDSHAKE_CHECK_PERIOD);
+            loop {
+                tokio::select! {
+                    event = events.next() => {
+                        let Some(event) = event else { break };
+                        if let DomainParticipantStatusEvent::Authentication { participant, status } = &event {
+                            handshakes.note(format!("{participant:?}"), &format!("{status:?}"), Instant::now());
+                        }
+                        if apply(&mut lock(&table), event) {
+                            sender.send_modify(|version| *version += 1);
+                        }
+                    }
+                    _ = checks.tick() => warn_stalled(&mut handshakes),
                 }
             }
         });
@@ -50,6 +67,17 @@ impl Matches {
                 std::future::pending::<()>().await;
             }
         }
+    }
+}
+
+/// Logs the handshakes that have newly stalled.
+fn warn_stalled(handshakes: &mut Handshakes) {
+    for remote in handshakes.newly_stalled(Instant::now()) {
+        tracing::warn!(
+            "DDS Security: no handshake with participant {remote} within {} s: its certificate is from another \
+             CA, or the handshake was lost (RustDDS does not try again); restart one of the two if they should talk",
+            STALLED_AFTER.as_secs()
+        );
     }
 }
 
