@@ -8,6 +8,10 @@
 //! count never change across a restart; after a kill the mapped share drops by at most a point
 //! more than it does anywhere else in the mission. The kill moments come from `CHAOS_SEED`
 //! (printed; default: the clock), so a failing run can be repeated.
+//!
+//! And a node that is not heard from before the mission begins (hung at its first start, as a node
+//! whose DDS Security handshake was lost is to the evaluator) is started again, and the mission
+//! begins.
 
 mod support;
 
@@ -19,7 +23,7 @@ use rover::missions::chaos::Chaos;
 use rover::missions::eval::RunResult;
 use rover::missions::in_graph::{SIMULATOR_PROCESS, run_graph_mission};
 use rover::missions::picture::write_mission_png;
-use rover::processes::graph::GraphConfig;
+use rover::processes::graph::{GraphConfig, RemoteNodes};
 use rover::processes::nodes::Node;
 use rover_msgs::msg::{MapStats, Telemetry, TerrainScan};
 use rover_runtime::lifecycle::{LifecycleClient, State, Transition};
@@ -251,6 +255,33 @@ async fn every_node_killed_in_turn_is_respawned_and_the_mission_completes() {
         "the mission completed (map, every sample, home, in time): {result:?}\ndecision log:\n{}",
         mode_changes(&log("decision"))
     );
+}
+
+/// A command prefix whose first run hangs instead of starting the node (the marker file `$1` does
+/// not exist yet: it is made) and whose later runs start it.
+const HANGS_AT_FIRST: &str = r#"if [ ! -e "$1" ]; then : > "$1"; exec sleep 600; fi; shift; exec "$@""#;
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_node_not_heard_from_before_the_mission_is_started_again() {
+    support::assert_isolated();
+    let domain = Domain::reserve();
+    let runtime = test_runtime(&domain);
+    let log_dir = std::env::temp_dir().join(format!("rover-test-unheard-{}", std::process::id()));
+    let marker = log_dir.join("mapping-hung-once");
+    let _ = std::fs::remove_file(&marker);
+    std::fs::create_dir_all(&log_dir).expect("the log folder");
+    let exec = ["sh", "-c", HANGS_AT_FIRST, "sh", marker.to_str().unwrap()].map(String::from).to_vec();
+    let remote = RemoteNodes { nodes: vec!["mapping".into()], exec };
+    let config = GraphConfig { remote: Some(remote), ..graph_config(&domain, log_dir.clone()) };
+    let logs = config.clone();
+    let world = rover_sim::procgen::procedural_world(WORLD_SEED);
+    let sim_config = SimConfig { max_sim_seconds: Some(30.0), ..SimConfig::default() };
+    let outcome = run_graph_mission(&runtime, config, world, sim_config, |_, _| {}).await;
+    let mapping_log = std::fs::read_to_string(logs.log_file("mapping")).unwrap_or_default();
+    let outcome = outcome.unwrap_or_else(|e| panic!("the mission began: {e:#}\nmapping:\n{mapping_log}"));
+    assert!(marker.exists(), "the first start of mapping hung");
+    assert!(mapping_log.contains("started again"), "mapping was started again:\n{mapping_log}");
+    assert!(outcome.progress.mapped_pct > 1.0, "the restarted mapping node maps: {:?}", outcome.progress.mapped_pct);
 }
 
 /// How far the mapped share fell within [`AFTER_KILL_S`] after `kill_s` below its value at

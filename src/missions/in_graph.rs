@@ -31,6 +31,10 @@ const PROGRESS_PERIOD: Duration = Duration::from_millis(500);
 const SUPERVISION_PERIOD: Duration = Duration::from_millis(100);
 /// How long the graph's nodes get to be discovered before the mission begins, wall clock.
 const DISCOVERY_LIMIT: Duration = Duration::from_secs(60);
+/// With DDS Security, RustDDS stops resending a handshake message after ten tries a second apart
+/// and a lost one is never tried again; a node not heard from for this long is started again, on
+/// a new participant that shakes hands afresh, wall clock.
+const HANDSHAKE_WINDOW: Duration = Duration::from_secs(20);
 /// Without a new telemetry frame for this long the graph counts as stalled and the run ends.
 const STALL_LIMIT: Duration = Duration::from_secs(60);
 /// How long each node gets to exit after SIGINT.
@@ -181,6 +185,18 @@ impl EvaluatorSubscriptions {
         })
     }
 
+    /// The topics of the subscriptions that have matched no publisher yet.
+    fn unheard(&self, node: &RosNode) -> Vec<&'static str> {
+        let counts = [
+            (topics::MAP.name, node.publisher_count(&self.map)),
+            (topics::ROCKS.name, node.publisher_count(&self.rocks)),
+            (topics::TELEMETRY.name, node.publisher_count(&self.telemetry)),
+            (topics::MODE.name, node.publisher_count(&self.mode)),
+            (topics::DIAGNOSTICS.name, node.publisher_count(&self.diagnostics)),
+        ];
+        counts.into_iter().filter(|&(_, count)| count == 0).map(|(topic, _)| topic).collect()
+    }
+
     /// Resolves once every subscription has matched a publisher: the bridge, mapping and decision
     /// nodes are discovered (and, with DDS Security, authenticated).
     async fn matched(&self, node: &RosNode) {
@@ -222,8 +238,8 @@ impl EvaluatorSubscriptions {
 }
 
 /// Waits until the evaluator has matched the graph's publishers, so that the simulator's first
-/// frame does not go out to a graph still discovering itself; fails when a node exits or after
-/// [`DISCOVERY_LIMIT`].
+/// frame does not go out to a graph still discovering itself; every [`HANDSHAKE_WINDOW`] meanwhile
+/// the nodes not heard from start again. Fails when a node exits or after [`DISCOVERY_LIMIT`].
 async fn wait_for_graph(
     node: &RosNode,
     subscriptions: &EvaluatorSubscriptions,
@@ -233,15 +249,18 @@ async fn wait_for_graph(
     let logs = graph.config().log_dir.display().to_string();
     let mut matched = std::pin::pin!(tokio::time::timeout(DISCOVERY_LIMIT, subscriptions.matched(node)));
     let mut supervision = tokio::time::interval(SUPERVISION_PERIOD);
+    let mut handshakes = tokio::time::interval_at(tokio::time::Instant::now() + HANDSHAKE_WINDOW, HANDSHAKE_WINDOW);
     loop {
         tokio::select! {
             found = &mut matched => {
                 return found.map_err(|_| anyhow::anyhow!(
-                    "the evaluator did not discover the graph's nodes within {} s; see the logs in {logs}",
+                    "the evaluator heard no publisher of {} within {} s; see the logs in {logs}",
+                    subscriptions.unheard(node).join(", "),
                     DISCOVERY_LIMIT.as_secs()
                 ));
             }
             () = shutdown.wait() => return Ok(()),
+            _ = handshakes.tick() => restart_unheard(&subscriptions.unheard(node), graph)?,
             _ = supervision.tick() => {
                 if let Some((name, status)) = graph.exited().into_iter().next() {
                     anyhow::bail!("node {name} exited ({status}) before the mission began; see {logs}");
@@ -249,4 +268,20 @@ async fn wait_for_graph(
             }
         }
     }
+}
+
+/// Starts again the nodes of `graph` that the graph table says publish one of the `unheard`
+/// topics.
+fn restart_unheard(unheard: &[&str], graph: &mut Graph) -> anyhow::Result<()> {
+    let running: Vec<String> = graph.processes().map(|(name, _)| name.to_string()).collect();
+    let writers = rover_runtime::graph::GRAPH.iter().filter(|n| n.writes.iter().any(|topic| unheard.contains(topic)));
+    for name in writers.map(|n| n.node).filter(|name| running.iter().any(|r| r == name)) {
+        tracing::warn!(
+            "no publisher of {} heard within {} s (a DDS Security handshake lost?): starting node {name} again",
+            unheard.join(", "),
+            HANDSHAKE_WINDOW.as_secs()
+        );
+        graph.restart(name)?;
+    }
+    Ok(())
 }

@@ -307,6 +307,13 @@ impl Graph {
         }
     }
 
+    /// Kills node `name` and starts it again at once: a new process on a new DDS participant.
+    pub fn restart(&mut self, name: &str) -> anyhow::Result<()> {
+        self.kill(name);
+        self.nodes.push(NodeProcess::start_again(&self.config, name)?);
+        Ok(())
+    }
+
     /// Sends SIGKILL to node `name` and leaves it in the graph, as a crash from outside would:
     /// [`Graph::respawn_dead`] finds it dead.
     pub fn crash(&mut self, name: &str) {

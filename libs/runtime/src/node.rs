@@ -300,6 +300,11 @@ impl RosNode {
         self.matches.first(subscription.guid()).await;
     }
 
+    /// How many publishers `subscription` has matched.
+    pub fn publisher_count<M: RosMessage>(&self, subscription: &Subscription<M>) -> usize {
+        self.matches.count(subscription.guid())
+    }
+
     /// How many subscriptions `publisher` has matched.
     pub fn subscription_count<M: RosMessage>(&self, publisher: &Publisher<M>) -> usize {
         self.matches.count(publisher.guid())
