@@ -34,9 +34,11 @@ struct Turn {
 }
 
 impl LookAround {
-    /// Gives up the turn in progress: a frontier showed up, or the mode changed.
+    /// Gives up the turn in progress and ends a wait for the map: a frontier showed up, or the
+    /// mode changed.
     pub(super) fn interrupt(&mut self) {
         self.turn = None;
+        self.waiting_for_map = false;
     }
 
     fn looked_near(&self, at: &Position) -> bool {
