@@ -47,10 +47,10 @@ pub async fn run_node_with<C: NodeCore>(
     let (mut node, params) = runtime.node::<C::Params>(C::NAME)?;
     let span = node.span();
     let (inputs, inactive_inputs) = (C::inputs(), C::inactive_inputs());
-    check_inputs_are_the_tables::<C>(&inputs.topic_names())?;
+    check_inputs_are_the_tables::<C>(&inputs.ports.names())?;
     let mut lifecycle = node.lifecycle()?;
     let commands = C::commands();
-    check_commands_are_the_tables::<C>(&commands.names())?;
+    check_commands_are_the_tables::<C>(&commands.ports.names())?;
     let (mut calls, reports, unsent) = serve_commands(&node, &commands)?;
     let mut managed = Managed::<C> { build, configured: None, out: Outbox::new(node.now(), Vec::new()), reports };
     let mut work = std::pin::pin!(work);
@@ -177,7 +177,7 @@ impl<C: NodeCore> Managed<C> {
     /// Hands `message` of `topic` to the core's handler in `handlers`, if it has one, and sends
     /// what the core writes.
     fn deliver(&mut self, handlers: &Inputs<C>, topic: &str, message: &dyn Any, node: &RosNode) {
-        if let Some(port) = handlers.port(topic) {
+        if let Some(port) = handlers.ports.find(topic) {
             self.with_core(node, |core, out| port.deliver(core, message, out));
         }
     }
@@ -185,7 +185,7 @@ impl<C: NodeCore> Managed<C> {
     /// Hands `call` of the command `name` to the active core, or refuses it for the core in any
     /// other state.
     fn command(&mut self, commands: &Commands<C>, name: &str, call: Box<dyn Any + Send>, state: State, node: &RosNode) {
-        let Some(port) = commands.port(name) else { return };
+        let Some(port) = commands.ports.find(name) else { return };
         if state == State::Active && self.configured.is_some() {
             self.with_core(node, |core, out| port.deliver(core, call, out));
             return;
@@ -268,7 +268,7 @@ fn serve_commands<C: NodeCore>(
 ) -> anyhow::Result<(Calls, Publishers, Vec<Arc<AtomicUsize>>)> {
     let mut reports = Publishers { by_topic: Vec::new() };
     let (mut calls, mut unsent) = (Vec::new(), Vec::new());
-    for port in &commands.ports {
+    for port in commands.ports.iter() {
         let served = port.serve(node)?;
         calls.push(served.calls);
         if let Some((sink, count)) = served.reports {

@@ -36,9 +36,8 @@ where
     Resp: RosMessage,
 {
     let name = node.resolved_name(service.name)?;
-    let server = node.with_inner(|inner| {
-        crate::services::server_named::<Req, Resp>(inner, &name, service.package, service.type_name)
-    })?;
+    let server = node
+        .with_inner(|inner| crate::services::server::<Req, Resp>(inner, &name, service.package, service.type_name))?;
     let (mut calls, received) = mpsc::channel::<Received>(CALL_BACKLOG);
     tokio::spawn(async move {
         loop {

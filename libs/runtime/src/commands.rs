@@ -12,6 +12,7 @@ use rover_msgs::sample_return::{SampleReturnFeedback, SampleReturnGoal, SampleRe
 use rover_msgs::std_srvs::{TriggerRequest, TriggerResponse};
 
 use crate::node_core::Outbox;
+use crate::ports::{Named, Ports};
 
 /// A service: its name (relative, or `~/` for one under the node's name) and its type.
 pub struct Service<Req, Resp> {
@@ -137,9 +138,7 @@ type GoalHandler<C, G> = fn(&mut C, GoalId, &G, &mut Outbox);
 type CancelHandler<C> = fn(&mut C, GoalId, &mut Outbox);
 
 /// The type-erased handler of one command of core `C`.
-pub(crate) trait CommandPort<C> {
-    /// The command's name, as in the table.
-    fn name(&self) -> &'static str;
+pub(crate) trait CommandPort<C>: Named {
     /// Serves the command on `node`: its calls, and where the core's reports on them go.
     fn serve(&self, node: &crate::RosNode) -> anyhow::Result<crate::command_servers::Served>;
     /// Hands `call`, a call of this command, to the core.
@@ -153,15 +152,17 @@ struct ServicePort<C, Req: 'static, Resp: 'static> {
     handler: ServiceHandler<C, Req, Resp>,
 }
 
+impl<C, Req, Resp> Named for ServicePort<C, Req, Resp> {
+    fn name(&self) -> &'static str {
+        self.service.name
+    }
+}
+
 impl<C, Req, Resp> CommandPort<C> for ServicePort<C, Req, Resp>
 where
     Req: RosMessage,
     Resp: RosMessage + Refusal,
 {
-    fn name(&self) -> &'static str {
-        self.service.name
-    }
-
     fn serve(&self, node: &crate::RosNode) -> anyhow::Result<crate::command_servers::Served> {
         crate::command_servers::serve_service(node, self.service)
     }
@@ -182,16 +183,18 @@ struct ActionPort<C, G: 'static, R: 'static, F: 'static> {
     on_cancel: CancelHandler<C>,
 }
 
+impl<C, G, R, F> Named for ActionPort<C, G, R, F> {
+    fn name(&self) -> &'static str {
+        self.action.name
+    }
+}
+
 impl<C, G, R, F> CommandPort<C> for ActionPort<C, G, R, F>
 where
     G: RosMessage,
     R: RosMessage + Refusal,
     F: RosMessage,
 {
-    fn name(&self) -> &'static str {
-        self.action.name
-    }
-
     fn serve(&self, node: &crate::RosNode) -> anyhow::Result<crate::command_servers::Served> {
         crate::command_servers::serve_action(node, self.action)
     }
@@ -218,13 +221,13 @@ fn downcast<T: 'static>(call: Box<dyn Any + Send>) -> Box<T> {
 
 /// The commands a core serves, each with its handlers.
 pub struct Commands<C> {
-    pub(crate) ports: Vec<Box<dyn CommandPort<C>>>,
+    pub(crate) ports: Ports<dyn CommandPort<C>>,
 }
 
 impl<C: 'static> Commands<C> {
     /// No command yet.
     pub fn new() -> Self {
-        Commands { ports: Vec::new() }
+        Commands { ports: Ports::default() }
     }
 
     /// Adds `service`, whose requests `handler` answers.
@@ -257,15 +260,6 @@ impl<C: 'static> Commands<C> {
     {
         self.ports.push(Box::new(ActionPort { action, on_goal, on_cancel }));
         self
-    }
-
-    /// The names of the commands, in the order added.
-    pub(crate) fn names(&self) -> Vec<&'static str> {
-        self.ports.iter().map(|port| port.name()).collect()
-    }
-
-    pub(crate) fn port(&self, name: &str) -> Option<&dyn CommandPort<C>> {
-        self.ports.iter().find(|port| port.name() == name).map(|port| &**port)
     }
 }
 

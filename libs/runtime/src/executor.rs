@@ -35,11 +35,11 @@ impl<C: NodeCore> Running for RunningCore<C> {
     }
 
     fn reads(&self, topic: &str) -> bool {
-        self.inputs.port(topic).is_some()
+        self.inputs.ports.find(topic).is_some()
     }
 
     fn deliver(&mut self, topic: &str, message: &dyn Any, out: &mut Outbox) {
-        if let Some(port) = self.inputs.port(topic) {
+        if let Some(port) = self.inputs.ports.find(topic) {
             port.deliver(&mut self.core, message, out);
         }
     }
@@ -70,7 +70,7 @@ impl Executor {
     /// Adds the core `C`, configured by `params`; cores are kept in the graph table's order.
     pub fn add<C: FromParams>(&mut self, params: C::Params) -> anyhow::Result<()> {
         let inputs = C::inputs();
-        check_inputs_are_the_tables::<C>(&inputs.topic_names())?;
+        check_inputs_are_the_tables::<C>(&inputs.ports.names())?;
         let core = C::new(params)?;
         self.cores.push(Box::new(RunningCore { core, inputs }));
         let position = |name: &str| GRAPH.iter().position(|entry| entry.node == name);

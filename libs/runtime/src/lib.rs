@@ -23,6 +23,7 @@ pub mod node_core;
 pub mod pairing;
 mod param_services;
 pub mod params;
+mod ports;
 pub mod qos;
 pub mod rejections;
 pub mod ros_args;

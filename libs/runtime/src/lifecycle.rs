@@ -189,26 +189,11 @@ impl Lifecycle {
         let (servers, events) = {
             let node = &mut lock(node);
             let servers = Servers {
-                get_state: services::server(node, "get_state", "lifecycle_msgs", "GetState")?,
-                change_state: services::server(node, "change_state", "lifecycle_msgs", "ChangeState")?,
-                available_states: services::server(
-                    node,
-                    "get_available_states",
-                    "lifecycle_msgs",
-                    "GetAvailableStates",
-                )?,
-                available_transitions: services::server(
-                    node,
-                    "get_available_transitions",
-                    "lifecycle_msgs",
-                    "GetAvailableTransitions",
-                )?,
-                transition_graph: services::server(
-                    node,
-                    "get_transition_graph",
-                    "lifecycle_msgs",
-                    "GetTransitionGraph",
-                )?,
+                get_state: services::node_server(node, "lifecycle_msgs", "GetState")?,
+                change_state: services::node_server(node, "lifecycle_msgs", "ChangeState")?,
+                available_states: services::node_server(node, "lifecycle_msgs", "GetAvailableStates")?,
+                available_transitions: services::node_server(node, "lifecycle_msgs", "GetAvailableTransitions")?,
+                transition_graph: services::node_server(node, "lifecycle_msgs", "GetTransitionGraph")?,
             };
             (servers, event_publisher(node)?)
         };
@@ -280,8 +265,8 @@ impl LifecycleClient {
     pub(crate) fn new(on: &mut Node, node: &str) -> anyhow::Result<Self> {
         Ok(LifecycleClient {
             node: node.to_string(),
-            get_state: services::client(on, node, "get_state", "lifecycle_msgs", "GetState")?,
-            change_state: services::client(on, node, "change_state", "lifecycle_msgs", "ChangeState")?,
+            get_state: services::node_client(on, node, "lifecycle_msgs", "GetState")?,
+            change_state: services::node_client(on, node, "lifecycle_msgs", "ChangeState")?,
         })
     }
 

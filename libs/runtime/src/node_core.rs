@@ -12,6 +12,7 @@ use rover_msgs::std_msgs::Header;
 
 use crate::NodeParams;
 use crate::commands::{Action, ActionReport, Commands, GoalEnd, GoalId};
+use crate::ports::{Named, Ports};
 use crate::topics::Topic;
 
 /// A node's behaviour: built from its parameters, driven by its input messages.
@@ -83,9 +84,7 @@ pub trait FromParams: NodeCore {
 pub type Work<C> = Box<dyn FnOnce(&mut C, &mut Outbox) + Send>;
 
 /// The type-erased handler of one input topic of core `C`.
-pub(crate) trait InputPort<C> {
-    /// The topic's name, as in the topic table.
-    fn topic_name(&self) -> &'static str;
+pub(crate) trait InputPort<C>: Named {
     /// Subscribes `node` to the topic: a stream of its messages.
     fn subscribe(&self, node: &mut crate::RosNode) -> anyhow::Result<futures::stream::BoxStream<'static, Received>>;
     /// Hands `message`, which must be of the topic's type, to the core.
@@ -103,11 +102,13 @@ struct Port<C, M: 'static> {
     handler: Handler<C, M>,
 }
 
-impl<C: 'static, M: RosMessage> InputPort<C> for Port<C, M> {
-    fn topic_name(&self) -> &'static str {
+impl<C, M> Named for Port<C, M> {
+    fn name(&self) -> &'static str {
         self.topic.name
     }
+}
 
+impl<C: 'static, M: RosMessage> InputPort<C> for Port<C, M> {
     fn subscribe(&self, node: &mut crate::RosNode) -> anyhow::Result<futures::stream::BoxStream<'static, Received>> {
         use futures::StreamExt as _;
         let name = self.topic.name;
@@ -123,28 +124,19 @@ impl<C: 'static, M: RosMessage> InputPort<C> for Port<C, M> {
 
 /// The topics a core reads, each with its handler.
 pub struct Inputs<C> {
-    pub(crate) ports: Vec<Box<dyn InputPort<C>>>,
+    pub(crate) ports: Ports<dyn InputPort<C>>,
 }
 
 impl<C: 'static> Inputs<C> {
     /// No input yet.
     pub fn new() -> Self {
-        Inputs { ports: Vec::new() }
+        Inputs { ports: Ports::default() }
     }
 
     /// Adds `topic`, whose messages go to `handler`.
     pub fn on<M: RosMessage>(mut self, topic: &'static Topic<M>, handler: Handler<C, M>) -> Self {
         self.ports.push(Box::new(Port { topic, handler }));
         self
-    }
-
-    /// The names of the topics read, in the order added.
-    pub(crate) fn topic_names(&self) -> Vec<&'static str> {
-        self.ports.iter().map(|port| port.topic_name()).collect()
-    }
-
-    pub(crate) fn port(&self, topic: &str) -> Option<&dyn InputPort<C>> {
-        self.ports.iter().find(|port| port.topic_name() == topic).map(|port| &**port)
     }
 }
 

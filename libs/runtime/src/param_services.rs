@@ -34,17 +34,12 @@ pub(crate) fn start(node: &Arc<Mutex<Node>>, specs: Vec<ParamSpec>) -> anyhow::R
     let servers = {
         let node = &mut lock(node);
         Servers {
-            get: services::server(node, "get_parameters", "rcl_interfaces", "GetParameters")?,
-            types: services::server(node, "get_parameter_types", "rcl_interfaces", "GetParameterTypes")?,
-            set: services::server(node, "set_parameters", "rcl_interfaces", "SetParameters")?,
-            set_atomically: services::server(
-                node,
-                "set_parameters_atomically",
-                "rcl_interfaces",
-                "SetParametersAtomically",
-            )?,
-            list: services::server(node, "list_parameters", "rcl_interfaces", "ListParameters")?,
-            describe: services::server(node, "describe_parameters", "rcl_interfaces", "DescribeParameters")?,
+            get: services::node_server(node, "rcl_interfaces", "GetParameters")?,
+            types: services::node_server(node, "rcl_interfaces", "GetParameterTypes")?,
+            set: services::node_server(node, "rcl_interfaces", "SetParameters")?,
+            set_atomically: services::node_server(node, "rcl_interfaces", "SetParametersAtomically")?,
+            list: services::node_server(node, "rcl_interfaces", "ListParameters")?,
+            describe: services::node_server(node, "rcl_interfaces", "DescribeParameters")?,
         }
     };
     let table =
