@@ -90,13 +90,6 @@ fn bag_error(error: FileError, what: &str) -> BagError {
 mod tests {
     use super::*;
 
-    fn temp_dir(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("rover-bag-files-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
-    }
-
     fn refusal(dir: &Path, relative: &str) -> String {
         confined_storage_path(dir, relative).unwrap_err().to_string()
     }
@@ -122,7 +115,8 @@ mod tests {
 
     #[test]
     fn storage_paths_outside_the_folder_or_not_regular_files_are_refused_naming_them() {
-        let dir = temp_dir("confined");
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path();
         std::fs::create_dir_all(dir.join("sub")).unwrap();
         std::fs::write(dir.join("sub/run_0.mcap"), b"x").unwrap();
         assert_eq!(confined_storage_path(&dir, "sub\\run_0.mcap").unwrap(), dir.join("sub/run_0.mcap"));
@@ -146,12 +140,12 @@ mod tests {
             let opened = open_regular(&fifo, "a storage file", 10).unwrap_err().to_string();
             assert!(opened.contains("a FIFO (expected a regular file)"), "{opened}");
         }
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn a_replaced_file_holds_the_new_bytes_and_no_temporary_is_left() {
-        let dir = temp_dir("replace");
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path();
         let path = dir.join("metadata.yaml");
         replace_atomically(&path, b"old").unwrap();
         replace_atomically(&path, b"new").unwrap();
@@ -159,6 +153,5 @@ mod tests {
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
         let too_long = open_regular(&path, "metadata", 2).unwrap_err().to_string();
         assert!(too_long.contains("3 bytes (at most 2 expected)"), "{too_long}");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

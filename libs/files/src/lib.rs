@@ -147,27 +147,21 @@ pub fn replace_atomically(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
 mod tests {
     use super::*;
 
-    fn temp_dir(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("rover-files-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
-    }
-
     #[test]
     fn a_replaced_file_holds_the_new_bytes_in_a_new_folder_and_no_temporary_is_left() {
-        let dir = temp_dir("replace");
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path();
         let path = dir.join("state").join("decision.snapshot");
         replace_atomically(&path, b"old").unwrap();
         replace_atomically(&path, b"new").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"new");
         assert_eq!(std::fs::read_dir(path.parent().unwrap()).unwrap().count(), 1);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn a_read_takes_at_most_the_bound_and_names_the_file_over_it() {
-        let dir = temp_dir("bound");
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path();
         let path = dir.join("map.png");
         std::fs::write(&path, [7u8; 100]).unwrap();
         assert_eq!(read_at_most(&path, 100).unwrap().len(), 100);
@@ -175,19 +169,18 @@ mod tests {
         assert!(error.contains("map.png holds 100 bytes; at most 99 expected"), "{error}");
         let missing = read_at_most(&dir.join("none.png"), 99).unwrap_err().to_string();
         assert!(missing.contains("none.png"), "{missing}");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     #[cfg(unix)]
     fn folders_devices_and_fifos_are_refused_without_blocking() {
-        let dir = temp_dir("kinds");
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path();
         let fifo = dir.join("fifo.png");
         assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
-        for (path, kind) in [(dir.as_path(), "a folder"), (Path::new("/dev/zero"), "a device"), (&fifo, "a FIFO")] {
+        for (path, kind) in [(dir, "a folder"), (Path::new("/dev/zero"), "a device"), (&fifo, "a FIFO")] {
             let error = read_at_most(path, 10).unwrap_err().to_string();
             assert!(error.contains(&format!("is {kind}; expected a regular file")), "{error}");
         }
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
