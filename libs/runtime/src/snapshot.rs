@@ -7,6 +7,8 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use rover_msgs::validate::MAX_POSITION_M;
+
 /// A snapshot that cannot be read back.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SnapshotError {
@@ -144,6 +146,12 @@ impl Writer {
     pub fn flag(&mut self, value: bool) {
         self.bytes.push(u8::from(value));
     }
+
+    /// Appends a place on the map, x then y, metres.
+    pub fn place_m(&mut self, (x_m, y_m): (f64, f64)) {
+        self.f64(x_m);
+        self.f64(y_m);
+    }
 }
 
 /// Reads little-endian fields off a snapshot, naming the field that is missing or wrong.
@@ -207,6 +215,16 @@ impl<'a> Fields<'a> {
             0 => Ok(false),
             1 => Ok(true),
             other => Err(SnapshotError::BadValue(field, other.to_string(), "0 or 1")),
+        }
+    }
+
+    /// The next place on the map, x then y: finite metres within [`MAX_POSITION_M`] of the origin.
+    pub fn place_m(&mut self, field: &'static str) -> Result<(f64, f64), SnapshotError> {
+        let place = (self.f64(field)?, self.f64(field)?);
+        if place.0.abs() <= MAX_POSITION_M && place.1.abs() <= MAX_POSITION_M {
+            Ok(place)
+        } else {
+            Err(SnapshotError::BadValue(field, format!("{place:?}"), "finite metres on the map"))
         }
     }
 

@@ -6,7 +6,6 @@
 
 use rover_msgs::frames::MissionFrames;
 use rover_msgs::map_grid::CELLS;
-use rover_msgs::validate::MAX_POSITION_M;
 use rover_runtime::snapshot::{Fields, SnapshotError, Writer};
 
 use crate::explore::ExplorerMemory;
@@ -49,10 +48,7 @@ pub(crate) fn encode(snapshot: &Snapshot) -> Vec<u8> {
     out.flag(explorer.past_obstacles);
     explorer.inspected.iter().chain(&explorer.explored).for_each(|&cell| out.flag(cell));
     out.u32(recollection.ignored_rocks.len() as u32);
-    for &(x_m, y_m) in &recollection.ignored_rocks {
-        out.f64(x_m);
-        out.f64(y_m);
-    }
+    recollection.ignored_rocks.iter().for_each(|&rock| out.place_m(rock));
     out.bytes
 }
 
@@ -76,14 +72,7 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<Snapshot, SnapshotError> {
     if rocks > MAX_ROCKS {
         return Err(SnapshotError::BadValue("rock count", rocks.to_string(), "at most 10000"));
     }
-    let mut ignored_rocks = Vec::with_capacity(rocks as usize);
-    for _ in 0..rocks {
-        let rock = (fields.f64("rock x")?, fields.f64("rock y")?);
-        if !(rock.0.abs() <= MAX_POSITION_M && rock.1.abs() <= MAX_POSITION_M) {
-            return Err(SnapshotError::BadValue("rocks", format!("{rock:?}"), "finite metres"));
-        }
-        ignored_rocks.push(rock);
-    }
+    let ignored_rocks = (0..rocks).map(|_| fields.place_m("rocks")).collect::<Result<_, _>>()?;
     fields.finish()?;
     let recollection =
         Recollection { explorer: ExplorerMemory { inspected, explored, past_obstacles }, ignored_rocks, stage };
@@ -116,7 +105,7 @@ mod tests {
     #[test]
     fn damaged_snapshots_are_refused_with_the_field_named() {
         let bytes = encode(&snapshot());
-        assert_eq!(decode(&bytes[..bytes.len() - 3]), Err(SnapshotError::Truncated(bytes.len() - 3, "rock y")));
+        assert_eq!(decode(&bytes[..bytes.len() - 3]), Err(SnapshotError::Truncated(bytes.len() - 3, "rocks")));
         let mut bad_stage = bytes.clone();
         bad_stage[33] = 9;
         assert!(matches!(decode(&bad_stage), Err(SnapshotError::BadValue("stage", ..))));

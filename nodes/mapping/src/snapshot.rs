@@ -59,10 +59,7 @@ pub(crate) fn encode(memory: &Memory) -> Vec<u8> {
     evidence.rock_range_m.iter().for_each(|&r| out.f32(r));
     let places = &memory.collected_at[..memory.collected_at.len().min(u8::MAX as usize)];
     out.u8(places.len() as u8);
-    for &(x_m, y_m) in places {
-        out.f64(x_m);
-        out.f64(y_m);
-    }
+    places.iter().for_each(|&place| out.place_m(place));
     out.bytes
 }
 
@@ -94,14 +91,8 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<Memory, SnapshotError> {
             return Err(SnapshotError::BadValue("rock ranges", range_m.to_string(), ">= 0 m or infinite"));
         }
     }
-    let mut collected_at = Vec::new();
-    for _ in 0..fields.u8("collected places")? {
-        let place = (fields.f64("collected places")?, fields.f64("collected places")?);
-        if !(place.0.is_finite() && place.1.is_finite()) {
-            return Err(SnapshotError::BadValue("collected places", format!("{place:?}"), "finite metres"));
-        }
-        collected_at.push(place);
-    }
+    let places = fields.u8("collected places")?;
+    let collected_at = (0..places).map(|_| fields.place_m("collected places")).collect::<Result<_, _>>()?;
     fields.finish()?;
     Ok(Memory {
         evidence,
