@@ -25,30 +25,21 @@ pub(super) struct Orders {
 impl Machine {
     /// Starts the mission where the rover stands.
     pub fn start_mission(&mut self) -> CommandAnswer {
-        if self.orders.started {
-            return Err("the mission has already started");
-        }
-        self.orders.started = true;
+        set_order(&mut self.orders.started, true, "the mission has already started")?;
         self.show_mode("mission started");
         Ok("mission started")
     }
 
     /// Brakes and holds the mission (and a navigation) where they are.
     pub fn pause(&mut self) -> CommandAnswer {
-        if self.orders.paused {
-            return Err("already paused");
-        }
-        self.orders.paused = true;
+        set_order(&mut self.orders.paused, true, "already paused")?;
         self.show_mode("paused");
         Ok("paused: the rover brakes and holds")
     }
 
     /// Goes on from where the pause held the rover.
     pub fn resume_after_pause(&mut self) -> CommandAnswer {
-        if !self.orders.paused {
-            return Err("not paused");
-        }
-        self.orders.paused = false;
+        set_order(&mut self.orders.paused, false, "not paused")?;
         self.show_mode("resumed");
         Ok("resumed")
     }
@@ -70,4 +61,13 @@ impl Machine {
         self.show_mode("asked to return home");
         Ok("returning home")
     }
+}
+
+/// Sets an order to `value`; refused with `refusal` when it already has that value.
+fn set_order(order: &mut bool, value: bool, refusal: &'static str) -> Result<(), &'static str> {
+    if *order == value {
+        return Err(refusal);
+    }
+    *order = value;
+    Ok(())
 }
