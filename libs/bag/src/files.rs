@@ -119,24 +119,24 @@ mod tests {
         let dir = scratch.path();
         std::fs::create_dir_all(dir.join("sub")).unwrap();
         std::fs::write(dir.join("sub/run_0.mcap"), b"x").unwrap();
-        assert_eq!(confined_storage_path(&dir, "sub\\run_0.mcap").unwrap(), dir.join("sub/run_0.mcap"));
-        let absolute = refusal(&dir, "/etc/passwd");
+        assert_eq!(confined_storage_path(dir, "sub\\run_0.mcap").unwrap(), dir.join("sub/run_0.mcap"));
+        let absolute = refusal(dir, "/etc/passwd");
         assert!(absolute.contains("\"/etc/passwd\"") && absolute.contains("is absolute"), "{absolute}");
-        assert!(refusal(&dir, "../x").contains("'..'"));
-        assert!(refusal(&dir, "sub").contains("is a folder; expected a regular file"));
-        assert!(refusal(&dir, "missing.mcap").contains("cannot be read"));
+        assert!(refusal(dir, "../x").contains("'..'"));
+        assert!(refusal(dir, "sub").contains("is a folder; expected a regular file"));
+        assert!(refusal(dir, "missing.mcap").contains("cannot be read"));
         #[cfg(unix)]
         {
             std::os::unix::fs::symlink("/etc/hostname", dir.join("outside.mcap")).unwrap();
-            let outside = refusal(&dir, "outside.mcap");
+            let outside = refusal(dir, "outside.mcap");
             assert!(outside.contains("outside the bag folder") && outside.contains("/etc/hostname"), "{outside}");
             std::os::unix::fs::symlink("sub/run_0.mcap", dir.join("inside.mcap")).unwrap();
-            assert!(confined_storage_path(&dir, "inside.mcap").is_ok());
+            assert!(confined_storage_path(dir, "inside.mcap").is_ok());
             std::os::unix::fs::symlink("/dev/zero", dir.join("zero.mcap")).unwrap();
-            assert!(refusal(&dir, "zero.mcap").contains("is a device"));
+            assert!(refusal(dir, "zero.mcap").contains("is a device"));
             let fifo = dir.join("fifo.mcap");
             assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
-            assert!(refusal(&dir, "fifo.mcap").contains("is a FIFO; expected a regular file"));
+            assert!(refusal(dir, "fifo.mcap").contains("is a FIFO; expected a regular file"));
             let opened = open_regular(&fifo, "a storage file", 10).unwrap_err().to_string();
             assert!(opened.contains("a FIFO (expected a regular file)"), "{opened}");
         }
@@ -150,7 +150,7 @@ mod tests {
         replace_atomically(&path, b"old").unwrap();
         replace_atomically(&path, b"new").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"new");
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        assert_eq!(std::fs::read_dir(dir).unwrap().count(), 1);
         let too_long = open_regular(&path, "metadata", 2).unwrap_err().to_string();
         assert!(too_long.contains("3 bytes (at most 2 expected)"), "{too_long}");
     }
