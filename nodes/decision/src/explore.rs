@@ -37,6 +37,9 @@ pub(crate) struct Explorer {
     look: Option<Look>,
     past_obstacles: bool,
     inspected: Vec<bool>,
+    /// The cells seen up close before the search for a missing sample forgot them (see
+    /// [`Explorer::forget_inspected`]); empty when none were forgotten.
+    forgotten: Vec<bool>,
     explored: Vec<bool>,
     costs: Option<Arc<CostMap>>,
     planned: Option<(u64, u64)>,
@@ -103,6 +106,7 @@ impl Default for Explorer {
             look: None,
             past_obstacles: false,
             inspected: vec![false; cells],
+            forgotten: Vec::new(),
             explored: vec![false; cells],
             costs: None,
             planned: None,
@@ -220,8 +224,20 @@ impl Explorer {
     /// whether any cell had been seen.
     pub(crate) fn forget_inspected(&mut self) -> bool {
         let any = self.inspected.iter().any(|&i| i);
+        if self.forgotten.is_empty() {
+            self.forgotten = self.inspected.clone();
+        } else {
+            self.forgotten.iter_mut().zip(&self.inspected).for_each(|(forgotten, &seen)| *forgotten |= seen);
+        }
         self.inspected.fill(false);
         any
+    }
+
+    /// Remembers again the cells seen up close that [`Explorer::forget_inspected`] forgot: once no
+    /// sample is missing, looking at those walls again would find nothing new.
+    pub(crate) fn recall_inspected(&mut self) {
+        let forgotten = std::mem::take(&mut self.forgotten);
+        self.inspected.iter_mut().zip(&forgotten).for_each(|(seen, &before)| *seen |= before);
     }
 
     /// Makes every frontier a candidate again; returns whether any had been ruled out.
@@ -425,6 +441,9 @@ mod tests {
         probe.new_map_version();
         assert!(probe.waypoint(at(25.5, 51.5), 1).is_some());
         assert!(!probe.explorer.forget_inspected(), "nothing was seen since");
+        probe.explorer.recall_inspected();
+        probe.new_map_version();
+        assert_eq!(probe.waypoint(at(25.5, 51.5), 2), None, "the walls seen before the forgetting are recalled");
     }
 
     #[test]

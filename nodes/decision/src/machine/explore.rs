@@ -40,6 +40,9 @@ impl Machine {
         if let Some(chase) = self.sample_to_chase(obs, self.params.sample_detour_cost) {
             return Next::EnterAndStep(State::Approach(chase), "sample located");
         }
+        if obs.samples_remaining == 0 {
+            self.explorer.recall_inspected();
+        }
         let (p, home) = (&self.params, self.mission.status.home);
         let from = PlanStart { map: &self.maps.planning, at: &obs.position, frame: obs.frame, params: p };
         if let Some(waypoint) = self.explorer.waypoint(&from, home) {
