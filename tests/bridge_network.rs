@@ -43,6 +43,11 @@ fn status_of(port: u16, request: &str) -> u16 {
     send_request(port, request).1
 }
 
+/// The status the bridge on `port` answers a websocket upgrade with `extra_headers` with.
+fn upgrade_status(port: u16, extra_headers: &str) -> u16 {
+    status_of(port, &websocket_upgrade(port, extra_headers))
+}
+
 /// Whether the peer closes `stream` within `timeout` (whatever it sends before).
 fn closed_within(stream: &mut TcpStream, timeout: Duration) -> bool {
     let deadline = Instant::now() + timeout;
@@ -90,29 +95,29 @@ async fn a_browser_origin_is_refused_and_counted_and_a_request_without_origin_co
     let (mut node, _) = runtime.node::<rover_runtime::NoParams>("observer").unwrap();
     let diagnostics = Latest::subscribe(&mut node, &rover_runtime::topics::DIAGNOSTICS);
     let port = domain.port();
-    assert_eq!(status_of(port, &websocket_upgrade(port, "Origin: http://evil.example\r\n")), 403);
+    assert_eq!(upgrade_status(port, "Origin: http://evil.example\r\n"), 403);
     assert!(log_contains(&bridge, "\"http://evil.example\""), "{}", bridge.log_text());
     let counted = || diagnostic_value(&diagnostics, "problem_refused_origin").as_deref() == Some("1");
     assert!(eventually(Duration::from_secs(10), counted), "not counted: {:?}", diagnostics.last());
-    assert_eq!(status_of(port, &websocket_upgrade(port, "")), 101, "websocket-sharp sends no Origin");
+    assert_eq!(upgrade_status(port, ""), 101, "websocket-sharp sends no Origin");
 }
 
 #[test]
 fn an_allowed_origin_connects() {
     let (domain, _bridge) = bridge_with(&["allowed_origins:=[http://localhost:8080]"]);
     let port = domain.port();
-    assert_eq!(status_of(port, &websocket_upgrade(port, "Origin: http://localhost:8080\r\n")), 101);
-    assert_eq!(status_of(port, &websocket_upgrade(port, "Origin: http://evil.example\r\n")), 403);
+    assert_eq!(upgrade_status(port, "Origin: http://localhost:8080\r\n"), 101);
+    assert_eq!(upgrade_status(port, "Origin: http://evil.example\r\n"), 403);
 }
 
 #[test]
 fn with_a_token_a_missing_or_wrong_one_is_refused() {
     let (domain, bridge) = bridge_with(&["simulator_token:=s3cret"]);
     let port = domain.port();
-    assert_eq!(status_of(port, &websocket_upgrade(port, "")), 401);
-    assert_eq!(status_of(port, &websocket_upgrade(port, "Authorization: Bearer guess\r\n")), 401);
+    assert_eq!(upgrade_status(port, ""), 401);
+    assert_eq!(upgrade_status(port, "Authorization: Bearer guess\r\n"), 401);
     assert!(log_contains(&bridge, "simulator_token"), "the refusal names the parameter: {}", bridge.log_text());
-    assert_eq!(status_of(port, &websocket_upgrade(port, "Authorization: Bearer s3cret\r\n")), 101);
+    assert_eq!(upgrade_status(port, "Authorization: Bearer s3cret\r\n"), 101);
 }
 
 #[tokio::test(flavor = "multi_thread")]
@@ -138,7 +143,7 @@ async fn the_simulator_client_with_the_right_token_is_served() {
 fn an_address_outside_the_allow_list_is_refused() {
     let (domain, bridge) = bridge_with(&["allowed_addresses:=[10.0.0.0/8, 192.168.1.7]"]);
     let port = domain.port();
-    assert_eq!(status_of(port, &websocket_upgrade(port, "")), 403, "127.0.0.1 is not in the list");
+    assert_eq!(upgrade_status(port, ""), 403, "127.0.0.1 is not in the list");
     assert!(log_contains(&bridge, "allowed_addresses"), "{}", bridge.log_text());
     let (domain, _bridge) = bridge_with(&["allowed_addresses:=[127.0.0.0/8]"]);
     assert_eq!(status_of(domain.port(), &websocket_upgrade(domain.port(), "")), 101, "127.0.0.1 is in 127.0.0.0/8");
@@ -175,9 +180,9 @@ fn connections_over_the_cap_are_refused_until_one_closes() {
     let (domain, bridge) = bridge_with(&["max_connections:=2"]);
     let port = domain.port();
     let open: Vec<TcpStream> = (0..2).map(|_| TcpStream::connect(("127.0.0.1", port)).expect("connect")).collect();
-    assert_eq!(status_of(port, &websocket_upgrade(port, "")), 503, "a third connection is refused");
+    assert_eq!(upgrade_status(port, ""), 503, "a third connection is refused");
     assert!(log_contains(&bridge, "max_connections"), "{}", bridge.log_text());
     drop(open);
-    let served = eventually(Duration::from_secs(3), || status_of(port, &websocket_upgrade(port, "")) == 101);
+    let served = eventually(Duration::from_secs(3), || upgrade_status(port, "") == 101);
     assert!(served, "once the others closed, a connection is served");
 }
