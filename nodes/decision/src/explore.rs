@@ -198,13 +198,8 @@ impl Explorer {
         self.look = None;
     }
 
-    /// Notes a recovery of the rover stuck `at` on the way to the current target: the frontiers
-    /// around that spot are done with (going back there would get the rover stuck again), and
-    /// the target is abandoned after a few recoveries.
-    pub(crate) fn note_recovery(&mut self, at: &Position) {
-        if let Some(cell) = cell_of_point(at.x_m, at.y_m) {
-            self.mark_explored_around(cell);
-        }
+    /// Notes a recovery on the way to the current target; abandons it after a few.
+    pub(crate) fn note_recovery(&mut self) {
         if let Some(target) = self.target.as_mut() {
             target.recoveries += 1;
             if target.recoveries >= RECOVERIES_PER_TARGET {
@@ -363,13 +358,8 @@ impl Explorer {
     fn abandon_target(&mut self) {
         self.look = None;
         let Some(target) = self.target.take() else { return };
-        self.mark_explored_around(target.cell);
-    }
-
-    /// Rules out the frontier cells within [`EXPLORED_RADIUS_CELLS`] of `cell` as targets.
-    fn mark_explored_around(&mut self, cell: usize) {
-        for near in Grid::cells_around(cell, EXPLORED_RADIUS_CELLS) {
-            self.explored[near] = true;
+        for cell in Grid::cells_around(target.cell, EXPLORED_RADIUS_CELLS) {
+            self.explored[cell] = true;
         }
     }
 }
@@ -427,16 +417,6 @@ mod tests {
         probe.waypoint(at(25.5, 51.5), 0);
         let target = probe.explorer.target().unwrap();
         assert!(target.0 < 40.0, "the near walls are not inspected yet: {target:?}");
-    }
-
-    #[test]
-    fn the_frontier_where_the_rover_got_stuck_is_not_chosen_again() {
-        let mut probe = Probe::with_the_walls_inspected();
-        probe.waypoint(at(25.5, 51.5), 0);
-        assert!(probe.explorer.target().is_some_and(|t| t.0 > 58.0), "the unknown end of the corridor");
-        probe.explorer.note_recovery(&at(57.5, 51.5));
-        probe.new_map_version();
-        assert_eq!(probe.waypoint(at(25.5, 51.5), 1), None, "the only frontier is where the rover got stuck");
     }
 
     #[test]

@@ -99,7 +99,7 @@ impl Machine {
     /// and the turn goes toward the most open side.
     pub(super) fn start_recovery(&mut self, obs: &Observation, reason: &str) {
         match &self.state {
-            State::Explore => self.explorer.note_recovery(&obs.position),
+            State::Explore => self.explorer.note_recovery(),
             State::Approach(chase) => self.note_failed_approach(chase.at, obs),
             _ => {}
         }
