@@ -25,6 +25,7 @@ impl<P: ?Sized + Named> Ports<P> {
         self.0.iter().find(|port| port.name() == name).map(|port| &**port)
     }
 
+    /// The ports, in the order added.
     pub(crate) fn iter(&self) -> impl Iterator<Item = &P> {
         self.0.iter().map(|port| &**port)
     }

@@ -38,8 +38,8 @@ pub(crate) struct Explorer {
     past_obstacles: bool,
     inspected: Vec<bool>,
     /// The cells seen up close before the search for a missing sample forgot them (see
-    /// [`Explorer::forget_inspected`]); empty when none were forgotten.
-    forgotten: Vec<bool>,
+    /// [`Explorer::forget_inspected`]), until recalled.
+    forgotten: Option<Vec<bool>>,
     explored: Vec<bool>,
     costs: Option<Arc<CostMap>>,
     planned: Option<(u64, u64)>,
@@ -106,7 +106,7 @@ impl Default for Explorer {
             look: None,
             past_obstacles: false,
             inspected: vec![false; cells],
-            forgotten: Vec::new(),
+            forgotten: None,
             explored: vec![false; cells],
             costs: None,
             planned: None,
@@ -224,11 +224,8 @@ impl Explorer {
     /// whether any cell had been seen.
     pub(crate) fn forget_inspected(&mut self) -> bool {
         let any = self.inspected.iter().any(|&i| i);
-        if self.forgotten.is_empty() {
-            self.forgotten = self.inspected.clone();
-        } else {
-            self.forgotten.iter_mut().zip(&self.inspected).for_each(|(forgotten, &seen)| *forgotten |= seen);
-        }
+        let forgotten = self.forgotten.get_or_insert_with(|| vec![false; CELLS]);
+        forgotten.iter_mut().zip(&self.inspected).for_each(|(forgotten, &seen)| *forgotten |= seen);
         self.inspected.fill(false);
         any
     }
@@ -236,8 +233,9 @@ impl Explorer {
     /// Remembers again the cells seen up close that [`Explorer::forget_inspected`] forgot: once no
     /// sample is missing, looking at those walls again would find nothing new.
     pub(crate) fn recall_inspected(&mut self) {
-        let forgotten = std::mem::take(&mut self.forgotten);
-        self.inspected.iter_mut().zip(&forgotten).for_each(|(seen, &before)| *seen |= before);
+        if let Some(forgotten) = self.forgotten.take() {
+            self.inspected.iter_mut().zip(&forgotten).for_each(|(seen, &before)| *seen |= before);
+        }
     }
 
     /// Makes every frontier a candidate again; returns whether any had been ruled out.
