@@ -22,6 +22,7 @@ mod stuck;
 #[cfg(test)]
 mod test_maps;
 pub mod tour;
+mod trail;
 
 use rover_msgs::msg::TerrainScan;
 use rover_runtime::{Rejections, topics};

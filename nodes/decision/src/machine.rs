@@ -13,6 +13,7 @@ use crate::params::DecisionParams;
 use crate::pose::Position;
 use crate::route::Route;
 use crate::samples::SampleMemory;
+use crate::trail::Trail;
 
 mod approach;
 mod commands;
@@ -31,7 +32,7 @@ use commands::Orders;
 use explore::Search;
 use maps::Maps;
 pub use navigate::{GoalFailure, NavigationEnd, NavigationProgress};
-use recover::Watches;
+use recover::{Recovery, Watches};
 
 /// The modes of the state machine, as published on `rover/mode`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -176,11 +177,11 @@ enum State {
         since_frame: u64,
         arm_seen: bool,
     },
-    /// Backing off and turning; then back to exploring, or on the way home when that was
-    /// interrupted (exploring would forget the stuck marks that lead the next route around).
+    /// Backing off and turning, or retracing the way in; then back to exploring, or on the way
+    /// home when that was interrupted (exploring would forget the stuck marks that lead the next
+    /// route around).
     Recover {
-        since_frame: u64,
-        turn_left: bool,
+        recovery: Recovery,
         then_home: bool,
     },
     ReturnHome(Option<Route>),
@@ -237,6 +238,8 @@ struct Driving {
     watches: Watches,
     /// Where the rover was at the last frame.
     last_position: Option<Position>,
+    /// The way it came, to retrace out of a pocket.
+    trail: Trail,
 }
 
 impl Machine {
@@ -362,6 +365,7 @@ impl Machine {
         self.mission.status.samples_collected = self.mission.tally.collected();
         let drive = self.decide(obs);
         self.driving.last_position = Some(obs.position);
+        self.driving.trail.record((obs.position.x_m, obs.position.y_m));
         self.mission.status.target = self.target();
         tracing::trace!(
             frame = obs.frame,
@@ -487,9 +491,7 @@ impl Machine {
                 State::Explore => self.explore(obs),
                 State::Approach(chase) => self.approach(obs, chase),
                 State::Pickup { since_frame, arm_seen } => self.pickup(obs, since_frame, arm_seen),
-                State::Recover { since_frame, turn_left, then_home } => {
-                    self.recover(obs, since_frame, turn_left, then_home)
-                }
+                State::Recover { recovery, then_home } => self.recover(obs, recovery, then_home),
                 State::ReturnHome(route) => self.return_home(obs, route),
                 State::Done => Next::Stay(State::Done, brake),
             };

@@ -5,7 +5,7 @@
 
 use rover_msgs::map_grid::{cell_centre_m, cell_of_point};
 
-use super::{Machine, Observation};
+use super::{Machine, Observation, Recovery};
 use crate::drive::Drive;
 use crate::grid::{Cell, Grid};
 use crate::pose::Position;
@@ -66,8 +66,8 @@ pub(super) struct Navigation {
     route: Option<Route>,
     since_frame: Option<u64>,
     recoveries: u32,
-    /// Backing off and turning since this frame, to the left or not.
-    recovering: Option<(u64, bool)>,
+    /// The recovery under way.
+    recovering: Option<Recovery>,
     distance_remaining_m: f64,
 }
 
@@ -127,8 +127,8 @@ impl Machine {
     pub(super) fn navigate(&mut self, obs: &Observation, mut nav: Navigation) -> Drive {
         let brake = self.params.brake;
         nav.since_frame.get_or_insert(obs.frame);
-        if let Some((since_frame, turn_left)) = nav.recovering {
-            if let Some(drive) = self.recovery_drive(obs, since_frame, turn_left) {
+        if let Some(recovery) = nav.recovering.as_mut() {
+            if let Some(drive) = self.recovery_drive(obs, recovery) {
                 self.orders.navigation = Some(nav);
                 return drive;
             }
@@ -153,7 +153,7 @@ impl Machine {
             }
             tracing::info!("navigating: {trouble}, recovery {} on the way", nav.recoveries);
             self.mark_stuck_cell(obs);
-            nav.recovering = Some((obs.frame, obs.free.most_open() >= 0.0));
+            nav.recovering = Some(self.begin_recovery(obs));
             self.orders.navigation = Some(nav);
             return Drive::stop(brake);
         }

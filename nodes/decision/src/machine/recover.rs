@@ -1,5 +1,6 @@
 //! The recover mode: when the rover is tilted, stuck or stalled it backs off, stops, turns toward
-//! the most open side, and goes back to what it was doing.
+//! the most open side, and goes back to what it was doing; stuck again and again at one spot, it
+//! drives back the way it came in instead.
 
 use rover_msgs::map_grid::cell_centre_m;
 
@@ -14,6 +15,26 @@ const STUCK_PROGRESS_M: f64 = 0.3;
 const STUCK_SPEED_MPS: f64 = 0.1;
 /// Moving less than this, whatever the rover is told, counts toward being stalled, metres.
 const STALL_PROGRESS_M: f64 = 1.0;
+/// Every this many recoveries in a row at one spot the rover retraces the way it came in...
+const RETRACE_EVERY_RECOVERIES: u32 = 3;
+/// ...along its trail to where it was this far from the spot, metres...
+const RETRACE_M: f64 = 3.0;
+/// ...a point of the trail counting as reached this close, metres; a retrace ends after this
+/// long, seconds.
+const RETRACED_M: f64 = 0.3;
+const RETRACE_S: f64 = 20.0;
+
+/// A recovery under way.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Recovery {
+    since_frame: u64,
+    /// The turn after backing off goes to the left.
+    turn_left: bool,
+    /// The points of the trail still to drive back along, in the order driven (the next one is
+    /// the last); when there are any, the recovery retraces them instead of backing off and
+    /// turning.
+    way_back: Vec<(f64, f64)>,
+}
 
 /// What tells that the rover is stuck or stalled.
 #[derive(Debug, Clone)]
@@ -95,39 +116,57 @@ impl Machine {
         }
     }
 
-    /// Enters recover for `reason`: a failed approach or a recovery of the exploration is noted,
-    /// and the turn goes toward the most open side.
+    /// Enters recover for `reason`: a failed approach or a recovery of the exploration is noted.
     pub(super) fn start_recovery(&mut self, obs: &Observation, reason: &str) {
         match &self.state {
             State::Explore => self.explorer.note_recovery(),
             State::Approach(chase) => self.note_failed_approach(chase.at, obs),
             _ => {}
         }
-        let turn_left = obs.free.most_open() >= 0.0;
+        let recovery = self.begin_recovery(obs);
+        let then_home = matches!(self.state, State::ReturnHome(_));
+        self.enter(State::Recover { recovery, then_home }, reason);
+    }
+
+    /// A recovery from here: back off and turn toward the most open side; every
+    /// [`RETRACE_EVERY_RECOVERIES`] in a row at one spot, drive back along the trail to where the
+    /// rover was [`RETRACE_M`] from it instead.
+    pub(super) fn begin_recovery(&mut self, obs: &Observation) -> Recovery {
+        let at = (obs.position.x_m, obs.position.y_m);
+        let in_a_row = self.driving.trail.note_recovery(at);
+        let way_back = match in_a_row % RETRACE_EVERY_RECOVERIES {
+            0 => self.driving.trail.way_back(at, RETRACE_M).unwrap_or_default(),
+            _ => Vec::new(),
+        };
+        let recovery = Recovery { since_frame: obs.frame, turn_left: obs.free.most_open() >= 0.0, way_back };
         tracing::debug!(
-            at = ?(obs.position.x_m, obs.position.y_m),
+            at = ?at,
             yaw_deg = obs.position.yaw_rad.to_degrees(),
             pitch_deg = obs.pitch_rad.to_degrees(),
             roll_deg = obs.roll_rad.to_degrees(),
-            turn_left,
+            turn_left = recovery.turn_left,
+            in_a_row,
+            retrace_to = ?recovery.way_back.first(),
             "recovering"
         );
-        let then_home = matches!(self.state, State::ReturnHome(_));
-        self.enter(State::Recover { since_frame: obs.frame, turn_left, then_home }, reason);
+        recovery
     }
 
-    /// Backs off, stops, turns; then back to exploring or on the way home.
-    pub(super) fn recover(&self, obs: &Observation, since_frame: u64, turn_left: bool, then_home: bool) -> Next {
-        match self.recovery_drive(obs, since_frame, turn_left) {
-            Some(drive) => Next::Stay(State::Recover { since_frame, turn_left, then_home }, drive),
+    /// Recovers; then back to exploring or on the way home.
+    pub(super) fn recover(&mut self, obs: &Observation, mut recovery: Recovery, then_home: bool) -> Next {
+        match self.recovery_drive(obs, &mut recovery) {
+            Some(drive) => Next::Stay(State::Recover { recovery, then_home }, drive),
             None => Next::Enter(if then_home { State::ReturnHome(None) } else { State::Explore }, "recovered"),
         }
     }
 
-    /// The drive of a recovery started at `since_frame`: back off, stop, turn; `None` once over.
-    pub(super) fn recovery_drive(&self, obs: &Observation, since_frame: u64, turn_left: bool) -> Option<Drive> {
+    /// The drive of `recovery`: back off, stop, turn, or retrace the way in; `None` once over.
+    pub(super) fn recovery_drive(&mut self, obs: &Observation, recovery: &mut Recovery) -> Option<Drive> {
         let p = &self.params;
-        let elapsed = obs.frame.saturating_sub(since_frame);
+        let elapsed = obs.frame.saturating_sub(recovery.since_frame);
+        if !recovery.way_back.is_empty() {
+            return (elapsed < p.frames(RETRACE_S)).then(|| self.retrace(obs, &mut recovery.way_back)).flatten();
+        }
         let back = p.frames(p.recover_back_s);
         if elapsed < back {
             return Some(Drive { throttle: -p.recover_throttle, brake: 0.0, steering_deg: 0.0 });
@@ -137,9 +176,21 @@ impl Machine {
             return Some(if obs.speed_mps.abs() > STOPPED_MPS {
                 Drive::stop(p.brake)
             } else {
-                Drive::turn_in_place(turn_left)
+                Drive::turn_in_place(recovery.turn_left)
             });
         }
         None
+    }
+
+    /// Drives to the last point of `way_back` at the approach speed, dropping the points reached;
+    /// `None` once none is left.
+    fn retrace(&mut self, obs: &Observation, way_back: &mut Vec<(f64, f64)>) -> Option<Drive> {
+        while way_back.last().is_some_and(|&point| obs.position.distance_to(point) <= RETRACED_M) {
+            way_back.pop();
+        }
+        let point = *way_back.last()?;
+        let (p, distance_m) = (&self.params, obs.position.distance_to(point));
+        let bearing = obs.position.bearing_to(point);
+        Some(self.driving.steering.toward_point(bearing, distance_m, p.approach_speed_mps, obs.speed_mps, p))
     }
 }

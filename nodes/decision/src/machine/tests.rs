@@ -501,6 +501,44 @@ fn a_rover_stuck_on_the_way_home_recovers_and_goes_on_home() {
     assert_eq!(machine.status().mode, Mode::ReturnHome, "after the recovery: {:?}", machine.status());
 }
 
+/// Steps `machine` with the rover held at (x, y) facing east until it has entered recover
+/// `times` more times; the frame reached.
+fn recoveries_at(machine: &mut Machine, mut frame: u64, (x_m, y_m): (f64, f64), times: u32) -> u64 {
+    let mut entered = 0;
+    while entered < times {
+        frame += 1;
+        let before = machine.status().mode;
+        machine.step(&observation(frame, x_m, y_m));
+        entered += u32::from(machine.status().mode == Mode::Recover && before != Mode::Recover);
+        assert!(frame < 100_000, "{entered} of {times} recoveries");
+    }
+    frame
+}
+
+#[test]
+fn a_rover_stuck_again_and_again_at_one_spot_drives_back_the_way_it_came() {
+    let mut machine = machine_on(corridor());
+    let mut frame = 0;
+    for step in 0..=20 {
+        frame += 1;
+        machine.step(&observation(frame, 100.5 + 0.5 * f64::from(step), 100.5));
+    }
+    frame = recoveries_at(&mut machine, frame, (110.5, 100.5), 2);
+    let backs_off = machine.step(&observation(frame + 1, 110.5, 100.5));
+    assert!(backs_off.throttle < 0.0, "the first recoveries back off: {backs_off:?}");
+    frame = recoveries_at(&mut machine, frame + 1, (110.4, 100.5), 1);
+    let mut x_m = 110.4;
+    while machine.status().mode == Mode::Recover {
+        frame += 1;
+        let facing_west = Position { x_m, y_m: 100.5, yaw_rad: std::f64::consts::PI };
+        let drive = machine.step(&Observation { position: facing_west, ..observation(frame, x_m, 100.5) });
+        assert!(drive.throttle >= 0.0 && drive.steering_deg.abs() < 1.0, "x {x_m:.2}: {drive:?}");
+        x_m -= 0.02;
+        assert!(x_m > 105.0, "the retrace ends");
+    }
+    assert!(x_m < 107.6, "the third drove back along the trail to 3 m from the spot: x {x_m:.2}");
+}
+
 #[test]
 fn at_the_deadline_the_rover_goes_home_without_detours_and_stops_there() {
     let (mut machine, late) = started_at_home_in_the_corridor();
