@@ -13,6 +13,12 @@ const MAX_CRUMBS: usize = 40;
 const SAME_SPOT_M: f64 = 1.0;
 /// ...and the series ends once the rover is this far from that spot, metres.
 const LEFT_SPOT_M: f64 = 3.0;
+/// Every this many recoveries in a row at one spot the rover retraces the way it came in, back
+/// to where it was this far from the spot, metres.
+const RETRACE_EVERY_RECOVERIES: u32 = 3;
+const RETRACE_M: f64 = 3.0;
+/// Retracing, a point of the trail counts as reached this close, metres.
+const REACHED_M: f64 = 0.3;
 
 /// The trail and the series of recoveries at one spot.
 #[derive(Debug, Clone, Default)]
@@ -39,23 +45,43 @@ impl Trail {
         self.crumbs.push_back(at);
     }
 
-    /// Counts a recovery at `at`; returns how many recoveries in a row have been at this spot
-    /// (within [`SAME_SPOT_M`] of where the series began), this one included.
-    pub(crate) fn note_recovery(&mut self, at: (f64, f64)) -> u32 {
+    /// Counts a recovery at `at`; every [`RETRACE_EVERY_RECOVERIES`] in a row at this spot
+    /// (within [`SAME_SPOT_M`] of where the series began), the way back out of it: the stretch of
+    /// the trail from where the rover was [`RETRACE_M`] from the spot, in the order driven.
+    pub(crate) fn note_recovery(&mut self, at: (f64, f64)) -> Option<WayBack> {
         let series = match self.stuck_at {
             Some((spot, count)) if distance_m(spot, at) <= SAME_SPOT_M => (spot, count + 1),
             _ => (at, 1),
         };
         self.stuck_at = Some(series);
-        series.1
+        (series.1 % RETRACE_EVERY_RECOVERIES == 0).then(|| self.way_back(at, RETRACE_M)).flatten()
     }
 
     /// The stretch of the trail that leads back from `from`: its points in the order driven,
     /// from the last one at least `min_distance_m` from `from` on (retraced by taking them from
     /// the end); `None` when the whole trail lies closer.
-    pub(crate) fn way_back(&self, from: (f64, f64), min_distance_m: f64) -> Option<Vec<(f64, f64)>> {
+    fn way_back(&self, from: (f64, f64), min_distance_m: f64) -> Option<WayBack> {
         let far = self.crumbs.iter().rposition(|&crumb| distance_m(crumb, from) >= min_distance_m)?;
-        Some(self.crumbs.range(far..).copied().collect())
+        Some(WayBack(self.crumbs.range(far..).copied().collect()))
+    }
+}
+
+/// Points of the trail to drive back along, in the order driven (the next one last).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct WayBack(Vec<(f64, f64)>);
+
+impl WayBack {
+    /// The point to drive to from `at`, the points reached dropped; `None` once all are.
+    pub(crate) fn next_point(&mut self, at: (f64, f64)) -> Option<(f64, f64)> {
+        while self.0.last().is_some_and(|&point| distance_m(point, at) <= REACHED_M) {
+            self.0.pop();
+        }
+        self.0.last().copied()
+    }
+
+    /// Where it ends.
+    pub(crate) fn end(&self) -> Option<(f64, f64)> {
+        self.0.first().copied()
     }
 }
 
@@ -73,7 +99,12 @@ mod tests {
         (0..=20).for_each(|i| trail.record((f64::from(i) * 0.5, 0.0)));
         (0..10).for_each(|_| trail.record((10.0, 0.1)));
         let way: Vec<(f64, f64)> = (14..=20).map(|i| (f64::from(i) * 0.5, 0.0)).collect();
-        assert_eq!(trail.way_back((10.0, 0.0), 3.0), Some(way));
+        let mut way_back = trail.way_back((10.0, 0.0), 3.0).unwrap();
+        assert_eq!(way_back, WayBack(way));
+        assert_eq!(way_back.next_point((10.0, 0.0)), Some((9.5, 0.0)), "the spot's own point is reached");
+        assert_eq!(way_back.next_point((9.4, 0.0)), Some((9.0, 0.0)), "then the one before");
+        let driven_back: Vec<_> = (0..=20).map(|i| way_back.next_point((9.0 - f64::from(i) * 0.1, 0.0))).collect();
+        assert_eq!(driven_back.last(), Some(&None), "all reached at 7 m");
         assert_eq!(trail.way_back((10.0, 0.0), 30.0), None, "the trail is shorter");
     }
 
@@ -83,18 +114,22 @@ mod tests {
         (0..200).for_each(|i| trail.record((f64::from(i), 0.0)));
         assert_eq!(trail.crumbs.len(), MAX_CRUMBS);
         assert_eq!(trail.way_back((199.0, 0.0), 1000.0), None);
-        assert_eq!(trail.way_back((199.0, 0.0), 39.0).and_then(|way| way.first().copied()), Some((160.0, 0.0)));
+        assert_eq!(trail.way_back((199.0, 0.0), 39.0).and_then(|way| way.end()), Some((160.0, 0.0)));
     }
 
     #[test]
-    fn recoveries_count_in_a_row_at_one_spot() {
+    fn every_third_recovery_in_a_row_at_one_spot_retraces_the_trail() {
         let mut trail = Trail::default();
-        assert_eq!(trail.note_recovery((5.0, 5.0)), 1);
-        assert_eq!(trail.note_recovery((5.5, 5.3)), 2);
-        assert_eq!(trail.note_recovery((5.2, 4.6)), 3);
-        assert_eq!(trail.note_recovery((9.0, 5.0)), 1, "another spot starts a new series");
-        assert_eq!(trail.note_recovery((9.0, 5.5)), 2);
-        trail.record((12.5, 5.0));
-        assert_eq!(trail.note_recovery((9.0, 5.0)), 1, "the rover had left the spot");
+        (0..=10).for_each(|i| trail.record((f64::from(i), 5.0)));
+        let spot = |trail: &mut Trail, at: (f64, f64)| trail.note_recovery(at).and_then(|way| way.end());
+        assert_eq!(spot(&mut trail, (10.0, 5.0)), None);
+        assert_eq!(spot(&mut trail, (10.5, 5.3)), None);
+        assert_eq!(spot(&mut trail, (10.2, 4.6)), Some((7.0, 5.0)), "the third at the spot");
+        assert_eq!(spot(&mut trail, (14.0, 5.0)), None, "another spot starts a new series");
+        assert_eq!(spot(&mut trail, (14.0, 5.5)), None);
+        trail.record((17.5, 5.0));
+        assert_eq!(spot(&mut trail, (14.0, 5.0)), None, "the rover had left the spot");
+        assert_eq!(spot(&mut trail, (14.0, 5.0)), None);
+        assert!(spot(&mut trail, (14.0, 5.0)).is_some());
     }
 }

@@ -8,6 +8,7 @@ use super::{Machine, Next, Observation, State};
 use crate::drive::{Drive, STOPPED_MPS};
 use crate::params::DecisionParams;
 use crate::stuck::{DrivingWatch, ProgressWatch};
+use crate::trail::WayBack;
 
 /// Moving less than this while driving counts toward being stuck, metres...
 const STUCK_PROGRESS_M: f64 = 0.3;
@@ -15,13 +16,7 @@ const STUCK_PROGRESS_M: f64 = 0.3;
 const STUCK_SPEED_MPS: f64 = 0.1;
 /// Moving less than this, whatever the rover is told, counts toward being stalled, metres.
 const STALL_PROGRESS_M: f64 = 1.0;
-/// Every this many recoveries in a row at one spot the rover retraces the way it came in...
-const RETRACE_EVERY_RECOVERIES: u32 = 3;
-/// ...along its trail to where it was this far from the spot, metres...
-const RETRACE_M: f64 = 3.0;
-/// ...a point of the trail counting as reached this close, metres; a retrace ends after this
-/// long, seconds.
-const RETRACED_M: f64 = 0.3;
+/// Retracing the way in ends after this long, seconds.
 const RETRACE_S: f64 = 20.0;
 
 /// A recovery under way.
@@ -30,10 +25,8 @@ pub(super) struct Recovery {
     since_frame: u64,
     /// The turn after backing off goes to the left.
     turn_left: bool,
-    /// The points of the trail still to drive back along, in the order driven (the next one is
-    /// the last); when there are any, the recovery retraces them instead of backing off and
-    /// turning.
-    way_back: Vec<(f64, f64)>,
+    /// The way back out of a pocket: retraced instead of backing off and turning.
+    way_back: Option<WayBack>,
 }
 
 /// What tells that the rover is stuck or stalled.
@@ -128,16 +121,11 @@ impl Machine {
         self.enter(State::Recover { recovery, then_home }, reason);
     }
 
-    /// A recovery from here: back off and turn toward the most open side; every
-    /// [`RETRACE_EVERY_RECOVERIES`] in a row at one spot, drive back along the trail to where the
-    /// rover was [`RETRACE_M`] from it instead.
+    /// A recovery from here: back off and turn toward the most open side, or, stuck at this spot
+    /// again and again, drive back along the trail (see [`crate::trail::Trail::note_recovery`]).
     pub(super) fn begin_recovery(&mut self, obs: &Observation) -> Recovery {
         let at = (obs.position.x_m, obs.position.y_m);
-        let in_a_row = self.driving.trail.note_recovery(at);
-        let way_back = match in_a_row % RETRACE_EVERY_RECOVERIES {
-            0 => self.driving.trail.way_back(at, RETRACE_M).unwrap_or_default(),
-            _ => Vec::new(),
-        };
+        let way_back = self.driving.trail.note_recovery(at);
         let recovery = Recovery { since_frame: obs.frame, turn_left: obs.free.most_open() >= 0.0, way_back };
         tracing::debug!(
             at = ?at,
@@ -145,8 +133,7 @@ impl Machine {
             pitch_deg = obs.pitch_rad.to_degrees(),
             roll_deg = obs.roll_rad.to_degrees(),
             turn_left = recovery.turn_left,
-            in_a_row,
-            retrace_to = ?recovery.way_back.first(),
+            retrace_to = ?recovery.way_back.as_ref().and_then(WayBack::end),
             "recovering"
         );
         recovery
@@ -164,8 +151,8 @@ impl Machine {
     pub(super) fn recovery_drive(&mut self, obs: &Observation, recovery: &mut Recovery) -> Option<Drive> {
         let p = &self.params;
         let elapsed = obs.frame.saturating_sub(recovery.since_frame);
-        if !recovery.way_back.is_empty() {
-            return (elapsed < p.frames(RETRACE_S)).then(|| self.retrace(obs, &mut recovery.way_back)).flatten();
+        if let Some(way_back) = recovery.way_back.as_mut() {
+            return (elapsed < p.frames(RETRACE_S)).then(|| self.retrace(obs, way_back)).flatten();
         }
         let back = p.frames(p.recover_back_s);
         if elapsed < back {
@@ -182,13 +169,9 @@ impl Machine {
         None
     }
 
-    /// Drives to the last point of `way_back` at the approach speed, dropping the points reached;
-    /// `None` once none is left.
-    fn retrace(&mut self, obs: &Observation, way_back: &mut Vec<(f64, f64)>) -> Option<Drive> {
-        while way_back.last().is_some_and(|&point| obs.position.distance_to(point) <= RETRACED_M) {
-            way_back.pop();
-        }
-        let point = *way_back.last()?;
+    /// Drives along `way_back` at the approach speed; `None` once at its end.
+    fn retrace(&mut self, obs: &Observation, way_back: &mut WayBack) -> Option<Drive> {
+        let point = way_back.next_point((obs.position.x_m, obs.position.y_m))?;
         let (p, distance_m) = (&self.params, obs.position.distance_to(point));
         let bearing = obs.position.bearing_to(point);
         Some(self.driving.steering.toward_point(bearing, distance_m, p.approach_speed_mps, obs.speed_mps, p))
