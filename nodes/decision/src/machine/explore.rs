@@ -9,18 +9,14 @@ use crate::route::PlanStart;
 /// With no frontier in reach because the map walls the rover in, it backs out up to this many
 /// times before it gives the frontiers up.
 const WALLED_IN_RECOVERIES: u32 = 3;
-/// With no frontier left (given-up ones and paths past obstacles included) while samples are
-/// missing, the explorer forgets the walls it has seen up close and looks again, up to this many
-/// times, before the rover goes home.
-const INSPECTION_RESETS: u32 = 2;
 
 /// How far the search has been widened when frontiers ran out.
 #[derive(Debug, Clone, Default)]
 pub(super) struct Widening {
     /// Recoveries started since the last frontier because the map walls the rover in.
     walled_in_recoveries: u32,
-    /// Times the explorer forgot the cells seen up close because no frontier was left.
-    inspections_forgotten: u32,
+    /// The explorer forgot the cells seen up close because no frontier was left.
+    walls_looked_at_again: bool,
 }
 
 /// What widens the search when no frontier is left: the looks around and the widening so far.
@@ -88,10 +84,13 @@ impl Machine {
     }
 
     /// With no frontier left and `samples_remaining` samples not found, widens the search by one
-    /// step: the frontiers given up, then planning past obstacle cells, then the walls seen before
-    /// (a few times); what it did, or `None` when nothing is left to widen.
-    fn widen_search(&mut self, samples_remaining: u8) -> Option<&'static str> {
-        if samples_remaining == 0 {
+    /// step: the frontiers given up, then planning past obstacle cells, then, once, the walls seen
+    /// before; what it did, or `None` when nothing is left to widen. Once the walls have been
+    /// looked at again, the search ends the next time no frontier is left (the rover has then
+    /// seen every wall up close twice).
+    pub(super) fn widen_search(&mut self, samples_remaining: u8) -> Option<&'static str> {
+        let widening = &mut self.search.widening;
+        if samples_remaining == 0 || widening.walls_looked_at_again {
             return None;
         }
         if self.explorer.forget_explored() {
@@ -100,8 +99,8 @@ impl Machine {
         if self.explorer.look_past_obstacles() {
             return Some("planning past obstacle cells");
         }
-        if self.search.widening.inspections_forgotten < INSPECTION_RESETS && self.explorer.forget_inspected() {
-            self.search.widening.inspections_forgotten += 1;
+        if self.explorer.forget_inspected() {
+            widening.walls_looked_at_again = true;
             return Some("looking again at the walls seen before");
         }
         None

@@ -540,6 +540,25 @@ fn a_rover_stuck_again_and_again_at_one_spot_drives_back_the_way_it_came() {
 }
 
 #[test]
+fn a_search_for_a_missing_sample_looks_at_the_walls_again_once_then_ends() {
+    let mut machine = machine_on(corridor());
+    let given_up_and_seen = |machine: &Machine| {
+        Explorer::with_memory(ExplorerMemory {
+            inspected: vec![true; CELLS],
+            explored: vec![true; CELLS],
+            ..machine.explorer.memory()
+        })
+    };
+    machine.explorer = given_up_and_seen(&machine);
+    assert_eq!(machine.widen_search(0), None, "no sample missing");
+    assert_eq!(machine.widen_search(1), Some("trying given-up frontiers again"));
+    assert_eq!(machine.widen_search(1), Some("planning past obstacle cells"));
+    assert_eq!(machine.widen_search(1), Some("looking again at the walls seen before"));
+    machine.explorer = given_up_and_seen(&machine);
+    assert_eq!(machine.widen_search(1), None, "after the second look at every wall");
+}
+
+#[test]
 fn at_the_deadline_the_rover_goes_home_without_detours_and_stops_there() {
     let (mut machine, late) = started_at_home_in_the_corridor();
     let mut sample_in_view = observation(late, 120.5, 100.5);
