@@ -13,10 +13,13 @@ use crate::route::PlanStart;
 const OUT_OF_THE_WAY_S: f64 = 10.0;
 
 impl Machine {
-    /// Steps the approach of `chase`: the sample's place from the camera when in sight, a slow
-    /// drive to it, or back to exploring when it is not reached in time, not where remembered, or
-    /// out of the way.
+    /// Steps the approach of `chase`: home when asked or at the deadline, as exploring would; the
+    /// sample's place from the camera when in sight, a slow drive to it, or back to exploring
+    /// when it is not reached in time, not where remembered, or out of the way.
     pub(super) fn approach(&mut self, obs: &Observation, mut chase: Chase) -> Next {
+        if let Some(reason) = self.time_to_go_home(obs) {
+            return Next::EnterAndStep(State::ReturnHome(None), reason);
+        }
         if let Some(seen) = obs.rock.filter(|s| s.distance_m <= self.params.sample_sight_m) {
             chase.at = obs.position.point_at(seen.bearing_rad, seen.distance_m);
         }

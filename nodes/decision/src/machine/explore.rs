@@ -134,7 +134,10 @@ impl Machine {
         let p = &self.params;
         let home = self.mission.status.home?;
         let elapsed_s = obs.frame as f64 * p.frame_period_s;
-        let way_home_m = self.explorer.cost_to(home).unwrap_or_else(|| obs.position.distance_to(home));
+        // The explorer's costs are from where it last planned, which an approach may have left
+        // far behind; the way home is no shorter than the straight line from here.
+        let straight_m = obs.position.distance_to(home);
+        let way_home_m = self.explorer.cost_to(home).map_or(straight_m, |cost_m| cost_m.max(straight_m));
         let return_s = way_home_m / (p.max_speed_mps * p.return_speed_fraction);
         (elapsed_s + return_s >= p.mission_deadline_s).then_some("mission deadline")
     }

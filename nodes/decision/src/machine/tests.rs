@@ -571,6 +571,35 @@ fn at_the_deadline_the_rover_goes_home_without_detours_and_stops_there() {
     assert_eq!(machine.step(&observation(late + 2, 101.0, 100.5)).throttle, 0.0);
 }
 
+#[test]
+fn an_approach_under_way_at_the_deadline_gives_way_to_the_way_home() {
+    let (mut machine, late) = started_at_home_in_the_corridor();
+    let mut sample_in_view = observation(late - 100, 105.5, 100.5);
+    sample_in_view.rock = Some(Sighting { bearing_rad: 0.0, distance_m: 3.0 });
+    machine.step(&sample_in_view);
+    assert_eq!(machine.status().mode, Mode::ApproachSample, "4 s before the deadline, 2.4 s from home");
+    sample_in_view.frame = late;
+    machine.step(&sample_in_view);
+    assert_eq!((machine.status().mode, machine.status().reason.as_str()), (Mode::ReturnHome, "mission deadline"));
+}
+
+#[test]
+fn an_approach_that_leads_away_from_home_ends_when_the_way_back_would_miss_the_deadline() {
+    let (mut machine, late) = started_at_home_in_the_corridor();
+    let params = DecisionParams::default();
+    let ten_s_before = late - params.frames(10.0);
+    let mut sample_in_view = observation(ten_s_before, 120.5, 100.5);
+    sample_in_view.rock = Some(Sighting { bearing_rad: 0.0, distance_m: 8.0 });
+    machine.step(&sample_in_view);
+    assert_eq!(machine.status().mode, Mode::ApproachSample, "20 m from home: 9.5 s at the return speed");
+    machine.step(&observation(ten_s_before + 1, 126.5, 100.5));
+    assert_eq!(
+        (machine.status().mode, machine.status().reason.as_str()),
+        (Mode::ReturnHome, "mission deadline"),
+        "26 m from home: 12.4 s"
+    );
+}
+
 /// A machine on the corridor map that has seen the rover at (100.5, 100.5).
 fn machine_in_the_corridor(params: DecisionParams) -> Machine {
     let mut machine = machine_on_with(corridor(), params);
