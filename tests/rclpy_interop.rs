@@ -17,9 +17,14 @@ use support::{Domain, Process, start_process};
 /// Seed of the procedural world (no sample is picked up during the probe's teleop phases).
 const SEED: &str = "7";
 /// From the start of the node processes to the first message on every graph topic. The probe has
-/// imported rclpy already and joins the domain once the bridge listens: a Fast DDS participant that
-/// exists while the RustDDS participants start can miss some of them for good (see docs/ros2-tools.md).
+/// imported rclpy already and joins the domain once every node is active: a Fast DDS participant
+/// that joins while the RustDDS participants still create their endpoints can miss some of them for
+/// good (see docs/ros2-tools.md).
 const DISCOVERY_LIMIT_S: f64 = 2.0;
+/// The longest the nodes may take to reach `active` on a loaded host.
+const ACTIVATION_LIMIT: Duration = Duration::from_secs(20);
+/// What the runtime logs when a node's lifecycle reaches `active`.
+const ACTIVATED_LOG_LINE: &str = "lifecycle: inactive -> active";
 /// The same for the topics of images (120-154 kB, several datagrams each): on a loaded host an
 /// image that the probe's full receive buffer lost waits for the writer's next heartbeat, up to
 /// 1 s in RustDDS (seen: the first `/map/image` 2.15 s after the start, the `/rover/map_stats`
@@ -93,6 +98,8 @@ fn run_probe_against_graph(mode: Mode) {
     let graph_started_at = epoch_seconds(SystemTime::now());
     let mut graph = start_graph(mode, &domain);
     support::wait_for_port(domain.port(), Duration::from_secs(20));
+    let active = support::eventually(ACTIVATION_LIMIT, || every_node_is_active(&mut graph));
+    assert!(active, "{mode:?}: not every node reached `active`{}", log_tails(&mut graph, &probe));
     std::fs::write(go, b"go\n").expect("tell the probe the graph is up");
     let port = domain.port().to_string();
     let _sim =
@@ -199,6 +206,16 @@ fn print_report(mode: Mode, report: &serde_json::Value, discovery: &[(&str, Opti
 }
 
 /// The last lines of the probe's and the nodes' logs, for failure messages.
+/// Whether every node of the graph has logged its activation, in its own log or in the one of
+/// `rover all`.
+fn every_node_is_active(graph: &mut Graph) -> bool {
+    let activated: usize = std::iter::once("all")
+        .chain(rover::processes::nodes::node_names())
+        .filter_map(|name| graph.node_mut(name).map(|node| node.log_text().matches(ACTIVATED_LOG_LINE).count()))
+        .sum();
+    activated >= rover::processes::nodes::node_names().count()
+}
+
 fn log_tails(graph: &mut Graph, probe: &Process) -> String {
     let mut text = format!("\n--- probe log ({}):\n{}", probe.log.display(), tail(&probe.log_text(), 30));
     for name in std::iter::once("all").chain(rover::processes::nodes::node_names()) {

@@ -2,7 +2,7 @@
 """The rclpy side of tests/rclpy_interop.rs: a plain rclpy node that watches the rover graph.
 
 Started before the graph: it imports everything, writes OUT.ready and waits for the file OUT.go, which
-the test creates once the nodes are up; only then does it join the DDS domain, so the discovery
+the test creates once every node is active; only then does it join the DDS domain, so the discovery
 figures leave out Python's start-up. It subscribes to every topic of the graph (docs/architecture.md), then, while the graph
 runs against the headless simulator:
   * records the wall-clock time of the first message on every graph topic (discovery figures),
