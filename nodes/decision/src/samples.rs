@@ -5,6 +5,9 @@ use rover_msgs::body::SAMPLE_SPREAD_M;
 
 /// A rock is given up after this many approaches that ended stuck.
 pub(crate) const APPROACHES_PER_ROCK: usize = 2;
+/// A rock set aside after failed approaches may be tried again at once (see
+/// [`SampleMemory::may_retry_at_once`]) until this many approaches to it have failed.
+const APPROACHES_BEFORE_WAITING: usize = 2 * APPROACHES_PER_ROCK;
 
 /// Whether rocks located at `a` and `b` are taken to be one.
 pub(crate) fn same_rock(a: (f64, f64), b: (f64, f64)) -> bool {
@@ -79,8 +82,21 @@ impl SampleMemory {
     /// last `retry_frames` before `frame`.
     pub(crate) fn is_ignored(&self, at: (f64, f64), frame: u64, retry_frames: u64) -> bool {
         let recent = |failed: u64| failed + retry_frames > frame;
-        self.ignored.iter().any(|&p| same_rock(p, at))
+        self.is_picked_up_or_given_up(at)
             || self.failed.iter().filter(|f| same_rock(f.sample, at) && recent(f.frame)).count() >= APPROACHES_PER_ROCK
+    }
+
+    /// Whether the rock at `at` was picked up or given up for good.
+    pub(crate) fn is_picked_up_or_given_up(&self, at: (f64, f64)) -> bool {
+        self.ignored.iter().any(|&p| same_rock(p, at))
+    }
+
+    /// Whether the rock at `at`, whatever its failed approaches, may be approached again now: it
+    /// is neither picked up, given up for good nor deferred at `frame`, and fewer than
+    /// [`APPROACHES_BEFORE_WAITING`] approaches to it have failed.
+    pub(crate) fn may_retry_at_once(&self, at: (f64, f64), frame: u64) -> bool {
+        let failures = self.failed.iter().filter(|f| same_rock(f.sample, at)).count();
+        !self.is_picked_up_or_given_up(at) && !self.is_deferred(at, frame) && failures < APPROACHES_BEFORE_WAITING
     }
 }
 
@@ -100,6 +116,10 @@ mod tests {
         assert!(!memory.is_ignored(rock, 1101, 1000), "both long ago: try again");
         assert_eq!(memory.failed_from(rock), vec![(47.0, 60.0), (50.0, 57.0)]);
         assert!(memory.failed_from((80.0, 60.0)).is_empty());
+        assert!(memory.may_retry_at_once(rock, 210), "two failures: two more may follow at once");
+        memory.note_failed_approach(rock, 220, (53.0, 60.0));
+        memory.note_failed_approach(rock, 230, (50.0, 63.0));
+        assert!(!memory.may_retry_at_once(rock, 240), "four failures: it waits its time");
     }
 
     #[test]
@@ -108,6 +128,7 @@ mod tests {
         memory.set_located(vec![(10.0, 10.0), (30.0, 30.0)]);
         memory.ignore((10.2, 10.0));
         assert!(memory.is_ignored((10.0, 10.0), 1_000_000, 1) && !memory.is_ignored((30.0, 30.0), 0, 1));
+        assert!(!memory.may_retry_at_once((10.0, 10.0), 0), "picked up: never again");
         assert_eq!((memory.located().len(), memory.ignored()), (2, &[(10.2, 10.0)][..]));
     }
 
@@ -119,5 +140,6 @@ mod tests {
         assert!(memory.is_deferred((10.0, 10.0), 299), "the later deferral replaces the earlier one");
         assert!(!memory.is_deferred((10.0, 10.0), 300) && !memory.is_deferred((30.0, 30.0), 0));
         assert!(!memory.is_ignored((10.0, 10.0), 0, 1), "deferred, not ignored");
+        assert!(!memory.may_retry_at_once((10.0, 10.0), 299) && memory.may_retry_at_once((10.0, 10.0), 500));
     }
 }

@@ -57,12 +57,17 @@ impl Machine {
 
     /// A seen sample within sight or a remembered one, either within `max_cost` on the map, or
     /// at any cost once every sample still missing is remembered (exploring on finds no other).
+    /// While the rover explores only to find samples and the map holds every one still missing,
+    /// rocks set aside after failed approaches are tried again at once.
     pub(super) fn sample_to_chase(&self, obs: &Observation, max_cost: f64) -> Option<Chase> {
         if obs.samples_remaining == 0 {
             return None;
         }
         let p = &self.params;
-        let max_cost = if self.all_missing_samples_located(obs) { f64::INFINITY } else { max_cost };
+        let retry_set_aside = self.search.widening.for_samples && self.map_holds_every_missing_sample(obs);
+        let max_cost = if retry_set_aside || self.all_missing_samples_located(obs) { f64::INFINITY } else { max_cost };
+        let chaseable =
+            |at: (f64, f64)| !self.is_ignored(at) || (retry_set_aside && self.samples.may_retry_at_once(at, obs.frame));
         let new = |(at, way_m): ((f64, f64), f64)| {
             let give_up_frame = obs.frame + p.frames_for_way(p.sample_timeout_s, way_m);
             let (map, failed) = ((self.maps.planning.grid(), &obs.position), &self.samples.failed_from(at));
@@ -72,14 +77,14 @@ impl Machine {
             .rock
             .filter(|s| s.distance_m <= p.sample_sight_m)
             .map(|s| (obs.position.point_at(s.bearing_rad, s.distance_m), s.distance_m))
-            .filter(|&(at, _)| !self.is_ignored(at))
+            .filter(|&(at, _)| chaseable(at))
             .filter(|&(at, _)| self.explorer.cost_to(at).is_none_or(|cost| cost <= max_cost));
         seen.or_else(|| {
             self.samples
                 .located()
                 .iter()
                 .copied()
-                .filter(|&at| !self.is_ignored(at))
+                .filter(|&at| chaseable(at))
                 .filter_map(|at| Some((at, self.explorer.cost_to(at)?)))
                 .filter(|&(_, cost)| cost <= max_cost)
                 .min_by(|a, b| a.1.total_cmp(&b.1))
@@ -105,7 +110,17 @@ impl Machine {
 
     /// Whether the map holds at least as many rocks not given up as samples are missing.
     fn all_missing_samples_located(&self, obs: &Observation) -> bool {
-        let waiting = self.samples.located().iter().filter(|&&at| !self.is_given_up(at));
-        waiting.count() >= obs.samples_remaining as usize
+        self.rocks_cover_missing_samples(obs, |at| !self.is_given_up(at))
+    }
+
+    /// Whether the map holds at least as many rocks neither picked up nor given up for good as
+    /// samples are missing, counting those set aside after failed approaches.
+    fn map_holds_every_missing_sample(&self, obs: &Observation) -> bool {
+        self.rocks_cover_missing_samples(obs, |at| !self.samples.is_picked_up_or_given_up(at))
+    }
+
+    /// Whether at least as many rocks on the map are `counted` as samples are missing.
+    fn rocks_cover_missing_samples(&self, obs: &Observation, counted: impl Fn((f64, f64)) -> bool) -> bool {
+        self.samples.located().iter().filter(|&&at| counted(at)).count() >= obs.samples_remaining as usize
     }
 }

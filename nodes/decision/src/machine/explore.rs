@@ -17,6 +17,8 @@ pub(super) struct Widening {
     walled_in_recoveries: u32,
     /// The explorer forgot the cells seen up close because no frontier was left.
     walls_looked_at_again: bool,
+    /// A step has widened the search: the rover explores on only to find samples.
+    pub(super) for_samples: bool,
 }
 
 /// What widens the search when no frontier is left: the looks around and the widening so far.
@@ -89,10 +91,16 @@ impl Machine {
     /// looked at again, the search ends the next time no frontier is left (the rover has then
     /// seen every wall up close twice).
     pub(super) fn widen_search(&mut self, samples_remaining: u8) -> Option<&'static str> {
-        let widening = &mut self.search.widening;
-        if samples_remaining == 0 || widening.walls_looked_at_again {
+        if samples_remaining == 0 || self.search.widening.walls_looked_at_again {
             return None;
         }
+        let step = self.widening_step();
+        self.search.widening.for_samples |= step.is_some();
+        step
+    }
+
+    /// The next step of [`Machine::widen_search`], if any is left.
+    fn widening_step(&mut self) -> Option<&'static str> {
         if self.explorer.forget_explored() {
             return Some("trying given-up frontiers again");
         }
@@ -100,7 +108,7 @@ impl Machine {
             return Some("planning past obstacle cells");
         }
         if self.explorer.forget_inspected() {
-            widening.walls_looked_at_again = true;
+            self.search.widening.walls_looked_at_again = true;
             return Some("looking again at the walls seen before");
         }
         None

@@ -559,6 +559,30 @@ fn a_search_for_a_missing_sample_looks_at_the_walls_again_once_then_ends() {
 }
 
 #[test]
+fn a_sample_set_aside_is_tried_again_at_once_when_the_search_for_samples_has_nothing_else_to_find() {
+    let rock = (102.5, 100.5);
+    let mut machine = machine_on(corridor());
+    machine.set_rocks(vec![rock]);
+    let fail_twice = |machine: &mut Machine| {
+        for side in [-1.0, 1.0] {
+            machine.samples.note_failed_approach(rock, machine.mission.frame, (102.5, 100.5 + side));
+        }
+    };
+    fail_twice(&mut machine);
+    machine.step(&Observation { samples_remaining: 1, ..observation(1, 100.5, 100.5) });
+    let chased = |machine: &Machine, samples_remaining| {
+        let obs = Observation { samples_remaining, ..observation(2, 100.5, 100.5) };
+        machine.sample_to_chase(&obs, machine.params.sample_detour_cost).map(|chase| chase.at)
+    };
+    assert_eq!(chased(&machine, 1), None, "set aside while the rover explores the map");
+    assert!(machine.widen_search(1).is_some());
+    assert_eq!(chased(&machine, 1), Some(rock), "the search for samples cannot find another");
+    assert_eq!(chased(&machine, 2), None, "another sample missing: the search may find it");
+    fail_twice(&mut machine);
+    assert_eq!(chased(&machine, 1), None, "four failures: it waits its time");
+}
+
+#[test]
 fn at_the_deadline_the_rover_goes_home_without_detours_and_stops_there() {
     let (mut machine, late) = started_at_home_in_the_corridor();
     let mut sample_in_view = observation(late, 120.5, 100.5);
