@@ -280,7 +280,7 @@ fn ros2_launch_of_the_launch_file_starts_the_graph_with_the_simulator_and_sigint
     let launched = launched_processes(&launcher.output());
     assert_eq!(launched.last().map(|(name, _)| name.as_str()), Some("mapping"), "{}", launcher.output());
     // The new mapping node is up once it is active again, its memory read (restored or not).
-    let activated = |line: &str| line.starts_with("[mapping-") && line.contains("lifecycle: inactive -> active");
+    let activated = |line: &str| line.starts_with("[mapping-") && line.contains(support::ACTIVATED_LOG_LINE);
     let up = eventually(Duration::from_secs(15), || launcher.output().lines().filter(|l| activated(l)).count() >= 2);
     assert!(up, "the new mapping node did not start:\n{}", launcher.output());
 

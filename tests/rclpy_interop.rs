@@ -23,8 +23,6 @@ const SEED: &str = "7";
 const DISCOVERY_LIMIT_S: f64 = 2.0;
 /// The longest the nodes may take to reach `active` on a loaded host.
 const ACTIVATION_LIMIT: Duration = Duration::from_secs(20);
-/// What the runtime logs when a node's lifecycle reaches `active`.
-const ACTIVATED_LOG_LINE: &str = "lifecycle: inactive -> active";
 /// The same for the topics of images (120-154 kB, several datagrams each): on a loaded host an
 /// image that the probe's full receive buffer lost waits for the writer's next heartbeat, up to
 /// 1 s in RustDDS (seen: the first `/map/image` 2.15 s after the start, the `/rover/map_stats`
@@ -205,20 +203,26 @@ fn print_report(mode: Mode, report: &serde_json::Value, discovery: &[(&str, Opti
     println!("rclpy interop, {mode:?}: wall time {:.1} s", wall.as_secs_f64());
 }
 
-/// The last lines of the probe's and the nodes' logs, for failure messages.
+/// The processes a graph of either mode may hold: `rover all`, or one per node.
+fn process_names() -> impl Iterator<Item = &'static str> {
+    std::iter::once("all").chain(rover::processes::nodes::node_names())
+}
+
 /// Whether every node of the graph has logged its activation, in its own log or in the one of
 /// `rover all`.
 fn every_node_is_active(graph: &mut Graph) -> bool {
-    let activated: usize = std::iter::once("all")
-        .chain(rover::processes::nodes::node_names())
-        .filter_map(|name| graph.node_mut(name).map(|node| node.log_text().matches(ACTIVATED_LOG_LINE).count()))
+    let activated: usize = process_names()
+        .filter_map(|name| {
+            graph.node_mut(name).map(|node| node.log_text().matches(support::ACTIVATED_LOG_LINE).count())
+        })
         .sum();
     activated >= rover::processes::nodes::node_names().count()
 }
 
+/// The last lines of the probe's and the nodes' logs, for failure messages.
 fn log_tails(graph: &mut Graph, probe: &Process) -> String {
     let mut text = format!("\n--- probe log ({}):\n{}", probe.log.display(), tail(&probe.log_text(), 30));
-    for name in std::iter::once("all").chain(rover::processes::nodes::node_names()) {
+    for name in process_names() {
         if let Some(node) = graph.node_mut(name) {
             text += &format!("\n--- {name} log ({}):\n{}", node.log.display(), tail(&node.log_text(), 10));
         }

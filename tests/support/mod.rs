@@ -162,6 +162,9 @@ pub(crate) type Process = rover::processes::graph::NodeProcess;
 /// How long a test process gets to exit after SIGINT.
 pub(crate) const STOP_TIMEOUT: Duration = Duration::from_secs(5);
 
+/// What the runtime logs when a node's lifecycle reaches `active` (its endpoints exist).
+pub(crate) const ACTIVATED_LOG_LINE: &str = "lifecycle: inactive -> active";
+
 /// Starts `program` with `args` on `domain`, logging to a temporary file named after `name`.
 pub(crate) fn start_process(program: &Path, args: &[&str], domain: &Domain, name: &str) -> Process {
     let log = std::env::temp_dir().join(format!("rover-test-{}-{name}-{}.log", domain.id, std::process::id()));
