@@ -22,8 +22,8 @@ rover_runtime::node_params! {
         /// Short of free ground ahead, the speed is one from which braking at this rate stops the
         /// rover with `clearance_m` to spare, m/s^2.
         stop_decel_mps2: f64 [0.1, 5.0] = 1.5,
-        /// In a turn, the speed keeps the sideways acceleration below this, m/s^2 (the body rolls
-        /// with it, and the mapping skips frames tilted beyond its `max_tilt_deg`).
+        /// In a turn, the speed keeps the sideways acceleration below this, m/s^2: the sharper the
+        /// steering, the slower.
         turn_accel_mps2: f64 [0.1, 10.0] = 1.5,
         /// Beyond this bearing the rover stops and turns in place, degrees (short of it, it turns
         /// on the move at up to full lock).
