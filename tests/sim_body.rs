@@ -17,8 +17,10 @@ const HARD_TURN_MPS2: (f64, f64) = (1.5, 3.5);
 /// Ground within this distance of the rover lower than this is flat floor, metres.
 const FLAT_WITHIN_M: f64 = 1.5;
 const FLAT_BELOW_M: f64 = 0.01;
-/// Frames this many either side of a frame give its yaw rate and speed.
+/// Frames this many either side of a frame give its yaw rate...
 const SPAN_FRAMES: usize = 2;
+/// ...when they are less than this far apart, seconds (farther, the log has a gap there).
+const MAX_SPAN_S: f64 = 0.5;
 /// The simulated roll is within this of the logs' median, degrees.
 const TOLERANCE_DEG: f64 = 0.25;
 
@@ -53,9 +55,10 @@ fn logged_turns(log: &Path, ground: &Elevation) -> Vec<(f64, f64)> {
         .filter_map(|i| {
             let (before, after) = (&frames[i - SPAN_FRAMES].state, &frames[i + SPAN_FRAMES].state);
             let dt = times[i + SPAN_FRAMES] - times[i - SPAN_FRAMES];
-            let yaw_rate = signed_deg((after.yaw_deg - before.yaw_deg).rem_euclid(360.0)).to_radians() / dt;
-            (dt > 0.0 && dt < 0.5)
-                .then(|| (frames[i].state.speed_mps * yaw_rate, signed_deg(frames[i].state.roll_deg).abs()))
+            (dt > 0.0 && dt < MAX_SPAN_S).then(|| {
+                let yaw_rate = signed_deg((after.yaw_deg - before.yaw_deg).rem_euclid(360.0)).to_radians() / dt;
+                (frames[i].state.speed_mps * yaw_rate, signed_deg(frames[i].state.roll_deg).abs())
+            })
         })
         .collect()
 }
@@ -97,12 +100,14 @@ fn in_hard_turns_the_simulated_body_rolls_as_the_recorded_ones_do() {
         Path::new(&test_dataset_dir()).join("robot_log.csv"),
         shared_dir().join("udacity/recordings/tzyhpcom-2018-03-03/robot_log.csv"),
     ];
+    let simulated = TURN_THROTTLES.map(|throttle| (throttle, simulated_turn(throttle)));
+    for (throttle, (accel, _)) in simulated {
+        assert!((HARD_TURN_MPS2.0..=HARD_TURN_MPS2.1).contains(&accel.abs()), "throttle {throttle}: {accel} m/s^2");
+    }
     for log in &logs {
         let (logged_roll, frames) = median_roll_in_hard_turns(&logged_turns(log, &ground));
         assert!(frames >= 10, "{}: only {frames} frames in hard turns on the flat floor", log.display());
-        for throttle in TURN_THROTTLES {
-            let (accel, roll) = simulated_turn(throttle);
-            assert!((HARD_TURN_MPS2.0..=HARD_TURN_MPS2.1).contains(&accel.abs()), "throttle {throttle}: {accel} m/s^2");
+        for (_, (accel, roll)) in simulated {
             assert!(
                 (roll - logged_roll).abs() <= TOLERANCE_DEG,
                 "at {accel:.2} m/s^2 the simulated body rolls {roll:.2} degrees, the rover of {} {logged_roll:.2} \
