@@ -6,6 +6,7 @@ mod support;
 use std::path::Path;
 
 use rover::tools::dataset::{RecordedFrame, read_log};
+use rover_bridge::convert::wrapped_rad;
 use rover_sim::elevation::Elevation;
 use rover_sim::sim::{SimConfig, Simulator};
 use rover_sim::wire::command::Command;
@@ -40,11 +41,6 @@ fn on_flat_floor(ground: &Elevation, frame: &RecordedFrame) -> bool {
     offsets.iter().all(|dx| offsets.iter().all(|dy| (ground.height_at(x + dx, y + dy) as f64) < FLAT_BELOW_M))
 }
 
-/// A signed angle in (-180, 180] from one in [0, 360), degrees.
-fn signed_deg(deg: f64) -> f64 {
-    if deg > 180.0 { deg - 360.0 } else { deg }
-}
-
 /// The sideways acceleration (speed times yaw rate, m/s^2) and the absolute roll (degrees) of each
 /// frame of `log` on the flat floor.
 fn logged_turns(log: &Path, ground: &Elevation) -> Vec<(f64, f64)> {
@@ -56,8 +52,8 @@ fn logged_turns(log: &Path, ground: &Elevation) -> Vec<(f64, f64)> {
             let (before, after) = (&frames[i - SPAN_FRAMES].state, &frames[i + SPAN_FRAMES].state);
             let dt = times[i + SPAN_FRAMES] - times[i - SPAN_FRAMES];
             (dt > 0.0 && dt < MAX_SPAN_S).then(|| {
-                let yaw_rate = signed_deg((after.yaw_deg - before.yaw_deg).rem_euclid(360.0)).to_radians() / dt;
-                (frames[i].state.speed_mps * yaw_rate, signed_deg(frames[i].state.roll_deg).abs())
+                let yaw_rate = wrapped_rad(after.yaw_deg - before.yaw_deg) / dt;
+                (frames[i].state.speed_mps * yaw_rate, wrapped_rad(frames[i].state.roll_deg).abs().to_degrees())
             })
         })
         .collect()
@@ -82,14 +78,14 @@ fn simulated_turn(throttle: f64) -> (f64, f64) {
     let mut sim = Simulator::new(world, config);
     let steps = (SETTLE_S / config.step_s) as usize;
     let drive = Command::Drive { steering_deg: 15.0, throttle, brake: 0.0 };
-    let mut poses = Vec::new();
-    for _ in 0..steps {
+    for _ in 1..steps {
         sim.step(drive);
-        poses.push(sim.pose());
     }
-    let (before, now) = (&poses[steps - 2], &poses[steps - 1]);
+    let before = sim.pose();
+    sim.step(drive);
+    let now = sim.pose();
     let speed_mps = (now.x_m - before.x_m).hypot(now.y_m - before.y_m) / config.step_s;
-    let yaw_rate = signed_deg((now.yaw_deg - before.yaw_deg).rem_euclid(360.0)).to_radians() / config.step_s;
+    let yaw_rate = wrapped_rad(now.yaw_deg - before.yaw_deg) / config.step_s;
     (speed_mps * yaw_rate, now.roll_deg.abs())
 }
 
