@@ -63,7 +63,11 @@ impl Steering {
 
     /// Starts a turn in place toward `bearing_deg` (after braking from `speed_mps`), for `why`;
     /// logged, as these turns and the braking and speeding up around them cost much of a mission.
-    fn start_turn(&mut self, bearing_deg: f64, speed_mps: f64, why: &str) {
+    /// None starts for a goal within `turn_done_deg`: that turn would be over at once.
+    fn start_turn(&mut self, bearing_deg: f64, speed_mps: f64, why: &str, params: &DecisionParams) {
+        if bearing_deg.abs() <= params.turn_done_deg {
+            return;
+        }
         tracing::debug!(bearing_deg = bearing_deg.round(), speed_mps, why, "turn in place");
         self.turning = Some(bearing_deg > 0.0);
     }
@@ -80,16 +84,15 @@ impl Steering {
         params: &DecisionParams,
     ) -> Drive {
         let bearing_deg = bearing_rad.to_degrees();
-        let beyond_done = bearing_deg.abs() > params.turn_done_deg;
         let goal_switched_side =
             self.turning.is_some_and(|left| left != (bearing_deg > 0.0) && bearing_deg.abs() < SIDE_SWITCH_DEG);
-        if beyond_done && goal_switched_side {
-            self.start_turn(bearing_deg, speed_mps, "the goal moved to the other side");
-        } else if beyond_done && self.turning.is_none() && bearing_deg.abs() > params.turn_in_place_deg {
-            self.start_turn(bearing_deg, speed_mps, "the goal is far off the heading");
+        if goal_switched_side {
+            self.start_turn(bearing_deg, speed_mps, "the goal moved to the other side", params);
+        } else if self.turning.is_none() && bearing_deg.abs() > params.turn_in_place_deg {
+            self.start_turn(bearing_deg, speed_mps, "the goal is far off the heading", params);
         }
         if let Some(left) = self.turning {
-            if beyond_done {
+            if bearing_deg.abs() > params.turn_done_deg {
                 return stop_then_turn(left, speed_mps, params);
             }
             self.turning = None;
@@ -109,9 +112,9 @@ impl Steering {
         speed_mps: f64,
         params: &DecisionParams,
     ) -> Drive {
-        let beyond_done = bearing_rad.to_degrees().abs() > params.turn_done_deg;
-        if beyond_done && self.turning.is_none() && !on_reachable_arc(bearing_rad, distance_m) {
-            self.start_turn(bearing_rad.to_degrees(), speed_mps, "the point lies inside the tightest turn");
+        if self.turning.is_none() && !on_reachable_arc(bearing_rad, distance_m) {
+            let why = "the point lies inside the tightest turn";
+            self.start_turn(bearing_rad.to_degrees(), speed_mps, why, params);
         }
         self.toward(bearing_rad, target_mps, speed_mps, params)
     }
