@@ -10,6 +10,7 @@ pub mod squares;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
+use rover_bridge::convert::{rep103_roll_rad, wrapped_rad};
 use rover_imaging::{RgbImage, UNITY_JPEG_QUALITY};
 use rover_perception::Perception;
 use rover_perception::classify::Class;
@@ -203,13 +204,12 @@ pub fn summarize(frames: &[FrameCheck]) -> CheckSummary {
 /// positive left side down, the renderer's positive right side down), resting on the ground at
 /// `ground_m` above the floor.
 pub fn body_pose(frame: &RecordedFrame, ground_m: f64) -> BodyPose {
-    let signed = |deg: f64| if deg > 180.0 { deg - 360.0 } else { deg };
     BodyPose {
         x_m: frame.state.x_m,
         y_m: frame.state.y_m,
         yaw_deg: frame.state.yaw_deg,
-        pitch_deg: signed(frame.state.pitch_deg),
-        roll_deg: -signed(frame.state.roll_deg),
+        pitch_deg: wrapped_rad(frame.state.pitch_deg).to_degrees(),
+        roll_deg: rep103_roll_rad(frame.state.roll_deg).to_degrees(),
         ground_m,
     }
 }
