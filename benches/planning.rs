@@ -83,7 +83,7 @@ fn step_costs(grid: &Grid, costs: &Costs) -> Vec<f32> {
 fn main() -> anyhow::Result<()> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let frames = read_log(&root.join("../shared/udacity/test_dataset"))?.frames;
-    let (_, map) = replay_frames(&frames, &PerceptionParams::default(), &MappingParams::default(), None)?;
+    let (_, map) = replay_frames(&frames, &PerceptionParams::default(), &MappingParams::default(), None, None)?;
     let truth = read_ground_truth(&root.join("../shared/udacity/calibration_images/map_bw.png"))?;
     let known: Vec<i8> = truth.iter().map(|&floor| if floor { 0 } else { 100 }).collect();
     let costs = path_costs(&DecisionParams::default());

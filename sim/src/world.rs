@@ -105,6 +105,7 @@ pub struct World {
     boulders: Vec<Boulder>,
     surveyed_rocks: Vec<SurveyedRock>,
     ground_truth: Vec<bool>,
+    floor: Vec<bool>,
     painted: Vec<bool>,
     blocked: Vec<bool>,
     /// Samples on the ground, in the order the simulator reports them.
@@ -170,6 +171,7 @@ impl World {
             boulders: plan.boulders,
             surveyed_rocks: plan.surveyed_rocks,
             ground_truth: plan.ground_truth,
+            floor: plan.floor,
             painted,
             blocked,
             samples: plan.samples,
@@ -261,6 +263,15 @@ impl World {
                 quarters.iter().all(|dy| quarters.iter().all(|dx| self.is_drivable(x + dx, y + dy)))
             })
             .collect()
+    }
+
+    /// The cells of flat floor whose centre the rover can drive on (no rock there), row-major:
+    /// the ground an honest map holds as navigable. Wider than the ground truth, which leaves out
+    /// the floor at the foot of the walls (`floor_flat.png` against `map_bw.png`).
+    pub fn open_floor(&self) -> Vec<bool> {
+        let centre_is_drivable =
+            |cell: usize| self.is_drivable((cell % WORLD_SIZE) as f64 + 0.5, (cell / WORLD_SIZE) as f64 + 0.5);
+        self.floor.iter().enumerate().map(|(cell, &floor)| floor && centre_is_drivable(cell)).collect()
     }
 
     /// Cells as a `map_bw.png`-style PNG: true pixels white, the rest black (row = y,
@@ -459,5 +470,24 @@ mod tests {
         let centre_cell = |b: &Boulder| b.centre[1] as usize * WORLD_SIZE + b.centre[0] as usize;
         let under_boulders = world.boulders().iter().filter(|b| !drivable[centre_cell(b)]).count();
         assert_eq!(under_boulders, world.boulders().len(), "no boulder's centre is drivable");
+    }
+
+    #[test]
+    fn the_open_floor_is_the_floor_but_where_a_rock_stands() {
+        let spec = BoulderSpec { x_m: 100.5, y_m: 100.5, footprint_radius_m: 1.0, kind: BoulderKind::Lump };
+        let world = World::build(WorldPlan {
+            floor: rectangle(50..150, 94..106),
+            ground_truth: corridor(),
+            boulders: vec![Boulder::new(&spec, &mut SplitMix64::new(1))],
+            surveyed_rocks: vec![],
+            samples: vec![],
+            start: StartPose { x_m: 60.0, y_m: 100.0, yaw_deg: 0.0 },
+            ground: Ground::Generated { salt: 0 },
+        });
+        let open = world.open_floor();
+        let cell = |x: usize, y: usize| open[y * WORLD_SIZE + x];
+        assert!(!cell(100, 100), "under the rock");
+        assert!(cell(110, 100) && cell(110, 94), "the floor, also beyond the ground truth");
+        assert!(!cell(110, 93) && !cell(40, 100), "not the walls");
     }
 }

@@ -32,6 +32,8 @@ pub(crate) struct Evaluator {
     pub(crate) last_frame_at: Instant,
     frames: MissionFrames,
     clock: ModeClock,
+    /// The world's open floor, for the fidelity against it.
+    open_floor: Vec<bool>,
     /// The map, path and start so far; the samples are filled in at the end.
     mission_map: MissionMap,
 }
@@ -43,6 +45,7 @@ impl Evaluator {
             sim_seconds: 0.0,
             mapped_pct: 0.0,
             fidelity_pct: 0.0,
+            floor_fidelity_pct: 0.0,
             located: 0,
             collected: 0,
             mode: "starting".to_string(),
@@ -62,6 +65,7 @@ impl Evaluator {
             last_frame_at: Instant::now(),
             frames: MissionFrames::default(),
             clock: ModeClock::default(),
+            open_floor: world.open_floor(),
             mission_map,
         }
     }
@@ -75,6 +79,7 @@ impl Evaluator {
         let scores = occupancy_scores(&map.data, &self.mission_map.ground_truth);
         self.progress.mapped_pct = scores.mapped_pct;
         self.progress.fidelity_pct = scores.fidelity_pct;
+        self.progress.floor_fidelity_pct = occupancy_scores(&map.data, &self.open_floor).fidelity_pct;
         self.mission_map.occupancy.clone_from(&map.data);
     }
 

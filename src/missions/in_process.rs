@@ -63,6 +63,9 @@ pub struct Progress {
     pub mapped_pct: f64,
     /// Udacity fidelity %.
     pub fidelity_pct: f64,
+    /// Fidelity % against the world's open floor (`World::open_floor`) instead of the ground
+    /// truth, whose conservative edge leaves out the floor at the foot of the walls.
+    pub floor_fidelity_pct: f64,
     /// Samples located on the map at any time (collected ones stay counted).
     pub located: usize,
     /// Samples picked up.

@@ -23,12 +23,17 @@ pub struct ReplayArgs {
     /// Ground-truth map for the scores (200x200 PNG, navigable > 0).
     #[arg(long, value_name = "MAP_PNG")]
     pub ground_truth: Option<PathBuf>,
+    /// Where the floor really is, for a second fidelity against it: a PNG like the ground truth
+    /// (e.g. ../shared/udacity-world/floor_flat.png, which also holds the floor at the foot of
+    /// the walls that map_bw.png leaves out).
+    #[arg(long, value_name = "FLOOR_PNG")]
+    pub floor: Option<PathBuf>,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
     /// Publish the frames over DDS as the bridge would and score the map of the running
     /// perception and mapping nodes (start mapping with -p ground_truth_png:=MAP for the scores).
-    #[arg(long, conflicts_with = "ground_truth")]
+    #[arg(long, conflicts_with_all = ["ground_truth", "floor"])]
     pub via_dds: bool,
 }
 
@@ -47,6 +52,8 @@ pub struct ReplayReport {
     pub mapped_pct: Option<f64>,
     /// Udacity fidelity %, if a ground truth was given.
     pub fidelity_pct: Option<f64>,
+    /// Fidelity % against the floor image, if one was given.
+    pub floor_fidelity_pct: Option<f64>,
     /// Distinct rocks located.
     pub rocks_located: usize,
     /// Navigable cells of the map.
@@ -94,6 +101,7 @@ pub fn replay_frames(
     perception: &PerceptionParams,
     mapping: &MappingParams,
     ground_truth: Option<&[bool]>,
+    floor: Option<&[bool]>,
 ) -> anyhow::Result<(ReplayReport, WorldMap)> {
     let (mut pipeline, geometry) = perception.pipeline()?;
     let mut map = WorldMap::new(mapping.map_config());
@@ -131,6 +139,7 @@ pub fn replay_frames(
         frames_rejected: rejected,
         mapped_pct: scores.map(|s| s.mapped_pct),
         fidelity_pct: scores.map(|s| s.fidelity_pct),
+        floor_fidelity_pct: floor.map(|floor| occupancy_scores(&occupancy, floor).fidelity_pct),
         rocks_located: map.rocks(&occupancy, mapping.rock_merge_m).len(),
         navigable_cells: occupancy_counts(&occupancy).0,
         perception_ms_median: median_ms(perception_times),
@@ -139,7 +148,7 @@ pub fn replay_frames(
     Ok((report, map))
 }
 
-/// Reads a ground-truth PNG.
+/// Reads a ground-truth (or floor) PNG.
 pub fn read_ground_truth(path: &Path) -> anyhow::Result<Vec<bool>> {
     let png = rover_files::read_at_most(path, rover_imaging::MAX_IMAGE_FILE_BYTES)?;
     ground_truth_from_png(&png).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
@@ -149,7 +158,8 @@ pub fn read_ground_truth(path: &Path) -> anyhow::Result<Vec<bool>> {
 pub fn run(args: &ReplayArgs, perception: &PerceptionParams, mapping: &MappingParams) -> anyhow::Result<ReplayReport> {
     let frames = read_log(&args.dataset)?.frames;
     let truth = args.ground_truth.as_deref().map(read_ground_truth).transpose()?;
-    let (report, _) = replay_frames(&frames, perception, mapping, truth.as_deref())?;
+    let floor = args.floor.as_deref().map(read_ground_truth).transpose()?;
+    let (report, _) = replay_frames(&frames, perception, mapping, truth.as_deref(), floor.as_deref())?;
     print_report(args, &report)?;
     Ok(report)
 }
@@ -183,6 +193,7 @@ fn print_table(report: &ReplayReport) {
     );
     println!("mapped                {:>8}", percent(report.mapped_pct));
     println!("fidelity              {:>8}", percent(report.fidelity_pct));
+    println!("fidelity on the floor {:>8}", percent(report.floor_fidelity_pct));
     println!("rocks located         {:>8}", report.rocks_located);
     println!("navigable cells       {:>8}", report.navigable_cells);
     println!(

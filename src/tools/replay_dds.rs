@@ -100,6 +100,7 @@ pub(super) async fn replay_over_dds(frames: &[RecordedFrame], runtime: &Runtime)
         frames_rejected: lost,
         mapped_pct: finite(final_stats.mapped_pct),
         fidelity_pct: finite(final_stats.fidelity_pct),
+        floor_fidelity_pct: None,
         rocks_located: final_stats.rocks_located as usize,
         navigable_cells: final_stats.navigable_cells as usize,
         perception_ms_median: median,
