@@ -143,7 +143,8 @@ impl Steering {
         }
         match free.best_toward(bearing_rad as f32, params.clearance_m as f32) {
             Some(direction) => {
-                let stoppable_mps = speed_to_stop_within(free.toward(direction) as f64, params);
+                let room_m = free.longest_within(direction, ROOM_HALF_ANGLE_DEG.to_radians());
+                let stoppable_mps = speed_to_stop_within(room_m as f64, params);
                 let target_mps = stoppable_mps.clamp(MIN_CRUISE_MPS.min(cruise_mps), cruise_mps);
                 self.toward(direction as f64, target_mps, speed_mps, params)
             }
@@ -154,6 +155,11 @@ impl Steering {
         }
     }
 }
+
+/// Ahead of obstacles the speed counts the free ground within this angle either side of the
+/// chosen direction, degrees: under way the rover steers that far within a few metres, so a wall
+/// straight ahead where the way bends calls for no stop.
+const ROOM_HALF_ANGLE_DEG: f32 = 15.0;
 
 /// A turn in place to the left (or right), once the rover has all but stopped: braking until then.
 fn stop_then_turn(left: bool, speed_mps: f64, params: &DecisionParams) -> Drive {
@@ -303,6 +309,15 @@ mod tests {
         let open = Steering::default().around_obstacles(0.0, p.max_speed_mps, 3.0, &lane(6.0), &p);
         let short = Steering::default().around_obstacles(0.0, p.max_speed_mps, 3.0, &lane(1.5), &p);
         assert!(open.throttle > 0.0 && short.brake > 0.0, "open {open:?}, short {short:?}");
+        let bend = FreeSpace {
+            directions_rad: [-20f32, -10.0, 0.0, 10.0, 20.0].map(f32::to_radians).to_vec(),
+            free_m: vec![1.5, 1.5, 1.5, 6.0, 6.0],
+        };
+        let into_bend = Steering::default().around_obstacles(0.0, p.max_speed_mps, 3.0, &bend, &p);
+        assert!(into_bend.brake == 0.0, "the way bends left within reach: {into_bend:?}");
+        let walled = FreeSpace { free_m: vec![1.5, 1.5, 1.5, 1.5, 6.0], ..bend };
+        let at_wall = Steering::default().around_obstacles(0.0, p.max_speed_mps, 3.0, &walled, &p);
+        assert!(at_wall.brake > 0.0, "free only 20 degrees off: {at_wall:?}");
     }
 
     #[test]

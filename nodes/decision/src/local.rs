@@ -75,6 +75,18 @@ impl FreeSpace {
         self.free_m.get(index).copied().unwrap_or(0.0)
     }
 
+    /// The longest free distance of the directions within `half_angle_rad` of `bearing_rad`: the
+    /// room ahead the rover can still steer into.
+    pub(crate) fn longest_within(&self, bearing_rad: f32, half_angle_rad: f32) -> f32 {
+        let within = |direction: f32| (direction - bearing_rad).abs() <= half_angle_rad + ANGLE_TOLERANCE_RAD;
+        self.directions_rad
+            .iter()
+            .zip(&self.free_m)
+            .filter(|&(&d, _)| within(d))
+            .map(|(_, &free)| free)
+            .fold(0.0, f32::max)
+    }
+
     /// The direction closest to `bearing_rad` with at least `clearance_m` free, if any.
     pub fn best_toward(&self, bearing_rad: f32, clearance_m: f32) -> Option<f32> {
         self.directions_rad
@@ -94,6 +106,9 @@ impl FreeSpace {
             .map_or(0.0, |(&d, _)| d)
     }
 }
+
+/// Directions this close count as the same, radians (they are laid out in single precision).
+const ANGLE_TOLERANCE_RAD: f32 = 1e-4;
 
 /// A lane is blocked where this many cells that are not navigable (obstacle or rock) lie within
 /// [`BLOCKING_SPAN_CELLS`] consecutive cells of it; fewer are specks, not obstacles (the real
@@ -255,5 +270,8 @@ mod tests {
         assert!(chosen > 0.0, "steers left of the wall: {chosen}");
         assert!(space.most_open() > 0.0);
         assert!(space.toward(0.0) > 2.9, "the blind strip in front counts as free");
+        let (ahead, around) = (space.toward(-10f32.to_radians()), space.longest_within(-10f32.to_radians(), 0.7));
+        assert!(around > ahead && around <= space.toward(30f32.to_radians()), "{ahead} ahead, {around} around");
+        assert_eq!(space.longest_within(-30f32.to_radians(), 0.0), right, "a window of one direction");
     }
 }
