@@ -7,11 +7,7 @@ mod support;
 
 use std::process::Command;
 
-use support::{map_bw_png, number, rover, shared_dir, surveyed_world_args, test_dataset_dir};
-
-fn shared(path: &str) -> String {
-    shared_dir().join(path).display().to_string()
-}
+use support::{map_bw_png, number, rover, shared_path, surveyed_world_args, test_dataset_dir};
 
 /// Runs `rover` with `args` and `--json`; its JSON output.
 fn rover_json(args: &[String]) -> serde_json::Value {
@@ -30,10 +26,16 @@ fn assert_wrong_ground_is_floor(what: &str, report: &serde_json::Value) {
 
 #[test]
 fn the_real_frames_map_floor_where_map_bw_scores_them_wrong() {
-    let recording = shared("udacity/recordings/tzyhpcom-2018-03-03");
+    let recording = shared_path("udacity/recordings/tzyhpcom-2018-03-03");
     for dataset in [test_dataset_dir(), recording] {
-        let args =
-            ["replay", &dataset, "--ground-truth", &map_bw_png(), "--floor", &shared("udacity-world/floor_flat.png")];
+        let args = [
+            "replay",
+            &dataset,
+            "--ground-truth",
+            &map_bw_png(),
+            "--floor",
+            &shared_path("udacity-world/floor_flat.png"),
+        ];
         let report = rover_json(&args.map(String::from));
         assert_wrong_ground_is_floor(&dataset, &report);
     }

@@ -6,10 +6,6 @@ mod support;
 
 use std::process::Command;
 
-fn shared(path: &str) -> String {
-    support::shared_dir().join(path).to_string_lossy().into_owned()
-}
-
 /// `rover eval --in-process` with `args`: its JSON results, or its stderr when it fails.
 fn eval(args: &[&str]) -> Result<serde_json::Value, String> {
     let output = Command::new(support::rover())
@@ -25,8 +21,8 @@ fn eval(args: &[&str]) -> Result<serde_json::Value, String> {
 }
 
 fn unity_map_with(start: &str) -> Vec<String> {
-    let map = shared("udacity/calibration_images/map_bw.png");
-    let floor = shared("udacity-world/floor_flat.png");
+    let map = support::map_bw_png();
+    let floor = support::shared_path("udacity-world/floor_flat.png");
     ["--map", &map, "--floor", &floor, &format!("--start={start}"), "--seeds", "0"].map(String::from).to_vec()
 }
 

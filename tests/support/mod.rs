@@ -31,24 +31,28 @@ pub(crate) fn shared_dir() -> PathBuf {
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared"))
 }
 
+/// The path of `path` inside the shared data folder, as a command-line argument.
+pub(crate) fn shared_path(path: &str) -> String {
+    shared_dir().join(path).display().to_string()
+}
+
 /// `map_bw.png`, the ground truth of the Udacity world.
 pub(crate) fn map_bw_png() -> String {
-    shared_dir().join("udacity/calibration_images/map_bw.png").display().to_string()
+    shared_path("udacity/calibration_images/map_bw.png")
 }
 
 /// The options of the surveyed Unity world: `map_bw.png` with the surveyed ground and rocks.
 pub(crate) fn surveyed_world_args() -> Vec<String> {
-    let shared = |path: &str| shared_dir().join(path).display().to_string();
-    ["--map", &map_bw_png(), "--elevation", &shared("udacity-world/elevation_cm.png")]
+    ["--map", &map_bw_png(), "--elevation", &shared_path("udacity-world/elevation_cm.png")]
         .into_iter()
         .map(String::from)
-        .chain(["--rocks".into(), shared("udacity-world/rocks.json")])
+        .chain(["--rocks".into(), shared_path("udacity-world/rocks.json")])
         .collect()
 }
 
 /// The 283 recorded Udacity frames (`robot_log.csv` and `IMG/`).
 pub(crate) fn test_dataset_dir() -> String {
-    shared_dir().join("udacity/test_dataset").display().to_string()
+    shared_path("udacity/test_dataset")
 }
 
 /// The number at `key` of a JSON object, or a panic naming the key and the object.
