@@ -3,7 +3,7 @@
 //! centimetres, pixel (i, j) at x = 0.5 i, y = 0.5 j.
 
 use crate::terrain::{NODES_PER_M, TERRAIN_STEP_M};
-use crate::world::{WORLD_SIZE, WorldError};
+use crate::world::{WORLD_SIZE, WorldError, cell_centre};
 
 /// Spacing of the survey's samples, metres.
 const SURVEY_STEP_M: f64 = 0.5;
@@ -61,7 +61,10 @@ impl Elevation {
     /// The cells whose centre is below half a metre: the floor, as `floor_flat.png` marks it.
     pub fn floor(&self) -> Vec<bool> {
         (0..WORLD_SIZE * WORLD_SIZE)
-            .map(|c| self.height_at((c % WORLD_SIZE) as f64 + 0.5, (c / WORLD_SIZE) as f64 + 0.5) < FLOOR_BELOW_M)
+            .map(|cell| {
+                let (x_m, y_m) = cell_centre(cell);
+                self.height_at(x_m, y_m) < FLOOR_BELOW_M
+            })
             .collect()
     }
 }

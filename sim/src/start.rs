@@ -5,7 +5,7 @@
 use std::str::FromStr;
 
 use crate::random::{SplitMix64, mix64};
-use crate::world::{StartPose, WORLD_SIZE, World, reached_from};
+use crate::world::{StartPose, WORLD_SIZE, World, cell_centre, reached_from};
 
 /// Every 1 m cell within this many cells of a random start is drivable all over: the rover does
 /// not start touching a wall or a rock.
@@ -80,10 +80,6 @@ pub(crate) fn random_start(world: &World, seed: u64) -> Result<StartPose, StartE
 fn cell_of(x_m: f64, y_m: f64) -> usize {
     let clamp = |v: f64| (v.max(0.0) as usize).min(WORLD_SIZE - 1);
     clamp(y_m) * WORLD_SIZE + clamp(x_m)
-}
-
-fn cell_centre(cell: usize) -> (f64, f64) {
-    ((cell % WORLD_SIZE) as f64 + 0.5, (cell / WORLD_SIZE) as f64 + 0.5)
 }
 
 fn has_room_around(drivable: &[bool], cell: usize) -> bool {

@@ -269,8 +269,10 @@ impl World {
     /// the ground an honest map holds as navigable. Wider than the ground truth, which leaves out
     /// the floor at the foot of the walls (`floor_flat.png` against `map_bw.png`).
     pub fn open_floor(&self) -> Vec<bool> {
-        let centre_is_drivable =
-            |cell: usize| self.is_drivable((cell % WORLD_SIZE) as f64 + 0.5, (cell / WORLD_SIZE) as f64 + 0.5);
+        let centre_is_drivable = |cell: usize| {
+            let (x_m, y_m) = cell_centre(cell);
+            self.is_drivable(x_m, y_m)
+        };
         self.floor.iter().enumerate().map(|(cell, &floor)| floor && centre_is_drivable(cell)).collect()
     }
 
@@ -379,6 +381,11 @@ pub fn reached_from(floor: &[bool], from: usize) -> Vec<bool> {
         }
     }
     seen
+}
+
+/// The centre of the row-major cell `cell`, metres (x, y).
+pub(crate) fn cell_centre(cell: usize) -> (f64, f64) {
+    ((cell % WORLD_SIZE) as f64 + 0.5, (cell / WORLD_SIZE) as f64 + 0.5)
 }
 
 /// A mask that is true on the cells of columns `columns` in rows `rows`, for tests.
