@@ -75,7 +75,7 @@ fn a_mission_runs_across_a_delayed_lossy_link_and_leaves_nothing_behind() {
 
 #[test]
 fn a_cut_link_brakes_the_rover_once_the_silence_limit_has_passed() {
-    let (run, stderr) = run_over(&["--delay-ms", "5", "--cut-after-s", "6"], "30");
+    let (run, stderr) = run_over(&["--delay-ms", "5", "--cut-after-packets", "6000"], "15");
     let count = |key: &str| run[key].as_u64().unwrap_or_else(|| panic!("{key} in {run}"));
     assert!(run["distance_m"].as_f64().is_some_and(|d| d > 1.0), "it drove before the cut: {run}");
     assert!(count("silence_brakes") > 25, "more than a second of braked frames after the cut: {run}");

@@ -1,22 +1,25 @@
 //! An impaired network link, packet by packet: one-way delay, jitter and loss, as `netem` would
-//! apply them (this kernel has no `netem`). Packets keep their order: one that would overtake the
-//! packet before it leaves right after it instead, as on a Wi-Fi link.
+//! apply them (this kernel has no `netem`), and a cut after a number of packets. Packets keep their
+//! order: one that would overtake the packet before it leaves right after it instead, as on a
+//! Wi-Fi link.
 
 use std::time::{Duration, Instant};
 
 use rover_sim::random::SplitMix64;
 
-/// What the link does to every packet in one direction.
+/// What the link does to the packets.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Impairment {
     /// Mean one-way delay.
     pub delay: Duration,
     /// Each packet's delay is the mean plus a uniform draw in [-jitter, +jitter].
     pub jitter: Duration,
-    /// Share of packets lost, percent.
+    /// Share of packets lost in each direction, percent.
     pub loss_pct: f64,
-    /// From this instant on every packet is lost: the link is cut (`None`: never).
-    pub cut_at: Option<Instant>,
+    /// Once this many packets have entered the link, both directions together, every later packet
+    /// is lost: the link is cut (`None`: never). Counted in packets, not seconds, so that the cut
+    /// lands at the same point of a lock-step mission on a fast machine as on a slow one.
+    pub cut_after_packets: Option<u64>,
 }
 
 /// What became of the packets of one direction so far.
@@ -30,41 +33,62 @@ pub struct LinkCounts {
     pub bytes: u64,
 }
 
-/// One direction of an impaired link: decides each packet's fate.
+/// One of the link's two directions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Way {
+    AToB,
+    BToA,
+}
+
+/// Both directions of an impaired link: decides each packet's fate.
 #[derive(Debug, Clone)]
-pub struct Direction {
+pub struct Link {
     impairment: Impairment,
+    directions: [Direction; 2],
+}
+
+/// The draws, the last departure and the counts of one direction.
+#[derive(Debug, Clone)]
+struct Direction {
     random: SplitMix64,
     last_departure: Option<Instant>,
     counts: LinkCounts,
 }
 
-impl Direction {
-    /// A direction applying `impairment`, its draws seeded by `seed`.
+impl Link {
+    /// A link applying `impairment`, its draws seeded by `seed` (a to b) and `seed + 1` (b to a).
     pub fn new(impairment: Impairment, seed: u64) -> Self {
-        Direction { impairment, random: SplitMix64::new(seed), last_departure: None, counts: LinkCounts::default() }
+        let direction =
+            |seed| Direction { random: SplitMix64::new(seed), last_departure: None, counts: LinkCounts::default() };
+        Link { impairment, directions: [direction(seed), direction(seed.wrapping_add(1))] }
     }
 
-    /// When a packet of `bytes` that entered the link at `arrival` leaves it, or `None` when it
-    /// is lost.
-    pub fn departure(&mut self, arrival: Instant, bytes: usize) -> Option<Instant> {
-        self.counts.packets += 1;
-        self.counts.bytes += bytes as u64;
-        let cut = self.impairment.cut_at.is_some_and(|at| arrival >= at);
-        if cut || self.random.unit() * 100.0 < self.impairment.loss_pct {
-            self.counts.lost += 1;
+    /// When a packet of `bytes` that entered the link going `way` at `arrival` leaves it, or
+    /// `None` when it is lost.
+    pub fn departure(&mut self, way: Way, arrival: Instant, bytes: usize) -> Option<Instant> {
+        let cut = self.impairment.cut_after_packets.is_some_and(|limit| self.packets() >= limit);
+        let impairment = self.impairment;
+        let direction = &mut self.directions[way as usize];
+        direction.counts.packets += 1;
+        direction.counts.bytes += bytes as u64;
+        if cut || direction.random.unit() * 100.0 < impairment.loss_pct {
+            direction.counts.lost += 1;
             return None;
         }
-        let jitter_s = self.impairment.jitter.as_secs_f64() * self.random.range(-1.0, 1.0);
-        let delay_s = (self.impairment.delay.as_secs_f64() + jitter_s).max(0.0);
-        let departure = (arrival + Duration::from_secs_f64(delay_s)).max(self.last_departure.unwrap_or(arrival));
-        self.last_departure = Some(departure);
+        let jitter_s = impairment.jitter.as_secs_f64() * direction.random.range(-1.0, 1.0);
+        let delay_s = (impairment.delay.as_secs_f64() + jitter_s).max(0.0);
+        let departure = (arrival + Duration::from_secs_f64(delay_s)).max(direction.last_departure.unwrap_or(arrival));
+        direction.last_departure = Some(departure);
         Some(departure)
     }
 
-    /// The packets seen and lost so far.
-    pub fn counts(&self) -> LinkCounts {
-        self.counts
+    /// The packets seen and lost so far going `way`.
+    pub fn counts(&self, way: Way) -> LinkCounts {
+        self.directions[way as usize].counts
+    }
+
+    fn packets(&self) -> u64 {
+        self.directions.iter().map(|d| d.counts.packets).sum()
     }
 }
 
@@ -77,19 +101,19 @@ mod tests {
             delay: Duration::from_millis(delay_ms),
             jitter: Duration::from_millis(jitter_ms),
             loss_pct,
-            cut_at: None,
+            cut_after_packets: None,
         }
     }
 
     #[test]
     fn packets_are_delayed_within_the_jitter_and_never_reordered() {
-        let mut link = Direction::new(impairment(10, 2, 0.0), 7);
+        let mut link = Link::new(impairment(10, 2, 0.0), 7);
         let start = Instant::now();
         let mut last = start;
         let (mut shortest, mut longest) = (Duration::MAX, Duration::ZERO);
         for i in 0..10_000u64 {
             let arrival = start + Duration::from_micros(50 * i);
-            let departure = link.departure(arrival, 100).expect("no loss asked");
+            let departure = link.departure(Way::AToB, arrival, 100).expect("no loss asked");
             assert!(departure >= last, "packet {i} overtook the one before it");
             last = departure;
             let delay = departure - arrival;
@@ -102,30 +126,32 @@ mod tests {
 
     #[test]
     fn the_share_lost_is_the_share_asked() {
-        let mut link = Direction::new(impairment(0, 0, 1.0), 3);
+        let mut link = Link::new(impairment(0, 0, 1.0), 3);
         let now = Instant::now();
-        let delivered = (0..100_000).filter(|_| link.departure(now, 100).is_some()).count();
-        let counts = link.counts();
+        let delivered = (0..100_000).filter(|_| link.departure(Way::BToA, now, 100).is_some()).count();
+        let counts = link.counts(Way::BToA);
         assert_eq!((counts.packets, counts.bytes), (100_000, 10_000_000));
         assert_eq!(counts.lost as usize, 100_000 - delivered);
         assert!((800..1200).contains(&counts.lost), "{counts:?}");
+        assert_eq!(link.counts(Way::AToB), LinkCounts::default());
     }
 
     #[test]
-    fn a_cut_link_loses_every_packet_from_the_cut_on() {
-        let start = Instant::now();
-        let cut_at = start + Duration::from_secs(1);
-        let mut link = Direction::new(Impairment { cut_at: Some(cut_at), ..impairment(5, 0, 0.0) }, 2);
-        assert!(link.departure(start, 100).is_some());
-        assert!(link.departure(cut_at - Duration::from_millis(1), 100).is_some());
-        assert!((0..100).all(|i| link.departure(cut_at + Duration::from_millis(i), 100).is_none()));
-        assert_eq!(link.counts().lost, 100);
+    fn a_cut_link_loses_every_packet_both_ways_once_the_count_is_reached() {
+        let mut link = Link::new(Impairment { cut_after_packets: Some(3), ..impairment(5, 0, 0.0) }, 2);
+        let now = Instant::now();
+        assert!(link.departure(Way::AToB, now, 100).is_some());
+        assert!(link.departure(Way::BToA, now, 100).is_some());
+        assert!(link.departure(Way::AToB, now, 100).is_some());
+        assert!((0..50).all(|_| link.departure(Way::AToB, now, 100).is_none()));
+        assert!((0..50).all(|_| link.departure(Way::BToA, now, 100).is_none()));
+        assert_eq!((link.counts(Way::AToB).lost, link.counts(Way::BToA).lost), (50, 50));
     }
 
     #[test]
     fn an_unimpaired_link_passes_every_packet_at_once() {
-        let mut link = Direction::new(impairment(0, 0, 0.0), 1);
+        let mut link = Link::new(impairment(0, 0, 0.0), 1);
         let now = Instant::now();
-        assert!((0..1000).all(|_| link.departure(now, 100) == Some(now)));
+        assert!((0..1000).all(|_| link.departure(Way::AToB, now, 100) == Some(now)));
     }
 }

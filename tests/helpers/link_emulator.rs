@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::Parser;
-use rover::processes::link::{Direction, Impairment, LinkCounts};
+use rover::processes::link::{Impairment, Link, LinkCounts, Way};
 use rover_runtime::{Shutdown, logging};
 
 /// Largest packet a TUN device hands over (its MTU is 1500; this leaves room).
@@ -43,9 +43,10 @@ struct Args {
     /// Share of packets lost in each direction, percent.
     #[arg(long, value_name = "PCT", default_value_t = 0.0)]
     loss_pct: f64,
-    /// Cut the link this many seconds after it came up: from then on every packet is lost.
-    #[arg(long, value_name = "SECONDS")]
-    cut_after_s: Option<f64>,
+    /// Cut the link once this many packets have entered it, both ways together: from then on
+    /// every packet is lost.
+    #[arg(long, value_name = "PACKETS")]
+    cut_after_packets: Option<u64>,
     /// Seed of the delays and losses.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -65,16 +66,11 @@ impl Args {
             "--loss-pct {}: expected 0 to 100",
             self.loss_pct
         );
-        let cut_at = match self.cut_after_s {
-            Some(s) if s.is_finite() && s >= 0.0 => Some(Instant::now() + Duration::from_secs_f64(s)),
-            Some(s) => anyhow::bail!("--cut-after-s {s}: expected a number of seconds, 0 or more"),
-            None => None,
-        };
         Ok(Impairment {
             delay: millis("delay-ms", self.delay_ms)?,
             jitter: millis("jitter-ms", self.jitter_ms)?,
             loss_pct: self.loss_pct,
-            cut_at,
+            cut_after_packets: self.cut_after_packets,
         })
     }
 }
@@ -85,8 +81,9 @@ fn main() -> anyhow::Result<()> {
     let impairment = args.impairment()?;
     let a = open_tun_in(&args.netns_a, &args.device)?;
     let b = open_tun_in(&args.netns_b, &args.device)?;
-    let a_to_b = forward("a->b", a.try_clone()?, b.try_clone()?, Direction::new(impairment, args.seed));
-    let b_to_a = forward("b->a", b, a, Direction::new(impairment, args.seed.wrapping_add(1)));
+    let link = Arc::new(Mutex::new(Link::new(impairment, args.seed)));
+    forward(Way::AToB, a.try_clone()?, b.try_clone()?, link.clone());
+    forward(Way::BToA, b, a, link.clone());
     tracing::info!(
         "link up: {} in {} <-> {} in {}; delay {} ms, jitter {} ms, loss {} %",
         args.device,
@@ -104,20 +101,20 @@ fn main() -> anyhow::Result<()> {
         loop {
             tokio::select! {
                 () = shutdown.wait() => break,
-                _ = report.tick() => log_counts(&a_to_b, &b_to_a),
+                _ = report.tick() => log_counts(&link),
             }
         }
     });
-    log_counts(&a_to_b, &b_to_a);
+    log_counts(&link);
     Ok(())
 }
 
-fn log_counts(a_to_b: &Mutex<Direction>, b_to_a: &Mutex<Direction>) {
-    let counts = |direction: &Mutex<Direction>| direction.lock().map(|d| d.counts()).unwrap_or_default();
-    let line = |counts: LinkCounts| {
+fn log_counts(link: &Mutex<Link>) {
+    let line = |way: Way| {
+        let counts: LinkCounts = link.lock().map(|l| l.counts(way)).unwrap_or_default();
         format!("{} packets ({} lost), {:.1} MB", counts.packets, counts.lost, counts.bytes as f64 / 1e6)
     };
-    tracing::info!("a->b {}; b->a {}", line(counts(a_to_b)), line(counts(b_to_a)));
+    tracing::info!("a->b {}; b->a {}", line(Way::AToB), line(Way::BToA));
 }
 
 /// Opens a TUN device called `name` inside the network namespace at `netns` (from a thread of its
@@ -154,12 +151,14 @@ fn open_tun_in(netns: &Path, name: &str) -> anyhow::Result<File> {
     .map_err(|_| anyhow::anyhow!("the thread opening the TUN device panicked"))?
 }
 
-/// Forwards packets read from `from` to `to` through `direction`, on two threads: one reads and
-/// decides each packet's fate, one writes each packet when it is due.
-fn forward(label: &'static str, mut from: File, mut to: File, direction: Direction) -> Arc<Mutex<Direction>> {
-    let direction = Arc::new(Mutex::new(direction));
+/// Forwards packets read from `from` to `to` going `way` through `link`, on two threads: one
+/// reads and decides each packet's fate, one writes each packet when it is due.
+fn forward(way: Way, mut from: File, mut to: File, link: Arc<Mutex<Link>>) {
+    let label = match way {
+        Way::AToB => "a->b",
+        Way::BToA => "b->a",
+    };
     let (due, delivery) = mpsc::channel::<(Instant, Vec<u8>)>();
-    let deciding = direction.clone();
     std::thread::spawn(move || {
         let mut buffer = vec![0u8; MAX_PACKET_BYTES];
         loop {
@@ -170,7 +169,7 @@ fn forward(label: &'static str, mut from: File, mut to: File, direction: Directi
                     return;
                 }
             };
-            let departure = deciding.lock().expect("link lock").departure(Instant::now(), length);
+            let departure = link.lock().expect("link lock").departure(way, Instant::now(), length);
             if let Some(at) = departure
                 && due.send((at, buffer[..length].to_vec())).is_err()
             {
@@ -186,5 +185,4 @@ fn forward(label: &'static str, mut from: File, mut to: File, direction: Directi
             }
         }
     });
-    direction
 }
