@@ -58,16 +58,6 @@ fn run_over(link: &[&str], sim_seconds: &str) -> (serde_json::Value, String) {
 }
 
 #[test]
-fn help_prints_the_whole_usage() {
-    let Output { status, stdout, .. } = two_hosts(&["--help"]).output().expect("run tools/two-hosts --help");
-    let usage = String::from_utf8_lossy(&stdout);
-    assert!(status.success(), "{usage}");
-    assert!(usage.starts_with("two-hosts [--delay-ms MS]") && usage.contains("--cut-after-packets"), "{usage}");
-    assert!(usage.contains("cargo build --release --example link_emulator"), "its last line: {usage}");
-    assert!(!usage.contains("set -euo"), "the comment only: {usage}");
-}
-
-#[test]
 fn a_mission_runs_across_a_delayed_lossy_link_and_leaves_nothing_behind() {
     let (run, stderr) = run_over(&["--delay-ms", "10", "--jitter-ms", "2", "--loss-pct", "1"], "15");
     let number = |key: &str| run[key].as_f64().unwrap_or_else(|| panic!("{key} in {run}"));
