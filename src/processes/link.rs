@@ -33,11 +33,13 @@ pub struct LinkCounts {
     pub bytes: u64,
 }
 
-/// One of the link's two directions.
+/// One of the link's two directions (its index into [`Link`]'s directions).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Way {
-    AToB,
-    BToA,
+    /// From end a to end b.
+    AToB = 0,
+    /// From end b to end a.
+    BToA = 1,
 }
 
 /// Both directions of an impaired link: decides each packet's fate.
@@ -87,6 +89,7 @@ impl Link {
         self.directions[way as usize].counts
     }
 
+    /// The packets that entered the link so far, both ways together.
     fn packets(&self) -> u64 {
         self.directions.iter().map(|d| d.counts.packets).sum()
     }
