@@ -114,7 +114,15 @@ fn log_counts(link: &Mutex<Link>) {
         let counts: LinkCounts = link.lock().map(|l| l.counts(way)).unwrap_or_default();
         format!("{} packets ({} lost), {:.1} MB", counts.packets, counts.lost, counts.bytes as f64 / 1e6)
     };
-    tracing::info!("a->b {}; b->a {}", line(Way::AToB), line(Way::BToA));
+    tracing::info!("{} {}; {} {}", label(Way::AToB), line(Way::AToB), label(Way::BToA), line(Way::BToA));
+}
+
+/// How the log names `way`.
+fn label(way: Way) -> &'static str {
+    match way {
+        Way::AToB => "a->b",
+        Way::BToA => "b->a",
+    }
 }
 
 /// Opens a TUN device called `name` inside the network namespace at `netns` (from a thread of its
@@ -154,10 +162,7 @@ fn open_tun_in(netns: &Path, name: &str) -> anyhow::Result<File> {
 /// Forwards packets read from `from` to `to` going `way` through `link`, on two threads: one
 /// reads and decides each packet's fate, one writes each packet when it is due.
 fn forward(way: Way, mut from: File, mut to: File, link: Arc<Mutex<Link>>) {
-    let label = match way {
-        Way::AToB => "a->b",
-        Way::BToA => "b->a",
-    };
+    let label = label(way);
     let (due, delivery) = mpsc::channel::<(Instant, Vec<u8>)>();
     std::thread::spawn(move || {
         let mut buffer = vec![0u8; MAX_PACKET_BYTES];
